@@ -1,0 +1,28 @@
+"""Glint's core: a pure Python + NumPy ray tracer for spheres and point lights (no bpy).
+
+Public API::
+
+    from core import (Scene, Sphere, Material, PointLight, ScreenCamera, BlenderCamera,
+                      RenderSettings, render, article_scene, SceneError, RenderCancelled)
+
+    result = render(scene, RenderSettings(...), progress=None, should_cancel=None)
+    result.image      # (H, W, 4) float64 or float32, row 0 = TOP; RGB clipped to [0, 1];
+                      # alpha = fraction of the pixel whose camera ray hit a sphere
+    result.stats      # RayStats: camera_rays, shadow_rays, reflection_rays, ...
+    result.precision  # 'float64' or 'float32', the precision the render ran in
+
+``progress(fraction)`` is called as tiles finish; ``should_cancel()`` is polled between tiles
+and a True answer raises RenderCancelled.  Invalid scenes or settings raise SceneError (a
+ValueError) naming the field, before any ray is traced.
+"""
+
+from .scene import (BlenderCamera, Material, PointLight, RenderSettings, Scene, SceneError,
+                    ScreenCamera, Sphere)
+from .render import RayStats, RenderCancelled, RenderResult, render
+from .article import article_scene, article_settings
+
+__all__ = [
+    "BlenderCamera", "Material", "PointLight", "RenderSettings", "Scene", "SceneError",
+    "ScreenCamera", "Sphere", "RayStats", "RenderCancelled", "RenderResult", "render",
+    "article_scene", "article_settings",
+]

@@ -1,0 +1,136 @@
+"""Camera ray generation.
+
+Pixels are addressed in image coordinates: column x in [0, W), row y in [0, H) with row 0 at
+the TOP; the pixel (c, r) covers [c, c + 1) x [r, r + 1), and a sample at (c + 0.5, r + 0.5) is
+its centre.  ``camera_rays`` maps sample positions (n,) x (n,) to rays.
+
+Blender's camera (``BKE_camera_params_compute_viewplane``, Cycles ``blender_camera_viewplane``)
+puts pixel (i, j), j = 0 at the bottom, at u = off_x + (2 (i + .5) / W - 1) half_w,
+v = off_y + (2 (j + .5) / H - 1) half_h on the plane z = -1 of camera space.  The article's
+camera puts pixel centres at ``linspace`` positions, both ends included.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .scene import BlenderCamera, Camera, ScreenCamera
+
+
+@dataclass(frozen=True)
+class ViewPlane:
+    """Blender's view plane in camera space: half sizes and offset of the z = -1 (or ortho) plane."""
+
+    half_width: float
+    half_height: float
+    offset_x: float
+    offset_y: float
+
+
+def blender_view_plane(camera: BlenderCamera) -> ViewPlane:
+    """The camera-space window Blender renders, from the formulas in the module docstring."""
+    x_ratio = camera.width * camera.pixel_aspect_x
+    y_ratio = camera.height * camera.pixel_aspect_y
+    horizontal = camera.sensor_fit == "HORIZONTAL" or (
+        camera.sensor_fit == "AUTO" and x_ratio >= y_ratio)
+    sensor = camera.sensor_height if camera.sensor_fit == "VERTICAL" else camera.sensor_width
+    size = camera.ortho_scale if camera.projection == "ORTHO" else sensor / camera.lens
+    if horizontal:
+        half_w = size / 2
+        half_h = half_w * y_ratio / x_ratio
+    else:
+        half_h = size / 2
+        half_w = half_h * x_ratio / y_ratio
+    return ViewPlane(half_w, half_h, camera.shift_x * size, camera.shift_y * size)
+
+
+def camera_to_world(camera: BlenderCamera) -> tuple[np.ndarray, np.ndarray]:
+    """(rotation (3, 3) with unit columns, translation (3,)) of the camera, scale removed."""
+    matrix = np.asarray(camera.matrix_world, np.float64)
+    rotation = matrix[:3, :3]
+    rotation = rotation / np.linalg.norm(rotation, axis=0, keepdims=True)
+    return rotation, matrix[:3, 3].copy()
+
+
+@dataclass(frozen=True)
+class CameraRays:
+    """Rays for n samples.
+
+    origins: (n, 3), or (1, 3) when all rays share the camera's eye (perspective cameras).
+    directions: (n, 3) unit vectors.
+    t_min, t_max: (n,) distances along each ray where hits count (Blender's clip planes,
+        measured along the view axis, become per-ray distances); scalars 0 / inf if unclipped.
+    """
+
+    origins: np.ndarray
+    directions: np.ndarray
+    t_min: np.ndarray | float
+    t_max: np.ndarray | float
+
+    @property
+    def shared_origin(self) -> bool:
+        return self.origins.shape[0] == 1
+
+
+def _normalize(vectors):
+    return vectors / np.sqrt(np.einsum("nc,nc->n", vectors, vectors))[:, None]
+
+
+def _screen_rays(camera: ScreenCamera, xs, ys, dtype) -> CameraRays:
+    xs_line = np.linspace(camera.left, camera.right, camera.width)
+    ys_line = np.linspace(camera.top, camera.bottom, camera.height)
+    step_x = (camera.right - camera.left) / max(camera.width - 1, 1)
+    step_y = (camera.bottom - camera.top) / max(camera.height - 1, 1)
+    col = np.clip(np.floor(xs).astype(np.intp), 0, camera.width - 1)
+    row = np.clip(np.floor(ys).astype(np.intp), 0, camera.height - 1)
+    # A sample at the pixel centre lands exactly on the article's linspace position.
+    px = xs_line[col] + (xs - col - 0.5) * step_x
+    py = ys_line[row] + (ys - row - 0.5) * step_y
+    eye = np.asarray(camera.eye, np.float64)
+    pixels = np.stack([px, py, np.full_like(px, camera.screen_z)], axis=1)
+    directions = _normalize(pixels - eye)
+    return CameraRays(eye[None, :].astype(dtype), directions.astype(dtype), 0.0, np.inf)
+
+
+def _blender_rays(camera: BlenderCamera, xs, ys, dtype) -> CameraRays:
+    plane = blender_view_plane(camera)
+    u = plane.offset_x + (2.0 * xs / camera.width - 1.0) * plane.half_width
+    v = plane.offset_y + (2.0 * (camera.height - ys) / camera.height - 1.0) * plane.half_height
+    rotation, translation = camera_to_world(camera)
+    if camera.projection == "ORTHO":
+        local = np.stack([u, v, np.zeros_like(u)], axis=1)
+        origins = local @ rotation.T + translation
+        direction = -rotation[:, 2]
+        directions = np.broadcast_to(direction, origins.shape)
+        return CameraRays(origins.astype(dtype), np.ascontiguousarray(directions, dtype),
+                          camera.clip_start, camera.clip_end)
+    local = np.stack([u, v, -np.ones_like(u)], axis=1)
+    local_length = np.sqrt(np.einsum("nc,nc->n", local, local))
+    directions = (local @ rotation.T) / local_length[:, None]
+    # Clip planes are depths along -Z; a unit ray reaches depth z after z * |(u, v, -1)|.
+    return CameraRays(translation[None, :].astype(dtype), directions.astype(dtype),
+                      (camera.clip_start * local_length).astype(dtype),
+                      (camera.clip_end * local_length).astype(dtype))
+
+
+def camera_rays(camera: Camera, xs: np.ndarray, ys: np.ndarray, dtype=np.float64) -> CameraRays:
+    """Rays through image positions xs, ys (n,) (columns and rows, row 0 at the top)."""
+    xs = np.asarray(xs, np.float64)
+    ys = np.asarray(ys, np.float64)
+    if isinstance(camera, ScreenCamera):
+        return _screen_rays(camera, xs, ys, dtype)
+    return _blender_rays(camera, xs, ys, dtype)
+
+
+def image_size(camera: Camera) -> tuple[int, int]:
+    """(width, height) in pixels."""
+    return camera.width, camera.height
+
+
+def eye_position(camera: Camera) -> np.ndarray:
+    """The camera's position (3,) in world space (the ortho camera's centre)."""
+    if isinstance(camera, ScreenCamera):
+        return np.asarray(camera.eye, np.float64)
+    return camera_to_world(camera)[1]

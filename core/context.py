@@ -1,0 +1,116 @@
+"""Everything a render precomputes once and every tile reads: arrays in the render's precision,
+per-origin sphere terms for the camera and the lights, and the bounds that let paths stop early.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .arrays import SceneArrays, scene_arrays
+from .camera import eye_position
+from .intersect import OriginTerms
+from .scene import BlenderCamera, RenderSettings, Scene
+
+#: The article's fixed shadow/reflection offset along the normal.
+ARTICLE_OFFSET = 1e-5
+#: Default semantics offset: (1 + max|P_i|) * RAY_EPSILON, Mitsuba 3's scaled ray epsilon
+#: (1500 eps of the precision), so offsets grow with the hit point's magnitude.
+RAY_EPSILON = {np.dtype(np.float64): 1500 * np.finfo(np.float64).eps,
+               np.dtype(np.float32): 1500 * np.finfo(np.float32).eps}
+
+
+@dataclass
+class RayStats:
+    """What a render traced.  camera_rays: rays from the camera (every sample);
+    shadow_rays: light visibility rays; reflection_rays: mirror rays; sphere_tests: ray/sphere
+    pairs intersected (after culling); tiles: tiles rendered; supersampled_pixels: pixels given
+    more than one sample."""
+
+    camera_rays: int = 0
+    shadow_rays: int = 0
+    reflection_rays: int = 0
+    sphere_tests: int = 0
+    tiles: int = 0
+    supersampled_pixels: int = 0
+
+    def add(self, other: "RayStats") -> None:
+        for name in self.__dataclass_fields__:
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+
+
+@dataclass(frozen=True)
+class Materials:
+    """Per-sphere material arrays in the render precision (see ``SphereArrays``)."""
+
+    ambient: np.ndarray
+    diffuse: np.ndarray
+    specular: np.ndarray
+    exponent: np.ndarray
+    reflection: np.ndarray
+
+
+@dataclass(frozen=True)
+class TraceContext:
+    arrays: SceneArrays
+    settings: RenderSettings
+    dtype: np.dtype
+    article: bool
+    eye: np.ndarray                      # (3,) camera position, float64
+    camera_terms: OriginTerms | None     # shared-origin terms at the eye (perspective only)
+    light_terms: tuple                   # OriginTerms per light sample position
+    light_samples: tuple                 # per light: (samples, 3) float64 positions
+    materials: Materials
+    path_gain_bound: float               # max colour one bounce can add per unit weight
+    spheres_can_reflect: bool
+
+    @property
+    def centers(self):
+        return self.arrays.spheres.centers
+
+    @property
+    def radii(self):
+        return self.arrays.spheres.radii
+
+
+def _fibonacci_sphere(count: int) -> np.ndarray:
+    """count well-spread unit vectors (count, 3), deterministic."""
+    i = np.arange(count) + 0.5
+    z = 1.0 - 2.0 * i / count
+    phi = np.pi * (1.0 + 5 ** 0.5) * i
+    rho = np.sqrt(1.0 - z * z)
+    return np.stack([rho * np.cos(phi), rho * np.sin(phi), z], axis=1)
+
+
+def make_context(scene: Scene, settings: RenderSettings, dtype) -> TraceContext:
+    arrays = scene_arrays(scene)
+    spheres, lights = arrays.spheres, arrays.lights
+    article = settings.semantics == "article"
+    eye = eye_position(scene.camera)
+    perspective = not (isinstance(scene.camera, BlenderCamera) and scene.camera.projection == "ORTHO")
+    camera_terms = OriginTerms.at(eye, spheres.centers, spheres.radii) if perspective else None
+    samples = []
+    for position, radius in zip(lights.positions, lights.radii):
+        if radius > 0 and not article:
+            samples.append(position + radius * _fibonacci_sphere(settings.light_samples))
+        else:
+            samples.append(position[None, :])
+    light_terms = tuple(tuple(OriginTerms.at(p, spheres.centers, spheres.radii) for p in s)
+                        for s in samples)
+    total_light = (lights.ambient.sum(axis=0) + lights.diffuse.sum(axis=0)
+                   + lights.specular.sum(axis=0) + arrays.ambient)
+    if len(spheres):
+        per_sphere = (spheres.ambient + spheres.diffuse + spheres.specular) * total_light
+        gain = float(max(per_sphere.max(), arrays.background.max()))
+    else:
+        gain = float(arrays.background.max())
+    cast = lambda a: np.ascontiguousarray(a, dtype)  # noqa: E731
+    return TraceContext(
+        arrays=arrays, settings=settings, dtype=np.dtype(dtype), article=article, eye=eye,
+        camera_terms=camera_terms, light_terms=light_terms, light_samples=tuple(samples),
+        materials=Materials(cast(spheres.ambient), cast(spheres.diffuse), cast(spheres.specular),
+                            cast(spheres.exponent), cast(spheres.reflection)),
+        path_gain_bound=gain,
+        spheres_can_reflect=bool(len(spheres) and spheres.reflection.max() > 0),
+    )

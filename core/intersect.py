@@ -1,0 +1,144 @@
+"""Ray/sphere intersection over bundles of n rays and k candidate spheres.
+
+Every kernel returns the pair roots ``(t_near, t_far, valid)``, each (n, k): the two distances
+along the (unit) ray where it crosses the sphere, and whether it crosses at all
+(discriminant > 0, strictly, so tangent rays miss as in the article).  Callers pick what
+they need: the nearest hit (``nearest_hits``) or whether a segment is blocked (``core.shadow``).
+
+Numerics (ARTICLE.md, "Numerics worth knowing").  With f = o - c and b' = f.d:
+
+* the discriminant as ``r^2 - |f - b' d|^2`` (Haines et al., Ray Tracing Gems ch. 7): the
+  squared distance from the centre to the ray's line, computed as a vector, does not cancel
+  for a small sphere far away;
+* the roots as ``q = -(b' + sign(b') sqrt(disc))``, then ``q`` and ``c'/q`` (Press et al.), so
+  the near root of a huge sphere (the article's floor) is not a difference of nearly equal
+  numbers;
+* ``c' = |f|^2 - r^2`` as ``(|f| - r)(|f| + r)``.
+
+When all rays share an origin (camera rays of a perspective camera; shadow rays, which Glint
+traces from the light towards the shaded points), f and c' are per sphere, computed once in
+float64, and b' for every pair is one matrix product.  The discriminant is then
+``b'^2 - c'``, whose error is about eps * c' against a scale of r^2: accurate while
+c' <= CHEAP_DISCRIMINANT_RATIO * r^2 (spheres near the origin, or large); the rest (small and
+far) take the vector form.
+
+``article=True`` computes the article's textbook form instead (b = 2 d.(o - c),
+c = |o - c|^2 - r^2, delta = b^2 - 4c), so that its rounding, and the reference image, are
+reproduced; ``core.render`` shows the two agree on the reference.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Largest c' / r^2 for which ``b'^2 - c'`` is used (relative discriminant error ~ eps * ratio).
+CHEAP_DISCRIMINANT_RATIO = {np.dtype(np.float64): 1e4, np.dtype(np.float32): 1e1}
+
+
+def _press_roots(b, c_prime, disc):
+    """(smaller, larger) roots of t^2 + 2 b t + c' = 0, given disc = b^2 - c'."""
+    root = np.sqrt(np.maximum(disc, 0))
+    q = -(b + np.copysign(root, b))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        other = c_prime / q
+    return np.minimum(q, other), np.maximum(q, other)
+
+
+def _textbook_roots(b, c):
+    """The article's (smaller, larger, valid) from b = 2 d.f and c = |f|^2 - r^2."""
+    delta = b * b - 4.0 * c
+    valid = delta > 0
+    root = np.sqrt(np.where(valid, delta, 0))
+    return (-b - root) / 2, (-b + root) / 2, valid
+
+
+def pair_roots(origins, directions, centers, radii, *, article=False):
+    """Roots for n rays with their own origins (n, 3), directions (n, 3), k spheres (k, 3), (k,)."""
+    f = origins[:, None, :] - centers[None, :, :]                       # (n, k, 3)
+    if article:
+        b = 2.0 * np.einsum("nkc,nc->nk", f, directions)
+        c = np.einsum("nkc,nkc->nk", f, f) - radii[None, :] ** 2
+        return _textbook_roots(b, c)
+    b = np.einsum("nkc,nc->nk", f, directions)
+    perp = f - b[:, :, None] * directions[:, None, :]
+    disc = radii[None, :] ** 2 - np.einsum("nkc,nkc->nk", perp, perp)
+    f_len = np.sqrt(np.einsum("nkc,nkc->nk", f, f))
+    c_prime = (f_len - radii[None, :]) * (f_len + radii[None, :])
+    t_near, t_far = _press_roots(b, c_prime, disc)
+    return t_near, t_far, disc > 0
+
+
+@dataclass(frozen=True)
+class OriginTerms:
+    """Per-sphere terms for rays leaving one origin, float64, each indexed by sphere.
+
+    f: origin - centers (N, 3); c_prime: (|f| - r)(|f| + r) (N,);
+    article_c: the article's own ``norm(f) ** 2 - r ** 2`` (N,), with its rounding.
+    """
+
+    f: np.ndarray
+    c_prime: np.ndarray
+    article_c: np.ndarray
+
+    @classmethod
+    def at(cls, origin, centers, radii) -> "OriginTerms":
+        f = np.asarray(origin, np.float64)[None, :] - centers
+        f_len = np.sqrt(np.einsum("kc,kc->k", f, f))
+        return cls(f, (f_len - radii) * (f_len + radii),
+                   np.linalg.norm(f, axis=1) ** 2 - radii ** 2)
+
+
+def shared_origin_roots(directions, terms: OriginTerms, radii, candidates, *, article=False):
+    """Roots for n rays (directions (n, 3), unit) from the origin ``terms`` was built at,
+    against the spheres ``candidates`` (k,) (indices into the terms and radii arrays)."""
+    dtype = directions.dtype
+    f = terms.f[candidates].astype(dtype)
+    if article:
+        b = 2.0 * (directions @ f.T)
+        return _textbook_roots(b, terms.article_c[candidates].astype(dtype)[None, :])
+    b = directions @ f.T                                               # (n, k)
+    c_prime = terms.c_prime[candidates]
+    r = radii[candidates]
+    c_row = c_prime.astype(dtype)[None, :]
+    cheap = c_prime <= CHEAP_DISCRIMINANT_RATIO[np.dtype(dtype)] * r * r
+    if cheap.all():
+        disc = b * b - c_row
+    else:
+        perp = f[None, :, :] - b[:, :, None] * directions[:, None, :]
+        disc = (r * r).astype(dtype)[None, :] - np.einsum("nkc,nkc->nk", perp, perp)
+        if cheap.any():
+            disc[:, cheap] = b[:, cheap] ** 2 - c_row[:, cheap]
+    t_near, t_far = _press_roots(b, c_row, disc)
+    return t_near, t_far, disc > 0
+
+
+def first_hit_distance(t_near, t_far, valid, t_min, *, article=False):
+    """Distance (n, k) of the hit each pair counts, inf where none.
+
+    Article: a hit needs both roots > 0, and is the nearer one (a ray never hits a sphere it
+    starts inside).  Default: the nearest root beyond t_min (so from inside, the far side).
+    t_min: scalar or (n, 1).
+    """
+    if article:
+        return np.where(valid & (t_near > 0) & (t_far > 0), t_near, np.inf)
+    return np.where(valid & (t_near > t_min), t_near,
+                    np.where(valid & (t_far > t_min), t_far, np.inf))
+
+
+def nearest_hits(distances, t_max=np.inf):
+    """Reduce (n, k) distances to (t (n,), column (n,)), column -1 and t inf for a miss.
+
+    On a tie the lower column wins (argmin's rule), which is the article's "listed first"
+    as long as candidate columns keep scene order.
+    """
+    n, k = distances.shape
+    if k == 0:
+        return np.full(n, np.inf, distances.dtype), np.full(n, -1, np.intp)
+    column = np.argmin(distances, axis=1)
+    t = distances[np.arange(n), column]
+    missed = ~(t < t_max)
+    column[missed] = -1
+    t[missed] = np.inf
+    return t, column

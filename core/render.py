@@ -1,0 +1,184 @@
+"""``render``: a scene in, an (H, W, 4) image out, tile by tile.
+
+Tiles bound the working memory whatever the resolution (every array a tile creates is
+proportional to its pixel count, never to the image's), give culling its small cones, and are
+the unit of parallelism: a thread pool renders them (NumPy releases the GIL in its loops),
+each tile writing only its own slice of the image, so the result does not depend on the number
+of threads.  Anti-aliasing happens inside a tile: 'fixed' traces every pixel with ``samples``
+stratified sub-pixel positions; 'adaptive' traces the tile and a one-pixel apron at pixel
+centres, and re-traces with ``samples`` positions only the pixels whose path signature (the
+spheres hit and the shadows met at every bounce) differs from a 4-neighbour's.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
+from dataclasses import dataclass
+from typing import Callable, Optional
+
+import numpy as np
+
+from .camera import camera_rays, image_size
+from .context import RayStats, TraceContext, make_context
+from .precision import choose_precision
+from .scene import RenderSettings, Scene, SceneError
+from .trace import trace_bundle
+
+
+class RenderCancelled(Exception):
+    """``should_cancel()`` answered True; the render stopped between tiles."""
+
+
+@dataclass
+class RenderResult:
+    """image: (H, W, 4) in the render's precision, row 0 = top, RGB clipped to [0, 1], alpha =
+    fraction of the pixel's samples whose camera ray hit a sphere.  stats: RayStats.
+    precision: 'float64' or 'float32'."""
+
+    image: np.ndarray
+    stats: RayStats
+    precision: str
+
+
+def sample_offsets(count: int) -> np.ndarray:
+    """count sub-pixel positions (count, 2) in [0, 1)^2: the R2 low-discrepancy sequence
+    (Roberts 2018), deterministic, well spread for any count; the first is the centre."""
+    g = 1.32471795724474602596
+    k = np.arange(count)[:, None]
+    return (0.5 + k * np.array([1 / g, 1 / (g * g)])) % 1.0
+
+
+def _tiles(width: int, height: int, size: int):
+    return [(y, min(y + size, height), x, min(x + size, width))
+            for y in range(0, height, size) for x in range(0, width, size)]
+
+
+def _trace_positions(ctx: TraceContext, camera, xs, ys, stats):
+    """(rgb clipped (n, 3), coverage (n,), signature (n,)) for sample positions xs, ys (n,)."""
+    rays = camera_rays(camera, xs, ys, ctx.dtype)
+    result = trace_bundle(ctx, rays, stats)
+    return np.clip(result.colour, 0, 1), result.coverage, result.signature
+
+
+def _pixel_grid(y0, y1, x0, x1):
+    rows, cols = np.mgrid[y0:y1, x0:x1]
+    return cols.ravel(), rows.ravel()
+
+
+def _supersample(ctx, camera, cols, rows, count, stats):
+    """Mean (rgb (n, 3), coverage (n,)) over ``count`` samples in each pixel (cols, rows)."""
+    rgb = np.zeros((len(cols), 3), ctx.dtype)
+    coverage = np.zeros(len(cols), ctx.dtype)
+    for dx, dy in sample_offsets(count):
+        colour, hit, _ = _trace_positions(ctx, camera, cols + dx, rows + dy, stats)
+        rgb += colour
+        coverage += hit
+    stats.supersampled_pixels += len(cols)
+    return rgb / count, coverage / count
+
+
+def _edges(signature: np.ndarray) -> np.ndarray:
+    """(h, w) bool: pixels whose signature differs from a 4-neighbour's."""
+    edge = np.zeros(signature.shape, bool)
+    vertical = signature[1:, :] != signature[:-1, :]
+    horizontal = signature[:, 1:] != signature[:, :-1]
+    edge[1:, :] |= vertical
+    edge[:-1, :] |= vertical
+    edge[:, 1:] |= horizontal
+    edge[:, :-1] |= horizontal
+    return edge
+
+
+def render_tile(ctx: TraceContext, camera, tile) -> tuple[np.ndarray, RayStats]:
+    """(rgba (h, w, 4), stats) for tile (y0, y1, x0, x1) of the image."""
+    y0, y1, x0, x1 = tile
+    h, w = y1 - y0, x1 - x0
+    stats = RayStats(tiles=1)
+    mode = ctx.settings.anti_aliasing
+    rgba = np.empty((h, w, 4), ctx.dtype)
+    if mode == "fixed":
+        cols, rows = _pixel_grid(y0, y1, x0, x1)
+        rgb, coverage = _supersample(ctx, camera, cols, rows, ctx.settings.samples, stats)
+    elif mode == "off":
+        cols, rows = _pixel_grid(y0, y1, x0, x1)
+        rgb, coverage, _ = _trace_positions(ctx, camera, cols + 0.5, rows + 0.5, stats)
+    else:
+        width, height = image_size(camera)
+        ay0, ay1, ax0, ax1 = max(y0 - 1, 0), min(y1 + 1, height), max(x0 - 1, 0), min(x1 + 1, width)
+        cols, rows = _pixel_grid(ay0, ay1, ax0, ax1)
+        rgb, coverage, signature = _trace_positions(ctx, camera, cols + 0.5, rows + 0.5, stats)
+        shape = (ay1 - ay0, ax1 - ax0)
+        inner = (slice(y0 - ay0, y0 - ay0 + h), slice(x0 - ax0, x0 - ax0 + w))
+        rgb = rgb.reshape(shape + (3,))[inner].reshape(-1, 3)
+        coverage = coverage.reshape(shape)[inner].ravel().astype(ctx.dtype)
+        edge = _edges(signature.reshape(shape))[inner].ravel()
+        cols, rows = _pixel_grid(y0, y1, x0, x1)
+        chosen = np.flatnonzero(edge)
+        if len(chosen):
+            rgb[chosen], coverage[chosen] = _supersample(
+                ctx, camera, cols[chosen], rows[chosen], ctx.settings.samples, stats)
+    rgba[..., :3] = rgb.reshape(h, w, 3)
+    rgba[..., 3] = coverage.reshape(h, w)
+    return rgba, stats
+
+
+def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
+           progress: Optional[Callable[[float], None]] = None,
+           should_cancel: Optional[Callable[[], bool]] = None) -> RenderResult:
+    """Render ``scene``; see ``core`` for the result's layout."""
+    if not isinstance(scene, Scene):
+        raise SceneError(f"scene must be a core.Scene, got {type(scene).__name__}")
+    settings = RenderSettings() if settings is None else settings
+    if not isinstance(settings, RenderSettings):
+        raise SceneError(f"settings must be a core.RenderSettings, got {type(settings).__name__}")
+    dtype = choose_precision(scene, settings.precision)
+    ctx = make_context(scene, settings, dtype)
+    width, height = image_size(scene.camera)
+    image = np.zeros((height, width, 4), dtype)
+    tiles = _tiles(width, height, settings.tile_size)
+    stats = RayStats()
+    threads = settings.threads or os.cpu_count() or 1
+
+    def finish(tile, rgba, tile_stats, done):
+        y0, y1, x0, x1 = tile
+        image[y0:y1, x0:x1] = rgba
+        stats.add(tile_stats)
+        if progress is not None:
+            progress(done / len(tiles))
+
+    def cancelled():
+        return should_cancel is not None and should_cancel()
+
+    if threads == 1 or len(tiles) == 1:
+        for done, tile in enumerate(tiles, 1):
+            if cancelled():
+                raise RenderCancelled("render cancelled")
+            finish(tile, *render_tile(ctx, scene.camera, tile), done)
+        return RenderResult(image, stats, dtype.name)
+
+    with ThreadPoolExecutor(max_workers=threads) as pool:
+        pending = {}
+        queue = iter(tiles)
+        done = 0
+        stop = False
+        while True:
+            # Keep only a few tiles in flight so a cancel is honoured promptly.
+            while not stop and len(pending) < 2 * threads:
+                tile = next(queue, None)
+                if tile is None:
+                    break
+                pending[pool.submit(render_tile, ctx, scene.camera, tile)] = tile
+            if not pending:
+                break
+            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for future in finished:
+                tile = pending.pop(future)
+                rgba, tile_stats = future.result()
+                done += 1
+                finish(tile, rgba, tile_stats, done)
+            if cancelled():
+                stop = True
+                wait(pending)
+                raise RenderCancelled("render cancelled")
+    return RenderResult(image, stats, dtype.name)

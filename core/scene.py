@@ -1,0 +1,381 @@
+"""What a scene is: spheres, materials, point lights, a camera, a background.
+
+Everything here is plain, immutable data with units and conventions spelled out; the tracer
+turns it into arrays (``core.arrays``).  Construction validates every field, so a scene that
+exists is a scene the tracer can render: bad input fails here, naming the field and the
+value, before any ray is traced.
+
+Conventions
+-----------
+* World space is Blender's: right-handed, Z up.  (The article's scene uses Y up; that is
+  just a different choice of numbers, the tracer does not care.)
+* Lengths are in scene units (Blender units / metres), angles in radians, colours are linear
+  RGB triples.
+* Colours and intensities follow the article: a pixel's colour is the sum of Blinn-Phong terms,
+  clipped to [0, 1] at the end.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal, Sequence, Union
+
+Vec3 = tuple[float, float, float]
+
+SEMANTICS = ("default", "article")
+PRECISIONS = ("auto", "float64", "float32")
+ANTI_ALIASING = ("off", "fixed", "adaptive")
+PROJECTIONS = ("PERSP", "ORTHO")
+SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
+
+
+class SceneError(ValueError):
+    """Invalid scene or settings; the message names the field and the offending value."""
+
+
+# --------------------------------------------------------------------------------------------
+# Validation helpers: each takes the field's full name so that errors point at the culprit.
+
+def _finite(name: str, value) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise SceneError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(number):
+        raise SceneError(f"{name} must be finite, got {value!r}")
+    return number
+
+
+def _positive(name: str, value) -> float:
+    number = _finite(name, value)
+    if number <= 0.0:
+        raise SceneError(f"{name} must be > 0, got {value!r}")
+    return number
+
+
+def _non_negative(name: str, value) -> float:
+    number = _finite(name, value)
+    if number < 0.0:
+        raise SceneError(f"{name} must be >= 0, got {value!r}")
+    return number
+
+
+def _vec3(name: str, value) -> Vec3:
+    try:
+        items = tuple(value)
+    except TypeError:
+        raise SceneError(f"{name} must be 3 numbers, got {value!r}") from None
+    if len(items) != 3:
+        raise SceneError(f"{name} must be 3 numbers, got {len(items)}: {value!r}")
+    return tuple(_finite(f"{name}[{i}]", v) for i, v in enumerate(items))
+
+
+def _colour(name: str, value) -> Vec3:
+    rgb = _vec3(name, value)
+    for i, channel in enumerate(rgb):
+        if channel < 0.0:
+            raise SceneError(f"{name}[{i}] must be >= 0, got {channel!r}")
+    return rgb
+
+
+def _choice(name: str, value, allowed: Sequence[str]) -> str:
+    if value not in allowed:
+        raise SceneError(f"{name} must be one of {', '.join(map(repr, allowed))}; got {value!r}")
+    return value
+
+
+def _count(name: str, value, minimum: int = 1) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise SceneError(f"{name} must be a whole number >= {minimum}, got {value!r}")
+    return value
+
+
+def _set(obj, name: str, value) -> None:
+    object.__setattr__(obj, name, value)  # frozen dataclasses store their normalised values
+
+
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Material:
+    """The article's Blinn-Phong material.
+
+    ambient, diffuse, specular: RGB reflectances ka, kd, ks (>= 0).
+    shininess: Blinn-Phong exponent as the article writes it; the shading uses
+        ``(N.H) ** (shininess / 4)``, the article's Phong-to-Blinn conversion.
+    reflection: mirror weight in [0, 1]; 0 means the material never spawns a reflection ray.
+    """
+
+    ambient: Vec3 = (0.1, 0.1, 0.1)
+    diffuse: Vec3 = (0.6, 0.6, 0.6)
+    specular: Vec3 = (1.0, 1.0, 1.0)
+    shininess: float = 100.0
+    reflection: float = 0.5
+
+    def validate(self, where: str = "material") -> "Material":
+        for name in ("ambient", "diffuse", "specular"):
+            _set(self, name, _colour(f"{where}.{name}", getattr(self, name)))
+        _set(self, "shininess", _non_negative(f"{where}.shininess", self.shininess))
+        reflection = _finite(f"{where}.reflection", self.reflection)
+        if not 0.0 <= reflection <= 1.0:
+            raise SceneError(f"{where}.reflection must be in [0, 1], got {self.reflection!r}")
+        _set(self, "reflection", reflection)
+        return self
+
+    def __post_init__(self):
+        self.validate()
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """A sphere in world space: ``center`` (3,), ``radius`` > 0, a material and a name."""
+
+    center: Vec3
+    radius: float
+    material: Material = field(default_factory=Material)
+    name: str = ""
+
+    def __post_init__(self):
+        where = f"sphere {self.name!r}" if self.name else "sphere"
+        _set(self, "center", _vec3(f"{where}.center", self.center))
+        _set(self, "radius", _positive(f"{where}.radius", self.radius))
+        if not isinstance(self.material, Material):
+            raise SceneError(f"{where}.material must be a Material, got {self.material!r}")
+
+
+@dataclass(frozen=True)
+class PointLight:
+    """A point light, as the article models it: no distance falloff.
+
+    ambient, diffuse, specular: RGB intensities Ia, Id, Is (>= 0); the article's light is
+        (1, 1, 1) for all three.
+    radius: 0 for a point (hard shadows); > 0 makes a spherical light whose shadows are soft
+        (visibility averaged over ``RenderSettings.light_samples`` points on it).
+    Use ``PointLight.from_power`` for a Blender light given in watts.
+    """
+
+    position: Vec3
+    ambient: Vec3 = (1.0, 1.0, 1.0)
+    diffuse: Vec3 = (1.0, 1.0, 1.0)
+    specular: Vec3 = (1.0, 1.0, 1.0)
+    radius: float = 0.0
+    name: str = ""
+
+    #: Blender's default point light power; it maps to the article's white light (1, 1, 1).
+    REFERENCE_POWER_W = 1000.0
+
+    def __post_init__(self):
+        where = f"light {self.name!r}" if self.name else "light"
+        _set(self, "position", _vec3(f"{where}.position", self.position))
+        for name in ("ambient", "diffuse", "specular"):
+            _set(self, name, _colour(f"{where}.{name}", getattr(self, name)))
+        _set(self, "radius", _non_negative(f"{where}.radius", self.radius))
+
+    @classmethod
+    def from_power(cls, position, colour, power_w: float, radius: float = 0.0,
+                   name: str = "") -> "PointLight":
+        """A light from Blender's watts and colour: every intensity is colour * power / 1000 W.
+
+        Blender's point light radiates ``P * colour / (4 pi)`` W/sr and falls off as 1/d^2; the
+        article's light has no falloff and unit intensity.  Glint keeps the article's model and
+        scales it linearly with power, so Blender's default 1000 W white light *is* the
+        article's light, 500 W is half as bright, and a red light tints all three terms.
+        """
+        where = f"light {name!r}" if name else "light"
+        rgb = _colour(f"{where}.color", colour)
+        scale = _non_negative(f"{where}.energy", power_w) / cls.REFERENCE_POWER_W
+        intensity = tuple(c * scale for c in rgb)
+        return cls(position=position, ambient=intensity, diffuse=intensity,
+                   specular=intensity, radius=radius, name=name)
+
+
+@dataclass(frozen=True)
+class ScreenCamera:
+    """The article's camera: an eye looking through a screen rectangle on a plane.
+
+    eye: (3,) position.  The screen lies on the plane z = ``screen_z`` and spans
+    [left, right] x [bottom, top].  Pixel positions are ``linspace(left, right, width)`` and
+    ``linspace(top, bottom, height)``: both ends included, so pixel centres sit ON the screen's
+    edges (unlike Blender's (i + 0.5) / W).  Row 0 is the top.
+    """
+
+    width: int
+    height: int
+    eye: Vec3 = (0.0, 0.0, 1.0)
+    left: float = -1.0
+    right: float = 1.0
+    top: float | None = None      # None: 1 / (width / height), the article's choice
+    bottom: float | None = None   # None: -1 / (width / height)
+    screen_z: float = 0.0
+
+    def __post_init__(self):
+        _count("camera.width", self.width)
+        _count("camera.height", self.height)
+        _set(self, "eye", _vec3("camera.eye", self.eye))
+        ratio = self.width / self.height
+        if self.top is None:
+            _set(self, "top", 1.0 / ratio)
+        if self.bottom is None:
+            _set(self, "bottom", -1.0 / ratio)
+        for name in ("left", "right", "top", "bottom", "screen_z"):
+            _set(self, name, _finite(f"camera.{name}", getattr(self, name)))
+
+
+@dataclass(frozen=True)
+class BlenderCamera:
+    """Blender's camera, with Blender's own conventions (``BKE_camera_params_compute_viewplane``).
+
+    matrix_world: 4x4 camera-to-world matrix, rows of 4 (Blender's ``Object.matrix_world``
+        as nested tuples); any scale in it is removed, as Blender does for the view.
+        The camera looks down its local -Z with +Y up.
+    projection: 'PERSP' or 'ORTHO'.  lens: focal length in mm (perspective);
+        ortho_scale: the view's width or height in scene units (orthographic).
+    sensor_width, sensor_height: mm; sensor_fit: 'AUTO', 'HORIZONTAL' or 'VERTICAL'.
+    shift_x, shift_y: in units of the fitted view size, like Blender.
+    clip_start, clip_end: distances along the view axis (depth planes, as in Cycles and
+        Workbench, not distances along each ray).
+    resolution_x, resolution_y, resolution_percentage: the output is
+        ``int(resolution_x * percentage / 100)`` by ``int(resolution_y * percentage / 100)``.
+    pixel_aspect_x, pixel_aspect_y: non-square pixels.
+    Pixel (i, j) with j = 0 at the bottom has its centre at ((i + 0.5) / W, (j + 0.5) / H).
+    """
+
+    matrix_world: tuple
+    resolution_x: int = 1920
+    resolution_y: int = 1080
+    resolution_percentage: int = 100
+    projection: Literal["PERSP", "ORTHO"] = "PERSP"
+    lens: float = 50.0
+    ortho_scale: float = 6.0
+    sensor_width: float = 36.0
+    sensor_height: float = 24.0
+    sensor_fit: Literal["AUTO", "HORIZONTAL", "VERTICAL"] = "AUTO"
+    shift_x: float = 0.0
+    shift_y: float = 0.0
+    clip_start: float = 0.1
+    clip_end: float = 1000.0
+    pixel_aspect_x: float = 1.0
+    pixel_aspect_y: float = 1.0
+
+    def __post_init__(self):
+        try:
+            rows = tuple(tuple(row) for row in self.matrix_world)
+        except TypeError:
+            raise SceneError(f"camera.matrix_world must be 4x4, got {self.matrix_world!r}") from None
+        if len(rows) != 4 or any(len(row) != 4 for row in rows):
+            raise SceneError(f"camera.matrix_world must be 4x4, got {self.matrix_world!r}")
+        _set(self, "matrix_world", tuple(
+            tuple(_finite(f"camera.matrix_world[{r}][{c}]", v) for c, v in enumerate(row))
+            for r, row in enumerate(rows)))
+        _count("camera.resolution_x", self.resolution_x)
+        _count("camera.resolution_y", self.resolution_y)
+        _count("camera.resolution_percentage", self.resolution_percentage)
+        _choice("camera.projection", self.projection, PROJECTIONS)
+        _choice("camera.sensor_fit", self.sensor_fit, SENSOR_FITS)
+        for name in ("lens", "ortho_scale", "sensor_width", "sensor_height",
+                     "pixel_aspect_x", "pixel_aspect_y", "clip_start"):
+            _set(self, name, _positive(f"camera.{name}", getattr(self, name)))
+        for name in ("shift_x", "shift_y"):
+            _set(self, name, _finite(f"camera.{name}", getattr(self, name)))
+        _set(self, "clip_end", _positive("camera.clip_end", self.clip_end))
+        if self.clip_end <= self.clip_start:
+            raise SceneError(f"camera.clip_end ({self.clip_end!r}) must be greater than "
+                             f"camera.clip_start ({self.clip_start!r})")
+        if self.width < 1 or self.height < 1:
+            raise SceneError(
+                f"camera resolution {self.resolution_x}x{self.resolution_y} at "
+                f"{self.resolution_percentage}% gives a {self.width}x{self.height} image")
+        axes = [[self.matrix_world[r][c] for r in range(3)] for c in range(3)]
+        for c, axis in enumerate(axes):
+            if math.sqrt(sum(v * v for v in axis)) < 1e-12:
+                raise SceneError(f"camera.matrix_world column {c} is zero: the camera has "
+                                 f"no orientation")
+
+    @property
+    def width(self) -> int:
+        return int(self.resolution_x * self.resolution_percentage / 100)
+
+    @property
+    def height(self) -> int:
+        return int(self.resolution_y * self.resolution_percentage / 100)
+
+
+Camera = Union[ScreenCamera, BlenderCamera]
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A whole scene.
+
+    spheres: the objects (may be empty).  lights: point lights, whose contributions sum.
+    camera: a ScreenCamera (the article's) or a BlenderCamera.
+    background: RGB seen where a ray escapes (default semantics; the article's is black).
+    ambient: an RGB ambient intensity lighting every point in addition to the lights' own
+        ambient terms (Blender's world colour plays this role; default semantics only).
+    """
+
+    camera: Camera
+    spheres: tuple[Sphere, ...] = ()
+    lights: tuple[PointLight, ...] = ()
+    background: Vec3 = (0.0, 0.0, 0.0)
+    ambient: Vec3 = (0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        if not isinstance(self.camera, (ScreenCamera, BlenderCamera)):
+            raise SceneError(f"scene.camera must be a ScreenCamera or BlenderCamera, "
+                             f"got {self.camera!r}")
+        _set(self, "spheres", tuple(self.spheres))
+        _set(self, "lights", tuple(self.lights))
+        for i, sphere in enumerate(self.spheres):
+            if not isinstance(sphere, Sphere):
+                raise SceneError(f"scene.spheres[{i}] must be a Sphere, got {sphere!r}")
+        for i, light in enumerate(self.lights):
+            if not isinstance(light, PointLight):
+                raise SceneError(f"scene.lights[{i}] must be a PointLight, got {light!r}")
+        _set(self, "background", _colour("scene.background", self.background))
+        _set(self, "ambient", _colour("scene.ambient", self.ambient))
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """How to render.
+
+    semantics: 'article' keeps every quirk of the article; 'default' fixes them (see
+        ``core.shading`` and the README for the list).
+    precision: 'float64', 'float32', or 'auto' (``core.precision.choose_precision`` picks
+        float32 only when the scene's ratio of size to smallest feature allows it).
+    max_depth: number of bounces (the primary hit counts as the first).
+    anti_aliasing: 'off' (one ray through each pixel centre), 'fixed' (``samples`` stratified
+        rays in every pixel), 'adaptive' (one ray per pixel, then ``samples`` rays in the pixels
+        whose neighbours hit a different sphere or differ in colour).
+    samples: rays per supersampled pixel.
+    light_samples: shadow rays per light with radius > 0 (soft shadows).
+    contribution_cutoff: a path stops once nothing it could still add exceeds this (a fraction
+        of full white); 1e-6 keeps results float64-accurate to the 8-bit output many times over.
+    tile_size: tiles are tile_size x tile_size pixels; memory per tile is bounded by it.
+    threads: worker threads over tiles (None: one per core).  Results never depend on it.
+    """
+
+    semantics: Literal["default", "article"] = "default"
+    precision: Literal["auto", "float64", "float32"] = "auto"
+    max_depth: int = 3
+    anti_aliasing: Literal["off", "fixed", "adaptive"] = "off"
+    samples: int = 16
+    light_samples: int = 16
+    contribution_cutoff: float = 1e-6
+    tile_size: int = 128
+    threads: int | None = None
+
+    def __post_init__(self):
+        _choice("settings.semantics", self.semantics, SEMANTICS)
+        _choice("settings.precision", self.precision, PRECISIONS)
+        _choice("settings.anti_aliasing", self.anti_aliasing, ANTI_ALIASING)
+        _count("settings.max_depth", self.max_depth)
+        _count("settings.samples", self.samples)
+        _count("settings.light_samples", self.light_samples)
+        _count("settings.tile_size", self.tile_size, minimum=8)
+        if self.threads is not None:
+            _count("settings.threads", self.threads)
+        _set(self, "contribution_cutoff",
+             _non_negative("settings.contribution_cutoff", self.contribution_cutoff))
