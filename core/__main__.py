@@ -1,0 +1,67 @@
+"""``python -m core --scene article --width W --height H --output FILE`` (.png or .npy)."""
+
+from __future__ import annotations
+
+import argparse
+import io
+import os
+import sys
+import time
+
+import numpy as np
+
+from .article import article_scene, article_settings
+from .png import write_atomically, write_png
+from .render import render
+from .scene import RenderSettings, SceneError
+
+SCENES = {"article": article_scene}
+
+
+def parse_args(argv):
+    parser = argparse.ArgumentParser(prog="python -m core", description=__doc__)
+    parser.add_argument("--scene", choices=sorted(SCENES), default="article")
+    parser.add_argument("--width", type=int, default=300)
+    parser.add_argument("--height", type=int, default=200)
+    parser.add_argument("--output", required=True, help="FILE.png (8-bit RGBA) or FILE.npy")
+    parser.add_argument("--semantics", choices=["article", "default"], default="article")
+    parser.add_argument("--precision", choices=["auto", "float64", "float32"], default="float64")
+    parser.add_argument("--max-depth", type=int, default=3)
+    parser.add_argument("--anti-aliasing", choices=["off", "fixed", "adaptive"], default="off")
+    parser.add_argument("--samples", type=int, default=16)
+    parser.add_argument("--threads", type=int, default=None)
+    args = parser.parse_args(argv)
+    if not args.output.endswith((".png", ".npy")):
+        parser.error(f"--output must end in .png or .npy, got {args.output!r}")
+    folder = os.path.dirname(os.path.abspath(args.output))
+    if not os.path.isdir(folder):
+        parser.error(f"--output folder does not exist: {folder}")
+    return args
+
+
+def main(argv=None) -> int:
+    args = parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        scene = SCENES[args.scene](args.width, args.height)
+        settings = article_settings(
+            semantics=args.semantics, precision=args.precision, max_depth=args.max_depth,
+            anti_aliasing=args.anti_aliasing, samples=args.samples, threads=args.threads)
+        start = time.perf_counter()
+        result = render(scene, settings)
+        elapsed = time.perf_counter() - start
+        if args.output.endswith(".npy"):
+            buffer = io.BytesIO()
+            np.save(buffer, result.image)
+            write_atomically(args.output, buffer.getvalue())
+        else:
+            write_png(args.output, result.image)
+    except (SceneError, OSError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    print(f"wrote {args.output} ({args.width}x{args.height}, {result.precision}, "
+          f"{args.semantics} semantics) in {elapsed:.3f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
