@@ -74,7 +74,7 @@ def pair_roots(origins, directions, centers, radii, *, article=False):
 class OriginTerms:
     """Per-sphere terms for rays leaving one origin, float64, each indexed by sphere.
 
-    f: origin - centers (N, 3); c_prime: (|f| - r)(|f| + r) (N,);
+    f: origin - centers (N, 3); c_prime: |f|^2 - r^2 (N,);
     article_c: the article's own ``norm(f) ** 2 - r ** 2`` (N,), with its rounding.
     """
 
@@ -84,10 +84,14 @@ class OriginTerms:
 
     @classmethod
     def at(cls, origin, centers, radii) -> "OriginTerms":
-        f = np.asarray(origin, np.float64)[None, :] - centers
-        f_len = np.sqrt(np.einsum("kc,kc->k", f, f))
-        return cls(f, (f_len - radii) * (f_len + radii),
-                   np.linalg.norm(f, axis=1) ** 2 - radii ** 2)
+        """Terms at ``origin`` (3,) for spheres (N, 3), (N,).  c' is formed in extended
+        precision (np.longdouble, 64-bit mantissa on x86): it is per sphere, so this costs
+        nothing per ray, and it keeps the floor's c' (|f|^2 ~ 8e7, c' ~ 3e4) exact to ~1e-16."""
+        origin = np.asarray(origin, np.float64)
+        f_wide = origin.astype(np.longdouble)[None, :] - centers.astype(np.longdouble)
+        c_wide = (f_wide * f_wide).sum(axis=1) - radii.astype(np.longdouble) ** 2
+        f = origin[None, :] - centers
+        return cls(f, c_wide.astype(np.float64), np.linalg.norm(f, axis=1) ** 2 - radii ** 2)
 
 
 def shared_origin_roots(directions, terms: OriginTerms, radii, candidates, *, article=False):
