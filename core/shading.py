@@ -37,6 +37,8 @@ from .intersect import shared_origin_roots
 
 #: Candidate spheres intersected at once; bounds (n, k) temporaries.
 SPHERE_CHUNK = 32
+#: One digit of a shadow code per light: unlit (0) or visibility 0, 1/4, .., 1 (1 .. 5).
+_CODE_BASE = 6
 
 
 def _dot(a, b):
@@ -93,7 +95,11 @@ def light_blocked(ctx: TraceContext, terms, origin, targets, exclude, stats: Ray
 
 
 def shade(ctx: TraceContext, points, normals, directions, spheres, front, stats: RayStats):
-    """Colour (m, 3) at m hit points, and (m,) whether the path goes on (article shadows end it).
+    """(colour (m, 3), goes_on (m,), shadow_code (m,) uint64) at m hit points.
+
+    goes_on: whether the path continues (article shadows end it).  shadow_code: which lights
+    each point sees (a digit per light, soft visibility in quarters), so that adaptive
+    anti-aliasing can find shadow edges.
 
     points, normals (facing the incoming ray in default semantics), directions (incoming, unit):
     (m, 3); spheres: (m,) scene indices; front: (m,) True where the ray hit the outside.
@@ -110,6 +116,7 @@ def shade(ctx: TraceContext, points, normals, directions, spheres, front, stats:
     colour = ka * ambient
     view = -directions
     exclude = np.where(front, spheres, -1)
+    shadow_code = np.zeros(m, np.uint64)
     offset = (1 + np.abs(points).max(axis=1)) * ctx.dtype.type(RAY_EPSILON[ctx.dtype])
     for light in range(len(lights)):
         strength_d = lights.diffuse[light].astype(dtype)
@@ -119,6 +126,7 @@ def shade(ctx: TraceContext, points, normals, directions, spheres, front, stats:
         # No shadow ray where the light cannot add anything.
         reflective = (kd @ strength_d > 0) | (ks @ strength_s > 0)
         lit = np.flatnonzero((cos_light > 0) & reflective)
+        shadow_code *= np.uint64(_CODE_BASE)
         if len(lit) == 0:
             continue
         visibility = np.ones(len(lit), dtype)
@@ -127,12 +135,13 @@ def shade(ctx: TraceContext, points, normals, directions, spheres, front, stats:
             blocked = light_blocked(ctx, terms, sample, points[lit], exclude[lit], stats,
                                     end=offset[lit])
             visibility -= blocked.astype(dtype) / len(samples)
+        shadow_code[lit] += (1 + np.round(visibility * 4)).astype(np.uint64)
         half = _normalize(to_light[lit] + view[lit])
         cos_half = np.maximum(_dot(normals[lit], half), 0)
         colour[lit] += visibility[:, None] * (
             kd[lit] * strength_d * cos_light[lit, None]
             + ks[lit] * strength_s * _power(cos_half, exponent[lit])[:, None])
-    return colour, np.ones(m, bool)
+    return colour, np.ones(m, bool), shadow_code
 
 
 def _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats):
@@ -142,6 +151,7 @@ def _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats):
     to_camera = _normalize(ctx.eye.astype(dtype) - points)
     colour = np.zeros_like(points)
     goes_on = np.zeros(len(points), bool)
+    shadow_code = np.zeros(len(points), np.uint64)
     for light in range(len(lights)):
         position = lights.positions[light].astype(dtype)
         to_light = _normalize(position - shifted)
@@ -155,4 +165,5 @@ def _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats):
                 * _power(_dot(normals, half), exponent)[:, None])
         colour += np.where(blocked[:, None], 0, term)
         goes_on |= ~blocked
-    return colour, goes_on
+        shadow_code = shadow_code * np.uint64(_CODE_BASE) + (~blocked).astype(np.uint64)
+    return colour, goes_on, shadow_code

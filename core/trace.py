@@ -116,9 +116,10 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
             # Shade the side the ray sees: inside a sphere the normal faces inwards.
             normals[~front] *= -1
             cos_in = np.where(front, cos_in, -cos_in)
-        illumination, goes_on = shade(ctx, points, normals, directions, sphere, front, stats)
+        illumination, goes_on, shadow_code = shade(ctx, points, normals, directions, sphere,
+                                                   front, stats)
         colour[path] += weight[:, None] * illumination
-        signature[path] = signature[path] * _SIGNATURE_PRIME + goes_on.astype(np.uint64)
+        signature[path] = signature[path] * _SIGNATURE_PRIME + shadow_code
 
         weight = weight * reflection[sphere]
         bounces_left = max_depth - depth - 1
