@@ -17,20 +17,28 @@ import numpy as np
 _ANGLE_MARGIN = 1e-6  # radians
 
 
-def bundle_cone(origins: np.ndarray, directions: np.ndarray):
-    """(apex (3,), spread rb, axis (3,), half angle) bounding rays (n, 3) / (1 or n, 3)."""
-    origins64 = np.asarray(origins, np.float64)
-    dirs64 = np.asarray(directions, np.float64)
-    low, high = origins64.min(axis=0), origins64.max(axis=0)
-    apex = (low + high) / 2
-    spread = float(np.sqrt(((origins64 - apex) ** 2).sum(axis=1)).max()) if len(origins64) > 1 else 0.0
-    mean = dirs64.sum(axis=0)
+def bundle_cone(origins, directions, apex=None):
+    """(apex (3,), spread rb, axis (3,), half angle) bounding a bundle of rays.
+
+    origins: (n, 3) or (1, 3), or None with ``apex`` (3,) when every ray starts there;
+    directions: (n, 3) unit.  rb is the half diagonal of the origins' bounding box.
+    """
+    if apex is not None:
+        spread = 0.0
+    elif len(origins) == 1:
+        apex, spread = np.asarray(origins[0], np.float64), 0.0
+    else:
+        low, high = origins.min(axis=0).astype(np.float64), origins.max(axis=0).astype(np.float64)
+        apex, spread = (low + high) / 2, float(np.linalg.norm(high - low) / 2)
+    mean = directions.sum(axis=0, dtype=np.float64)
     norm = np.linalg.norm(mean)
-    if norm < 1e-9 * len(dirs64):
+    if norm < 1e-9 * len(directions):
         return apex, spread, np.array([0.0, 0.0, 1.0]), np.pi
     axis = mean / norm
-    cos_half = float(np.clip((dirs64 @ axis).min(), -1.0, 1.0))
-    return apex, spread, axis, float(np.arccos(cos_half))
+    cos_half = float(np.clip((directions @ axis.astype(directions.dtype)).min(), -1.0, 1.0))
+    # The dot products were rounded in the render precision: widen by its epsilon.
+    half = np.arccos(cos_half) + 4 * np.sqrt(np.finfo(directions.dtype).eps)
+    return apex, spread, axis, float(min(half, np.pi))
 
 
 def reachable(centers: np.ndarray, radii: np.ndarray, apex, spread, axis, half_angle,

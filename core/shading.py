@@ -45,36 +45,56 @@ def _dot(a, b):
     return np.einsum("nc,nc->n", a, b)
 
 
+def _length(v):
+    return np.sqrt(_dot(v, v))
+
+
 def _normalize(v):
-    return v / np.sqrt(_dot(v, v))[:, None]
+    return v * (1 / _length(v))[:, None]
 
 
 def _power(base, exponent):
-    """base ** exponent per row; a negative base with a non-integer exponent gives 0, not NaN."""
+    """base ** exponent per row (m,); a negative base with a non-integer exponent gives 0, not
+    NaN.  A whole exponent shared by every row (the article's 25) is computed by repeated
+    squaring, several times faster than pow and exact in sign for negative bases."""
+    first = exponent[0] if len(exponent) else 0
+    if len(exponent) and float(first).is_integer() and 0 <= first < 1024 \
+            and (exponent == first).all():
+        return _whole_power(base, int(first))
     with np.errstate(invalid="ignore"):
         result = np.power(base, exponent)
     return np.where(np.isnan(result), 0, result)
 
 
-def light_blocked(ctx: TraceContext, terms, origin, targets, exclude, stats: RayStats,
-                  *, start=None, end=None):
-    """Whether the segments light -> target are blocked, (m,) bool.
+def _whole_power(base, n: int):
+    result = np.ones_like(base)
+    square = base
+    while n:
+        if n & 1:
+            result = result * square
+        n >>= 1
+        if n:
+            square = square * square
+    return result
 
-    terms: OriginTerms at ``origin`` (3,), the light sample.  targets: (m, 3) points the rays
-    run to.  Default semantics: blocked if a sphere other than ``exclude`` (m,) (-1: none) is
-    crossed in (0, |target - origin| - end), end (m,) the offset.  Article semantics
-    (targets are the shifted points S, start (m,) = |light - P|): blocked if the reversed ray
-    S -> light has both roots positive and its nearer one below ``start``.
+
+def light_blocked(ctx: TraceContext, terms, origin, directions, distance, exclude,
+                  stats: RayStats, *, start=None, end=None):
+    """Whether the segments from a light sample towards m points are blocked, (m,) bool.
+
+    terms: OriginTerms at ``origin`` (3,), the light sample.  directions: (m, 3) unit vectors
+    from the light towards the points; distance: (m,) how far the points are.  Default
+    semantics: blocked if a sphere other than ``exclude`` (m,) (-1: none) is crossed in
+    (0, distance - end), end (m,) the offset.  Article semantics (the points are the shifted
+    points S, start (m,) = |light - P|): blocked if the reversed ray S -> light has both roots
+    positive and its nearer one below ``start``.
     """
-    m = len(targets)
+    m = len(directions)
     blocked = np.zeros(m, bool)
     if m == 0 or len(ctx.radii) == 0:
         return blocked
     stats.shadow_rays += m
-    offsets = targets - origin.astype(targets.dtype)
-    distance = np.sqrt(_dot(offsets, offsets))
-    directions = offsets / distance[:, None]
-    apex, spread, axis, half = bundle_cone(origin[None, :], directions)
+    apex, spread, axis, half = bundle_cone(None, directions, apex=origin)
     candidates = np.flatnonzero(reachable(ctx.centers, ctx.radii, apex, spread, axis, half,
                                           float(distance.max())))
     distance = distance[:, None]
@@ -121,8 +141,10 @@ def shade(ctx: TraceContext, points, normals, directions, spheres, front, stats:
     for light in range(len(lights)):
         strength_d = lights.diffuse[light].astype(dtype)
         strength_s = lights.specular[light].astype(dtype)
-        to_light = _normalize(lights.positions[light].astype(dtype) - points)
-        cos_light = _dot(normals, to_light)
+        from_light = points - lights.positions[light].astype(dtype)
+        distance = _length(from_light)
+        from_light *= (1 / distance)[:, None]
+        cos_light = -_dot(normals, from_light)
         # No shadow ray where the light cannot add anything.
         reflective = (kd @ strength_d > 0) | (ks @ strength_s > 0)
         lit = np.flatnonzero((cos_light > 0) & reflective)
@@ -132,11 +154,17 @@ def shade(ctx: TraceContext, points, normals, directions, spheres, front, stats:
         visibility = np.ones(len(lit), dtype)
         samples = ctx.light_samples[light]
         for sample, terms in zip(samples, ctx.light_terms[light]):
-            blocked = light_blocked(ctx, terms, sample, points[lit], exclude[lit], stats,
-                                    end=offset[lit])
+            if len(samples) == 1:
+                directions_s, distance_s = from_light[lit], distance[lit]
+            else:
+                directions_s = points[lit] - sample.astype(dtype)
+                distance_s = _length(directions_s)
+                directions_s *= (1 / distance_s)[:, None]
+            blocked = light_blocked(ctx, terms, sample, directions_s, distance_s, exclude[lit],
+                                    stats, end=offset[lit])
             visibility -= blocked.astype(dtype) / len(samples)
         shadow_code[lit] += (1 + np.round(visibility * 4)).astype(np.uint64)
-        half = _normalize(to_light[lit] + view[lit])
+        half = _normalize(view[lit] - from_light[lit])
         cos_half = np.maximum(_dot(normals[lit], half), 0)
         colour[lit] += visibility[:, None] * (
             kd[lit] * strength_d * cos_light[lit, None]
@@ -154,10 +182,13 @@ def _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats):
     shadow_code = np.zeros(len(points), np.uint64)
     for light in range(len(lights)):
         position = lights.positions[light].astype(dtype)
-        to_light = _normalize(position - shifted)
-        light_distance = np.sqrt(_dot(position - points, position - points))
+        from_light = shifted - position
+        shifted_distance = _length(from_light)
+        from_light *= (1 / shifted_distance)[:, None]
+        to_light = -from_light
+        light_distance = _length(position - points)
         blocked = light_blocked(ctx, ctx.light_terms[light][0], lights.positions[light],
-                                shifted, None, stats, start=light_distance)
+                                from_light, shifted_distance, None, stats, start=light_distance)
         half = _normalize(to_light + to_camera)
         term = (ka * lights.ambient[light].astype(dtype)
                 + kd * lights.diffuse[light].astype(dtype) * _dot(to_light, normals)[:, None]

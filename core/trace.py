@@ -28,7 +28,7 @@ _SIGNATURE_PRIME = np.uint64(1_000_003)
 class BundleResult:
     """colour (n, 3) unclipped; coverage (n,) whether the camera ray hit a sphere;
     signature (n,) uint64 hash of what the path hit (spheres and shadowing at every bounce):
-    neighbours with different signatures straddle an edge."""
+    neighbours with different signatures straddle an edge; None unless adaptive AA asks."""
 
     colour: np.ndarray
     coverage: np.ndarray
@@ -77,7 +77,8 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
     dtype = ctx.dtype
     n = len(rays.directions)
     colour = np.zeros((n, 3), dtype)
-    signature = np.zeros(n, np.uint64)
+    # Signatures feed adaptive anti-aliasing only: no work for them otherwise.
+    signature = np.zeros(n, np.uint64) if ctx.settings.anti_aliasing == "adaptive" else None
     coverage = np.zeros(n, bool)
     background = ctx.arrays.background.astype(dtype)
     add_background = not ctx.article and background.any()
@@ -95,7 +96,8 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
     for depth in range(max_depth):
         t, sphere = nearest_sphere(ctx, origins, directions, t_min, t_max, exclude, stats, terms)
         hit = sphere >= 0
-        signature[path] = signature[path] * _SIGNATURE_PRIME + (sphere + 1).astype(np.uint64)
+        if signature is not None:
+            signature[path] = signature[path] * _SIGNATURE_PRIME + (sphere + 1).astype(np.uint64)
         if depth == 0:
             coverage = hit.copy()
         if add_background:
@@ -109,7 +111,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
 
         points = origins + t[:, None] * directions
         normals = points - ctx.centers[sphere].astype(dtype)
-        normals /= np.sqrt(np.einsum("nc,nc->n", normals, normals))[:, None]
+        normals *= (1 / np.sqrt(np.einsum("nc,nc->n", normals, normals)))[:, None]
         cos_in = np.einsum("nc,nc->n", directions, normals)
         front = cos_in < 0
         if not ctx.article:
@@ -119,7 +121,8 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
         illumination, goes_on, shadow_code = shade(ctx, points, normals, directions, sphere,
                                                    front, stats)
         colour[path] += weight[:, None] * illumination
-        signature[path] = signature[path] * _SIGNATURE_PRIME + shadow_code
+        if signature is not None:
+            signature[path] = signature[path] * _SIGNATURE_PRIME + shadow_code
 
         weight = weight * reflection[sphere]
         bounces_left = max_depth - depth - 1
