@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .scene import BlenderCamera, Camera, ScreenCamera
+from .vectors import normalize
 
 
 @dataclass(frozen=True)
@@ -56,10 +57,10 @@ def camera_to_world(camera: BlenderCamera) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True)
 class CameraRays:
-    """Rays for n samples.
+    """Rays for n samples, as (3, n) bundles (see ``core.vectors``).
 
-    origins: (n, 3), or (1, 3) when all rays share the camera's eye (perspective cameras).
-    directions: (n, 3) unit vectors.
+    origins: (3, n), or (3, 1) when all rays share the camera's eye (perspective cameras).
+    directions: (3, n) unit vectors.
     t_min, t_max: (n,) distances along each ray where hits count (Blender's clip planes,
         measured along the view axis, become per-ray distances); scalars 0 / inf if unclipped.
     """
@@ -71,11 +72,7 @@ class CameraRays:
 
     @property
     def shared_origin(self) -> bool:
-        return self.origins.shape[0] == 1
-
-
-def _normalize(vectors):
-    return vectors / np.sqrt(np.einsum("nc,nc->n", vectors, vectors))[:, None]
+        return self.origins.shape[1] == 1
 
 
 def _screen_rays(camera: ScreenCamera, xs, ys, dtype) -> CameraRays:
@@ -86,12 +83,13 @@ def _screen_rays(camera: ScreenCamera, xs, ys, dtype) -> CameraRays:
     col = np.clip(np.floor(xs).astype(np.intp), 0, camera.width - 1)
     row = np.clip(np.floor(ys).astype(np.intp), 0, camera.height - 1)
     # A sample at the pixel centre lands exactly on the article's linspace position.
-    px = xs_line[col] + (xs - col - 0.5) * step_x
-    py = ys_line[row] + (ys - row - 0.5) * step_y
     eye = np.asarray(camera.eye, np.float64)
-    pixels = np.stack([px, py, np.full_like(px, camera.screen_z)], axis=1)
-    directions = _normalize(pixels - eye)
-    return CameraRays(eye[None, :].astype(dtype), directions.astype(dtype), 0.0, np.inf)
+    towards = np.empty((3, len(xs)))
+    towards[0] = xs_line[col] + (xs - col - 0.5) * step_x - eye[0]
+    towards[1] = ys_line[row] + (ys - row - 0.5) * step_y - eye[1]
+    towards[2] = camera.screen_z - eye[2]
+    directions, _ = normalize(towards)
+    return CameraRays(eye[:, None].astype(dtype), directions.astype(dtype), 0.0, np.inf)
 
 
 def _blender_rays(camera: BlenderCamera, xs, ys, dtype) -> CameraRays:
@@ -100,17 +98,14 @@ def _blender_rays(camera: BlenderCamera, xs, ys, dtype) -> CameraRays:
     v = plane.offset_y + (2.0 * (camera.height - ys) / camera.height - 1.0) * plane.half_height
     rotation, translation = camera_to_world(camera)
     if camera.projection == "ORTHO":
-        local = np.stack([u, v, np.zeros_like(u)], axis=1)
-        origins = local @ rotation.T + translation
-        direction = -rotation[:, 2]
-        directions = np.broadcast_to(direction, origins.shape)
-        return CameraRays(origins.astype(dtype), np.ascontiguousarray(directions, dtype),
+        origins = rotation[:, :2] @ np.stack([u, v]) + translation[:, None]
+        directions = np.repeat(-rotation[:, 2:3], len(xs), axis=1)
+        return CameraRays(origins.astype(dtype), directions.astype(dtype),
                           camera.clip_start, camera.clip_end)
-    local = np.stack([u, v, -np.ones_like(u)], axis=1)
-    local_length = np.sqrt(np.einsum("nc,nc->n", local, local))
-    directions = (local @ rotation.T) / local_length[:, None]
+    local = np.stack([u, v, -np.ones_like(u)])
+    directions, local_length = normalize(rotation @ local)
     # Clip planes are depths along -Z; a unit ray reaches depth z after z * |(u, v, -1)|.
-    return CameraRays(translation[None, :].astype(dtype), directions.astype(dtype),
+    return CameraRays(translation[:, None].astype(dtype), directions.astype(dtype),
                       (camera.clip_start * local_length).astype(dtype),
                       (camera.clip_end * local_length).astype(dtype))
 

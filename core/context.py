@@ -42,7 +42,8 @@ class RayStats:
 
 @dataclass(frozen=True)
 class Materials:
-    """Per-sphere material arrays in the render precision (see ``SphereArrays``)."""
+    """Per-sphere material arrays in the render precision: ambient, diffuse, specular as
+    (3, N) (one row per channel, ready for ``vectors.take``), exponent and reflection (N,)."""
 
     ambient: np.ndarray
     diffuse: np.ndarray
@@ -62,6 +63,7 @@ class TraceContext:
     light_terms: tuple                   # OriginTerms per light sample position
     light_samples: tuple                 # per light: (samples, 3) float64 positions
     materials: Materials
+    centers_t: np.ndarray                # (3, N) centres in the render precision
     path_gain_bound: float               # max colour one bounce can add per unit weight
     spheres_can_reflect: bool
 
@@ -109,8 +111,10 @@ def make_context(scene: Scene, settings: RenderSettings, dtype) -> TraceContext:
     return TraceContext(
         arrays=arrays, settings=settings, dtype=np.dtype(dtype), article=article, eye=eye,
         camera_terms=camera_terms, light_terms=light_terms, light_samples=tuple(samples),
-        materials=Materials(cast(spheres.ambient), cast(spheres.diffuse), cast(spheres.specular),
-                            cast(spheres.exponent), cast(spheres.reflection)),
+        materials=Materials(cast(spheres.ambient.T), cast(spheres.diffuse.T),
+                            cast(spheres.specular.T), cast(spheres.exponent),
+                            cast(spheres.reflection)),
+        centers_t=cast(spheres.centers.T),
         path_gain_bound=gain,
         spheres_can_reflect=bool(len(spheres) and spheres.reflection.max() > 0),
     )

@@ -20,22 +20,23 @@ _ANGLE_MARGIN = 1e-6  # radians
 def bundle_cone(origins, directions, apex=None):
     """(apex (3,), spread rb, axis (3,), half angle) bounding a bundle of rays.
 
-    origins: (n, 3) or (1, 3), or None with ``apex`` (3,) when every ray starts there;
-    directions: (n, 3) unit.  rb is the half diagonal of the origins' bounding box.
+    origins: (3, n) or (3, 1), or None with ``apex`` (3,) when every ray starts there;
+    directions: (3, n) unit.  rb is the half diagonal of the origins' bounding box.
     """
     if apex is not None:
         spread = 0.0
-    elif len(origins) == 1:
-        apex, spread = np.asarray(origins[0], np.float64), 0.0
+    elif origins.shape[1] == 1:
+        apex, spread = origins[:, 0].astype(np.float64), 0.0
     else:
-        low, high = origins.min(axis=0).astype(np.float64), origins.max(axis=0).astype(np.float64)
+        low = origins.min(axis=1).astype(np.float64)
+        high = origins.max(axis=1).astype(np.float64)
         apex, spread = (low + high) / 2, float(np.linalg.norm(high - low) / 2)
-    mean = directions.sum(axis=0, dtype=np.float64)
+    mean = directions.sum(axis=1, dtype=np.float64)
     norm = np.linalg.norm(mean)
-    if norm < 1e-9 * len(directions):
+    if norm < 1e-9 * directions.shape[1]:
         return apex, spread, np.array([0.0, 0.0, 1.0]), np.pi
     axis = mean / norm
-    cos_half = float(np.clip((directions @ axis.astype(directions.dtype)).min(), -1.0, 1.0))
+    cos_half = float(np.clip((axis.astype(directions.dtype) @ directions).min(), -1.0, 1.0))
     # The dot products were rounded in the render precision: widen by its epsilon.
     half = np.arccos(cos_half) + 4 * np.sqrt(np.finfo(directions.dtype).eps)
     return apex, spread, axis, float(min(half, np.pi))

@@ -1,6 +1,7 @@
 """Ray/sphere intersection over bundles of n rays and k candidate spheres.
 
-Every kernel returns the pair roots ``(t_near, t_far, valid)``, each (n, k): the two distances
+Rays are (3, n) bundles (``core.vectors``).  Every kernel returns the pair roots
+``(t_near, t_far, valid)``, each (k, n): the two distances
 along the (unit) ray where it crosses the sphere, and whether it crosses at all
 (discriminant > 0, strictly, so tangent rays miss as in the article).  Callers pick what
 they need: the nearest hit (``nearest_hits``) or whether a segment is blocked (``core.shadow``).
@@ -33,6 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .vectors import dot, length
+
 #: Largest c' / r^2 for which ``b'^2 - c'`` is used (relative discriminant error ~ eps * ratio).
 CHEAP_DISCRIMINANT_RATIO = {np.dtype(np.float64): 1e4, np.dtype(np.float32): 1e1}
 
@@ -55,17 +58,17 @@ def _textbook_roots(b, c):
 
 
 def pair_roots(origins, directions, centers, radii, *, article=False):
-    """Roots for n rays with their own origins (n, 3), directions (n, 3), k spheres (k, 3), (k,)."""
-    f = origins[:, None, :] - centers[None, :, :]                       # (n, k, 3)
+    """Roots (k, n) for rays with their own origins (3, n) and directions (3, n) against
+    spheres centers (k, 3), radii (k,)."""
+    f = origins[:, None, :] - centers.T[:, :, None]                     # (3, k, n)
+    rays = directions[:, None, :]
     if article:
-        b = 2.0 * np.einsum("nkc,nc->nk", f, directions)
-        c = np.einsum("nkc,nkc->nk", f, f) - radii[None, :] ** 2
-        return _textbook_roots(b, c)
-    b = np.einsum("nkc,nc->nk", f, directions)
-    perp = f - b[:, :, None] * directions[:, None, :]
-    disc = radii[None, :] ** 2 - np.einsum("nkc,nkc->nk", perp, perp)
-    f_len = np.sqrt(np.einsum("nkc,nkc->nk", f, f))
-    c_prime = (f_len - radii[None, :]) * (f_len + radii[None, :])
+        return _textbook_roots(2.0 * dot(f, rays), dot(f, f) - (radii ** 2)[:, None])
+    b = dot(f, rays)                                                    # (k, n)
+    perp = f - b * rays
+    disc = (radii ** 2)[:, None] - dot(perp, perp)
+    f_len = length(f)
+    c_prime = (f_len - radii[:, None]) * (f_len + radii[:, None])
     t_near, t_far = _press_roots(b, c_prime, disc)
     return t_near, t_far, disc > 0
 
@@ -95,35 +98,35 @@ class OriginTerms:
 
 
 def shared_origin_roots(directions, terms: OriginTerms, radii, candidates, *, article=False):
-    """Roots for n rays (directions (n, 3), unit) from the origin ``terms`` was built at,
+    """Roots (k, n) for rays (directions (3, n), unit) from the origin ``terms`` was built at,
     against the spheres ``candidates`` (k,) (indices into the terms and radii arrays)."""
     dtype = directions.dtype
-    f = terms.f[candidates].astype(dtype)
+    f = terms.f[candidates].astype(dtype)                               # (k, 3)
     if article:
-        b = 2.0 * (directions @ f.T)
-        return _textbook_roots(b, terms.article_c[candidates].astype(dtype)[None, :])
-    b = directions @ f.T                                               # (n, k)
+        b = 2.0 * (f @ directions)
+        return _textbook_roots(b, terms.article_c[candidates].astype(dtype)[:, None])
+    b = f @ directions                                                  # (k, n)
     c_prime = terms.c_prime[candidates]
     r = radii[candidates]
-    c_row = c_prime.astype(dtype)[None, :]
+    c_col = c_prime.astype(dtype)[:, None]
     cheap = c_prime <= CHEAP_DISCRIMINANT_RATIO[np.dtype(dtype)] * r * r
     if cheap.all():
-        disc = b * b - c_row
+        disc = b * b - c_col
     else:
-        perp = f[None, :, :] - b[:, :, None] * directions[:, None, :]
-        disc = (r * r).astype(dtype)[None, :] - np.einsum("nkc,nkc->nk", perp, perp)
+        perp = f.T[:, :, None] - b * directions[:, None, :]            # (3, k, n)
+        disc = (r * r).astype(dtype)[:, None] - dot(perp, perp)
         if cheap.any():
-            disc[:, cheap] = b[:, cheap] ** 2 - c_row[:, cheap]
-    t_near, t_far = _press_roots(b, c_row, disc)
+            disc[cheap] = b[cheap] ** 2 - c_col[cheap]
+    t_near, t_far = _press_roots(b, c_col, disc)
     return t_near, t_far, disc > 0
 
 
 def first_hit_distance(t_near, t_far, valid, t_min, *, article=False):
-    """Distance (n, k) of the hit each pair counts, inf where none.
+    """Distance (k, n) of the hit each pair counts, inf where none.
 
     Article: a hit needs both roots > 0, and is the nearer one (a ray never hits a sphere it
     starts inside).  Default: the nearest root beyond t_min (so from inside, the far side).
-    t_min: scalar or (n, 1).
+    t_min: scalar or (n,).
     """
     if article:
         return np.where(valid & (t_near > 0) & (t_far > 0), t_near, np.inf)
@@ -132,17 +135,21 @@ def first_hit_distance(t_near, t_far, valid, t_min, *, article=False):
 
 
 def nearest_hits(distances, t_max=np.inf):
-    """Reduce (n, k) distances to (t (n,), column (n,)), column -1 and t inf for a miss.
+    """Reduce (k, n) distances to (t (n,), row (n,)), row -1 and t inf for a miss.
 
-    On a tie the lower column wins (argmin's rule), which is the article's "listed first"
-    as long as candidate columns keep scene order.
+    On a tie the lower row wins (argmin's rule), which is the article's "listed first" as long
+    as candidate rows keep scene order.
     """
-    n, k = distances.shape
+    k, n = distances.shape
     if k == 0:
         return np.full(n, np.inf, distances.dtype), np.full(n, -1, np.intp)
-    column = np.argmin(distances, axis=1)
-    t = distances[np.arange(n), column]
+    if k == 1:
+        row = np.zeros(n, np.intp)
+        t = distances[0].copy()
+    else:
+        row = np.argmin(distances, axis=0)
+        t = np.take_along_axis(distances, row[None, :], axis=0)[0]
     missed = ~(t < t_max)
-    column[missed] = -1
+    row[missed] = -1
     t[missed] = np.inf
-    return t, column
+    return t, row

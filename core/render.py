@@ -58,7 +58,7 @@ def _trace_positions(ctx: TraceContext, camera, xs, ys, stats):
     """(rgb clipped (n, 3), coverage (n,), signature (n,)) for sample positions xs, ys (n,)."""
     rays = camera_rays(camera, xs, ys, ctx.dtype)
     result = trace_bundle(ctx, rays, stats)
-    return np.clip(result.colour, 0, 1), result.coverage, result.signature
+    return np.clip(result.colour.T, 0, 1), result.coverage, result.signature
 
 
 def _pixel_grid(y0, y1, x0, x1):

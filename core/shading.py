@@ -34,6 +34,7 @@ import numpy as np
 from .context import ARTICLE_OFFSET, RAY_EPSILON, RayStats, TraceContext
 from .cull import bundle_cone, reachable
 from .intersect import shared_origin_roots
+from .vectors import dot, length, normalize, take
 
 #: Candidate spheres intersected at once; bounds (n, k) temporaries.
 SPHERE_CHUNK = 32
@@ -41,22 +42,10 @@ SPHERE_CHUNK = 32
 _CODE_BASE = 6
 
 
-def _dot(a, b):
-    return np.einsum("nc,nc->n", a, b)
-
-
-def _length(v):
-    return np.sqrt(_dot(v, v))
-
-
-def _normalize(v):
-    return v * (1 / _length(v))[:, None]
-
-
 def _power(base, exponent):
-    """base ** exponent per row (m,); a negative base with a non-integer exponent gives 0, not
-    NaN.  A whole exponent shared by every row (the article's 25) is computed by repeated
-    squaring, several times faster than pow and exact in sign for negative bases."""
+    """base ** exponent per element (m,); a negative base with a non-integer exponent gives 0,
+    not NaN.  A whole exponent shared by every element (the article's 25) is computed by
+    repeated squaring, several times faster than pow and exact in sign for negative bases."""
     first = exponent[0] if len(exponent) else 0
     if len(exponent) and float(first).is_integer() and 0 <= first < 1024 \
             and (exponent == first).all():
@@ -82,14 +71,14 @@ def light_blocked(ctx: TraceContext, terms, origin, directions, distance, exclud
                   stats: RayStats, *, start=None, end=None):
     """Whether the segments from a light sample towards m points are blocked, (m,) bool.
 
-    terms: OriginTerms at ``origin`` (3,), the light sample.  directions: (m, 3) unit vectors
+    terms: OriginTerms at ``origin`` (3,), the light sample.  directions: (3, m) unit vectors
     from the light towards the points; distance: (m,) how far the points are.  Default
     semantics: blocked if a sphere other than ``exclude`` (m,) (-1: none) is crossed in
     (0, distance - end), end (m,) the offset.  Article semantics (the points are the shifted
     points S, start (m,) = |light - P|): blocked if the reversed ray S -> light has both roots
     positive and its nearer one below ``start``.
     """
-    m = len(directions)
+    m = directions.shape[1]
     blocked = np.zeros(m, bool)
     if m == 0 or len(ctx.radii) == 0:
         return blocked
@@ -97,104 +86,118 @@ def light_blocked(ctx: TraceContext, terms, origin, directions, distance, exclud
     apex, spread, axis, half = bundle_cone(None, directions, apex=origin)
     candidates = np.flatnonzero(reachable(ctx.centers, ctx.radii, apex, spread, axis, half,
                                           float(distance.max())))
-    distance = distance[:, None]
     for first in range(0, len(candidates), SPHERE_CHUNK):
         chunk = candidates[first:first + SPHERE_CHUNK]
         stats.sphere_tests += m * len(chunk)
         t_near, t_far, valid = shared_origin_roots(directions, terms, ctx.radii, chunk,
                                                    article=ctx.article)
         if ctx.article:
-            hit = valid & (t_far < distance) & (t_far > distance - start[:, None])
+            hit = valid & (t_far < distance) & (t_far > distance - start)
         else:
-            limit = distance - end[:, None]
+            limit = distance - end
             hit = valid & (((t_near > 0) & (t_near < limit)) | ((t_far > 0) & (t_far < limit)))
             if exclude is not None:
-                hit &= exclude[:, None] != chunk[None, :]
-        blocked |= hit.any(axis=1)
+                hit &= chunk[:, None] != exclude[None, :]
+        blocked |= hit.any(axis=0)
     return blocked
 
 
 def shade(ctx: TraceContext, points, normals, directions, spheres, front, stats: RayStats):
-    """(colour (m, 3), goes_on (m,), shadow_code (m,) uint64) at m hit points.
+    """(colour (3, m), goes_on (m,), shadow_code (m,) uint64) at m hit points.
 
     goes_on: whether the path continues (article shadows end it).  shadow_code: which lights
     each point sees (a digit per light, soft visibility in quarters), so that adaptive
     anti-aliasing can find shadow edges.
 
-    points, normals (facing the incoming ray in default semantics), directions (incoming, unit):
-    (m, 3); spheres: (m,) scene indices; front: (m,) True where the ray hit the outside.
+    points, normals (facing the incoming ray in default semantics), directions (incoming,
+    unit): (3, m); spheres: (m,) scene indices; front: (m,) True where the ray hit the outside.
     """
-    lights = ctx.arrays.lights
     mat = ctx.materials
-    dtype = points.dtype
-    ka, kd, ks, exponent = (mat.ambient[spheres], mat.diffuse[spheres], mat.specular[spheres],
-                            mat.exponent[spheres])
-    m = len(points)
+    ka, kd, ks = take(mat.ambient, spheres), take(mat.diffuse, spheres), take(mat.specular, spheres)
+    exponent = mat.exponent.take(spheres)
     if ctx.article:
         return _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats)
-    ambient = (lights.ambient.sum(axis=0) + ctx.arrays.ambient).astype(dtype)
-    colour = ka * ambient
-    view = -directions
+    return _shade_default(ctx, points, normals, directions, spheres, front, ka, kd, ks,
+                          exponent, stats)
+
+
+def _column(values, dtype):
+    return np.asarray(values, dtype)[:, None]
+
+
+def _shade_default(ctx, points, normals, directions, spheres, front, ka, kd, ks, exponent,
+                   stats):
+    lights = ctx.arrays.lights
+    dtype = points.dtype
+    m = points.shape[1]
+    colour = ka * _column(lights.ambient.sum(axis=0) + ctx.arrays.ambient, dtype)
     exclude = np.where(front, spheres, -1)
     shadow_code = np.zeros(m, np.uint64)
-    offset = (1 + np.abs(points).max(axis=1)) * ctx.dtype.type(RAY_EPSILON[ctx.dtype])
+    offset = (1 + np.abs(points).max(axis=0)) * dtype.type(RAY_EPSILON[dtype])
     for light in range(len(lights)):
-        strength_d = lights.diffuse[light].astype(dtype)
-        strength_s = lights.specular[light].astype(dtype)
-        from_light = points - lights.positions[light].astype(dtype)
-        distance = _length(from_light)
-        from_light *= (1 / distance)[:, None]
-        cos_light = -_dot(normals, from_light)
+        strength_d = _column(lights.diffuse[light], dtype)
+        strength_s = _column(lights.specular[light], dtype)
+        from_light, distance = normalize(points - _column(lights.positions[light], dtype))
+        cos_light = -dot(normals, from_light)
         # No shadow ray where the light cannot add anything.
-        reflective = (kd @ strength_d > 0) | (ks @ strength_s > 0)
+        reflective = (dot(kd, strength_d) > 0) | (dot(ks, strength_s) > 0)
         lit = np.flatnonzero((cos_light > 0) & reflective)
         shadow_code *= np.uint64(_CODE_BASE)
         if len(lit) == 0:
             continue
+        everywhere = len(lit) == m
+        pick = (lambda a: a) if everywhere else (lambda a: take(a, lit))
+        pick_row = (lambda a: a) if everywhere else (lambda a: a.take(lit))
+        lit_points, lit_from_light = pick(points), pick(from_light)
         visibility = np.ones(len(lit), dtype)
         samples = ctx.light_samples[light]
         for sample, terms in zip(samples, ctx.light_terms[light]):
             if len(samples) == 1:
-                directions_s, distance_s = from_light[lit], distance[lit]
+                towards, reach = lit_from_light, pick_row(distance)
             else:
-                directions_s = points[lit] - sample.astype(dtype)
-                distance_s = _length(directions_s)
-                directions_s *= (1 / distance_s)[:, None]
-            blocked = light_blocked(ctx, terms, sample, directions_s, distance_s, exclude[lit],
-                                    stats, end=offset[lit])
+                towards, reach = normalize(lit_points - _column(sample, dtype))
+            blocked = light_blocked(ctx, terms, sample, towards, reach, pick_row(exclude),
+                                    stats, end=pick_row(offset))
             visibility -= blocked.astype(dtype) / len(samples)
-        shadow_code[lit] += (1 + np.round(visibility * 4)).astype(np.uint64)
-        half = _normalize(view[lit] - from_light[lit])
-        cos_half = np.maximum(_dot(normals[lit], half), 0)
-        colour[lit] += visibility[:, None] * (
-            kd[lit] * strength_d * cos_light[lit, None]
-            + ks[lit] * strength_s * _power(cos_half, exponent[lit])[:, None])
+        lit_normals = pick(normals)
+        half, _ = normalize(-pick(directions) - lit_from_light)
+        cos_half = np.maximum(dot(lit_normals, half), 0)
+        light_colour = visibility * (
+            pick(kd) * strength_d * pick_row(cos_light)
+            + pick(ks) * strength_s * _power(cos_half, pick_row(exponent)))
+        if everywhere:
+            colour += light_colour
+            shadow_code += (1 + np.round(visibility * 4)).astype(np.uint64)
+        else:
+            colour[:, lit] += light_colour
+            shadow_code[lit] += (1 + np.round(visibility * 4)).astype(np.uint64)
     return colour, np.ones(m, bool), shadow_code
 
 
 def _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats):
     lights = ctx.arrays.lights
     dtype = points.dtype
+    m = points.shape[1]
     shifted = points + ARTICLE_OFFSET * normals
-    to_camera = _normalize(ctx.eye.astype(dtype) - points)
+    to_camera, _ = normalize(_column(ctx.eye, dtype) - points)
     colour = np.zeros_like(points)
-    goes_on = np.zeros(len(points), bool)
-    shadow_code = np.zeros(len(points), np.uint64)
+    goes_on = np.zeros(m, bool)
+    shadow_code = np.zeros(m, np.uint64)
     for light in range(len(lights)):
-        position = lights.positions[light].astype(dtype)
-        from_light = shifted - position
-        shifted_distance = _length(from_light)
-        from_light *= (1 / shifted_distance)[:, None]
+        position = _column(lights.positions[light], dtype)
+        from_light, shifted_distance = normalize(shifted - position)
         to_light = -from_light
-        light_distance = _length(position - points)
         blocked = light_blocked(ctx, ctx.light_terms[light][0], lights.positions[light],
-                                from_light, shifted_distance, None, stats, start=light_distance)
-        half = _normalize(to_light + to_camera)
-        term = (ka * lights.ambient[light].astype(dtype)
-                + kd * lights.diffuse[light].astype(dtype) * _dot(to_light, normals)[:, None]
-                + ks * lights.specular[light].astype(dtype)
-                * _power(_dot(normals, half), exponent)[:, None])
-        colour += np.where(blocked[:, None], 0, term)
+                                from_light, shifted_distance, None, stats,
+                                start=length(position - points))
+        half, _ = normalize(to_light + to_camera)
+        term = (ka * _column(lights.ambient[light], dtype)
+                + kd * _column(lights.diffuse[light], dtype) * dot(to_light, normals)
+                + ks * _column(lights.specular[light], dtype) * _power(dot(normals, half),
+                                                                       exponent))
+        if blocked.any():
+            term[:, blocked] = 0
+        colour += term
         goes_on |= ~blocked
         shadow_code = shadow_code * np.uint64(_CODE_BASE) + (~blocked).astype(np.uint64)
     return colour, goes_on, shadow_code

@@ -3,7 +3,8 @@
 Each bounce: nearest hit among the spheres the bundle can reach (``core.cull``), shade the
 hits (``core.shading``), then compact: only paths that hit something, that the article's
 shadows did not end, whose material reflects, and whose remaining weight can still add more
-than ``contribution_cutoff`` go on as reflection rays.  Nothing per pixel runs in Python.
+than ``contribution_cutoff`` go on as reflection rays.  Rays are (3, n) bundles
+(``core.vectors``); nothing per pixel runs in Python.
 """
 
 from __future__ import annotations
@@ -17,8 +18,9 @@ from .context import ARTICLE_OFFSET, RAY_EPSILON, RayStats, TraceContext
 from .cull import bundle_cone, reachable
 from .intersect import first_hit_distance, nearest_hits, pair_roots, shared_origin_roots
 from .shading import SPHERE_CHUNK, shade
+from .vectors import dot, take
 
-#: Candidate spheres per (n, k, 3) chunk for rays with their own origins.
+#: Candidate spheres per (3, k, n) chunk for rays with their own origins.
 OWN_ORIGIN_CHUNK = 8
 
 _SIGNATURE_PRIME = np.uint64(1_000_003)
@@ -26,32 +28,31 @@ _SIGNATURE_PRIME = np.uint64(1_000_003)
 
 @dataclass
 class BundleResult:
-    """colour (n, 3) unclipped; coverage (n,) whether the camera ray hit a sphere;
+    """colour (3, n) unclipped; coverage (n,) whether the camera ray hit a sphere;
     signature (n,) uint64 hash of what the path hit (spheres and shadowing at every bounce):
     neighbours with different signatures straddle an edge; None unless adaptive AA asks."""
 
     colour: np.ndarray
     coverage: np.ndarray
-    signature: np.ndarray
+    signature: np.ndarray | None
 
 
 def nearest_sphere(ctx: TraceContext, origins, directions, t_min, t_max, exclude,
                    stats: RayStats, terms=None):
     """Nearest hit per ray: (t (n,), scene sphere index (n,), -1 for none).
 
-    origins (1, 3) with ``terms`` (OriginTerms at that origin) when all rays share it, else
-    (n, 3).  t_min, t_max: scalars or (n,).  exclude: (n,) sphere each ray must ignore, or None.
+    origins (3, 1) with ``terms`` (OriginTerms at that origin) when all rays share it, else
+    (3, n); directions (3, n).  t_min, t_max: scalars or (n,).  exclude: (n,) sphere each ray
+    must ignore (-1: none), or None.
     """
-    n = len(directions)
+    n = directions.shape[1]
     best_t = np.full(n, np.inf, directions.dtype)
     best = np.full(n, -1, np.intp)
     if n == 0 or len(ctx.radii) == 0:
         return best_t, best
     apex, spread, axis, half = bundle_cone(origins, directions)
-    max_distance = float(np.max(t_max))
     candidates = np.flatnonzero(reachable(ctx.centers, ctx.radii, apex, spread, axis, half,
-                                          max_distance))
-    t_min_col = t_min[:, None] if np.ndim(t_min) else t_min
+                                          float(np.max(t_max))))
     shared = terms is not None
     chunk_size = SPHERE_CHUNK if shared else OWN_ORIGIN_CHUNK
     for first in range(0, len(candidates), chunk_size):
@@ -62,25 +63,28 @@ def nearest_sphere(ctx: TraceContext, origins, directions, t_min, t_max, exclude
         else:
             roots = pair_roots(origins, directions, ctx.centers[chunk].astype(directions.dtype),
                                ctx.radii[chunk].astype(directions.dtype), article=ctx.article)
-        distances = first_hit_distance(*roots, t_min_col, article=ctx.article)
+        distances = first_hit_distance(*roots, t_min, article=ctx.article)
         if exclude is not None:
-            distances[exclude[:, None] == chunk[None, :]] = np.inf
-        t, column = nearest_hits(distances, t_max)
+            distances[chunk[:, None] == exclude[None, :]] = np.inf
+        t, row = nearest_hits(distances, t_max)
+        if first == 0:
+            best_t, best = t, np.where(row >= 0, chunk[np.maximum(row, 0)], -1)
+            continue
         # Strictly nearer only: on a tie the earlier chunk (earlier in scene order) keeps it.
         better = t < best_t
         best_t[better] = t[better]
-        best[better] = chunk[column[better]]
+        best[better] = chunk[row[better]]
     return best_t, best
 
 
 def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> BundleResult:
     dtype = ctx.dtype
-    n = len(rays.directions)
-    colour = np.zeros((n, 3), dtype)
+    n = rays.directions.shape[1]
+    colour = np.zeros((3, n), dtype)
     # Signatures feed adaptive anti-aliasing only: no work for them otherwise.
     signature = np.zeros(n, np.uint64) if ctx.settings.anti_aliasing == "adaptive" else None
     coverage = np.zeros(n, bool)
-    background = ctx.arrays.background.astype(dtype)
+    background = ctx.arrays.background.astype(dtype)[:, None]
     add_background = not ctx.article and background.any()
     reflection = ctx.materials.reflection
     max_depth = ctx.settings.max_depth
@@ -100,45 +104,55 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
             signature[path] = signature[path] * _SIGNATURE_PRIME + (sphere + 1).astype(np.uint64)
         if depth == 0:
             coverage = hit.copy()
-        if add_background:
-            colour[path[~hit]] += weight[~hit, None] * background
+        if add_background and not hit.all():
+            missed = np.flatnonzero(~hit)
+            colour[:, path[missed]] += weight[missed] * background
         keep = np.flatnonzero(hit)
-        path, weight, t, sphere = path[keep], weight[keep], t[keep], sphere[keep]
-        directions = directions[keep]
-        origins = origins if len(origins) == 1 else origins[keep]
-        if len(path) == 0:
+        if len(keep) == 0:
             break
+        if len(keep) < len(hit):
+            path, weight, t, sphere = path[keep], weight[keep], t[keep], sphere[keep]
+            directions = take(directions, keep)
+            origins = origins if origins.shape[1] == 1 else take(origins, keep)
 
-        points = origins + t[:, None] * directions
-        normals = points - ctx.centers[sphere].astype(dtype)
-        normals *= (1 / np.sqrt(np.einsum("nc,nc->n", normals, normals)))[:, None]
-        cos_in = np.einsum("nc,nc->n", directions, normals)
+        points = origins + t * directions
+        normals = points - take(ctx.centers_t, sphere)
+        normals *= 1 / np.sqrt(dot(normals, normals))
+        cos_in = dot(directions, normals)
         front = cos_in < 0
-        if not ctx.article:
+        if not ctx.article and not front.all():
             # Shade the side the ray sees: inside a sphere the normal faces inwards.
-            normals[~front] *= -1
+            normals *= np.where(front, 1, -1).astype(dtype)
             cos_in = np.where(front, cos_in, -cos_in)
         illumination, goes_on, shadow_code = shade(ctx, points, normals, directions, sphere,
                                                    front, stats)
-        colour[path] += weight[:, None] * illumination
+        illumination *= weight
+        if depth == 0 and len(path) == n:
+            colour += illumination
+        else:
+            colour[:, path] += illumination
         if signature is not None:
             signature[path] = signature[path] * _SIGNATURE_PRIME + shadow_code
 
-        weight = weight * reflection[sphere]
+        weight = weight * reflection.take(sphere)
         bounces_left = max_depth - depth - 1
+        if bounces_left == 0:
+            break
         goes_on &= weight * (ctx.path_gain_bound * bounces_left) > cutoff
         keep = np.flatnonzero(goes_on)
-        if len(keep) == 0 or bounces_left == 0:
+        if len(keep) == 0:
             break
-        path, weight, sphere, front = path[keep], weight[keep], sphere[keep], front[keep]
-        points, normals = points[keep], normals[keep]
-        directions = directions[keep] - (2 * cos_in[keep])[:, None] * normals
+        if len(keep) < len(goes_on):
+            path, weight, sphere, front = path[keep], weight[keep], sphere[keep], front[keep]
+            points, normals = take(points, keep), take(normals, keep)
+            directions, cos_in = take(directions, keep), cos_in[keep]
+        directions = directions - (2 * cos_in) * normals
         if ctx.article:
             origins = points + ARTICLE_OFFSET * normals
             exclude = None
         else:
-            scale = (1 + np.abs(points).max(axis=1)) * dtype.type(RAY_EPSILON[dtype])
-            origins = points + scale[:, None] * normals
+            scale = (1 + np.abs(points).max(axis=0)) * dtype.type(RAY_EPSILON[dtype])
+            origins = points + scale * normals
             exclude = np.where(front, sphere, -1)
         t_min, t_max, terms = 0.0, np.inf, None
         stats.reflection_rays += len(path)

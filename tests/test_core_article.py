@@ -153,9 +153,10 @@ def test_default_specular_follows_the_ray_not_the_camera():
     scene = core.Scene(camera=core.ScreenCamera(width=4, height=4, eye=(0, 0, 5)),
                        spheres=(core.Sphere((0, -100, 0), 100.0, core.Material(), "floor"),),
                        lights=(core.PointLight((3, 3, 0)),))
-    point = np.array([[0.0, 0.0, 0.0]])
-    normal = np.array([[0.0, 1.0, 0.0]])
-    incoming = np.array([[1.0, -1.0, 0.0]]) / np.sqrt(2)   # mirror of the direction to the light
+    # (3, 1) bundles: one point.
+    point = np.array([[0.0], [0.0], [0.0]])
+    normal = np.array([[0.0], [1.0], [0.0]])
+    incoming = np.array([[1.0], [-1.0], [0.0]]) / np.sqrt(2)   # mirror of the way to the light
     ks_term = {}
     for semantics in ("default", "article"):
         ctx = make_context(scene, core.RenderSettings(semantics=semantics), np.float64)

@@ -34,8 +34,9 @@ def _shoot(ctx, origins, directions, exclude=None):
     dirs = (dirs / np.linalg.norm(dirs, axis=1, keepdims=True)).astype(ctx.dtype)
     origins = np.asarray(origins, np.float64)
     terms = OriginTerms.at(origins[0], ctx.centers, ctx.radii) if len(origins) == 1 else None
-    return nearest_sphere(ctx, origins.astype(ctx.dtype), dirs, 0.0, np.inf, exclude,
-                          RayStats(), terms)
+    # The tracer's bundles are (3, n): one row per component.
+    return nearest_sphere(ctx, origins.T.astype(ctx.dtype), dirs.T.copy(), 0.0, np.inf,
+                          exclude, RayStats(), terms)
 
 
 def _relative_error(t, exact):
@@ -83,13 +84,13 @@ def test_floor_needs_float64_and_shared_origin_terms_beat_the_textbook_form():
     exact = np.array([float(exact_roots(origin[0], di, centers[0], radius)[0]) for di in d])
 
     def error(dtype, article):
-        t = pair_roots(np.repeat(origin, 200, 0).astype(dtype), d.astype(dtype),
-                       centers.astype(dtype), radii.astype(dtype), article=article)[0][:, 0]
+        t = pair_roots(np.repeat(origin, 200, 0).T.astype(dtype), d.T.astype(dtype),
+                       centers.astype(dtype), radii.astype(dtype), article=article)[0][0]
         return np.abs(t - exact).max()
 
     assert error(np.float32, True) > 1e-4 and error(np.float32, False) > 1e-4
-    shared = shared_origin_roots(d, OriginTerms.at(origin[0], centers, radii), radii,
-                                 np.array([0]))[0][:, 0]
+    shared = shared_origin_roots(d.T.copy(), OriginTerms.at(origin[0], centers, radii), radii,
+                                 np.array([0]))[0][0]
     assert np.abs(shared - exact).max() * 100 < error(np.float64, True)
 
 
