@@ -79,14 +79,32 @@ glint_bpy_runs() {
     "$GLINT_PYTHON" "$GLINT_ROOT/scripts/check_bpy_runtime.py" >"$GLINT_VENV/.glint-bpy-check.log" 2>&1
 }
 
+glint_missing_apt_packages() {
+    local package
+    for package in "${GLINT_APT_PACKAGES[@]}"; do
+        dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q 'install ok installed' ||
+            printf '%s ' "$package"
+    done
+}
+
 glint_install_system_libraries() {
-    local apt_command="apt-get install -y --no-install-recommends ${GLINT_APT_PACKAGES[*]}"
-    if [ "$(id -u)" -ne 0 ] || ! command -v apt-get >/dev/null 2>&1; then
-        glint_fail "bpy cannot run: system libraries are missing. As root, run
-    apt-get update && $apt_command
-(on other systems install the equivalents of: ${GLINT_APT_PACKAGES[*]})."
+    # Only packages that are absent: reinstalling present ones would upgrade them as a side effect.
+    local missing
+    if ! command -v dpkg-query >/dev/null 2>&1; then
+        glint_fail "bpy cannot run and this is not a Debian/Ubuntu system; install the equivalents of:
+    ${GLINT_APT_PACKAGES[*]}"
     fi
-    glint_say "installing system libraries for bpy: ${GLINT_APT_PACKAGES[*]}"
+    missing=$(glint_missing_apt_packages)
+    if [ -z "$missing" ]; then
+        glint_say "all of ${GLINT_APT_PACKAGES[*]} are installed already"
+        return 0
+    fi
+    local apt_command="apt-get install -y --no-install-recommends $missing"
+    if [ "$(id -u)" -ne 0 ]; then
+        glint_fail "bpy cannot run: system packages are missing. As root, run
+    apt-get update && $apt_command"
+    fi
+    glint_say "installing missing system packages for bpy: $missing"
     DEBIAN_FRONTEND=noninteractive apt-get update -q >&2 ||
         glint_fail "apt-get update failed; run it by hand, then: $apt_command"
     # shellcheck disable=SC2086
@@ -103,8 +121,8 @@ glint_check_bpy_runtime() {
     glint_bpy_runs && return 0
     local missing
     missing=$(ldd "$GLINT_VENV"/lib/python3.11/site-packages/bpy/*.so 2>/dev/null | grep 'not found' | sort -u || true)
-    glint_fail "bpy still cannot import or render with Workbench after installing system libraries.
-Unresolved libraries (empty if none): ${missing:-none}
+    glint_fail "bpy still cannot import or render with Workbench, though every package listed in scripts/setup_env.sh is installed.
+Libraries the loader cannot find: ${missing:-none}
 Last lines of $GLINT_VENV/.glint-bpy-check.log:
 $(tail -n 15 "$GLINT_VENV/.glint-bpy-check.log")"
 }
