@@ -186,18 +186,17 @@ def _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats):
     for light in range(len(lights)):
         position = _column(lights.positions[light], dtype)
         from_light, shifted_distance = normalize(shifted - position)
-        to_light = -from_light
         blocked = light_blocked(ctx, ctx.light_terms[light][0], lights.positions[light],
                                 from_light, shifted_distance, None, stats,
                                 start=length(position - points))
-        half, _ = normalize(to_light + to_camera)
+        # H = normalize(to_light + to_camera), with to_light = -from_light.
+        half, _ = normalize(to_camera - from_light)
         term = (ka * _column(lights.ambient[light], dtype)
-                + kd * _column(lights.diffuse[light], dtype) * dot(to_light, normals)
+                - kd * _column(lights.diffuse[light], dtype) * dot(from_light, normals)
                 + ks * _column(lights.specular[light], dtype) * _power(dot(normals, half),
                                                                        exponent))
-        if blocked.any():
-            term[:, blocked] = 0
-        colour += term
-        goes_on |= ~blocked
-        shadow_code = shadow_code * np.uint64(_CODE_BASE) + (~blocked).astype(np.uint64)
+        unblocked = ~blocked
+        colour += term * unblocked
+        goes_on |= unblocked
+        shadow_code = shadow_code * np.uint64(_CODE_BASE) + unblocked.astype(np.uint64)
     return colour, goes_on, shadow_code
