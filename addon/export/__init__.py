@@ -1,0 +1,8 @@
+"""Export: Blender's evaluated scene -> a core Scene (``export_scene``), one pure step that
+reads Blender data and changes nothing.  One module per kind of data, as in BlendLuxCore's
+export/ and mitsuba-blender's io/exporter/."""
+
+from .errors import ExportError
+from .scene import export_scene
+
+__all__ = ["ExportError", "export_scene"]

@@ -1,0 +1,3 @@
+class ExportError(Exception):
+    """The scene cannot be rendered (no camera, a panoramic camera, ...); the message says why
+    and names the object, and is meant for the user as is."""

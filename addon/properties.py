@@ -1,0 +1,84 @@
+"""Glint's settings, stored in the .blend: ``Scene.glint`` (how to render) and
+``Material.glint`` (the article's five material parameters, when typed in directly)."""
+
+from __future__ import annotations
+
+import bpy
+from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty,
+                       IntProperty, PointerProperty, StringProperty)
+
+from ..core import Material
+
+DEFAULT_IMAGE_NAME = "Glint Render"
+_ARTICLE_FLOOR = Material()  # the core's default material is the article's floor
+
+
+class GlintRenderSettings(bpy.types.PropertyGroup):
+    max_depth: IntProperty(
+        name="Max Depth", default=3, min=1, soft_max=16,
+        description="Bounces per path; the camera ray's hit counts as the first (the article "
+                    "uses 3)")
+    anti_aliasing: EnumProperty(
+        name="Anti-Aliasing", default='ADAPTIVE',
+        items=[('OFF', "Off", "One ray through each pixel centre, as the article does"),
+               ('FIXED', "Fixed", "Samples rays in every pixel"),
+               ('ADAPTIVE', "Adaptive",
+                "One ray per pixel, then Samples rays in pixels on an edge")])
+    samples: IntProperty(
+        name="Samples", default=16, min=1, soft_max=256,
+        description="Rays per anti-aliased pixel")
+    light_samples: IntProperty(
+        name="Light Samples", default=16, min=1, soft_max=256,
+        description="Shadow rays per light with a radius (soft shadows, default semantics)")
+    precision: EnumProperty(
+        name="Precision", default='AUTO',
+        items=[('AUTO', "Auto", "Float32 when the scene's size-to-detail ratio allows it, "
+                                "else float64"),
+               ('FLOAT64', "Float64", "Double precision"),
+               ('FLOAT32', "Float32", "Single precision: faster, may show shadow acne on "
+                                      "huge spheres")])
+    semantics: EnumProperty(
+        name="Semantics", default='DEFAULT',
+        items=[('DEFAULT', "Default", "The article's model with its quirks fixed: clamped "
+                                      "shading, ambient light in shadow, soft shadows, world "
+                                      "background"),
+               ('ARTICLE', "Article", "Every quirk of the article's tracer, kept exactly")])
+    image_name: StringProperty(
+        name="Image", default=DEFAULT_IMAGE_NAME,
+        description="Image datablock the Render button writes (created if missing)")
+
+
+class GlintMaterialSettings(bpy.types.PropertyGroup):
+    use_custom: BoolProperty(
+        name="Custom", default=False,
+        description="Use these values instead of the ones derived from the material's "
+                    "Principled BSDF or Viewport Display")
+    ambient: FloatVectorProperty(
+        name="Ambient", subtype='COLOR_GAMMA', size=3, min=0.0, soft_max=1.0,
+        default=_ARTICLE_FLOOR.ambient, description="Reflectance of ambient light (ka)")
+    diffuse: FloatVectorProperty(
+        name="Diffuse", subtype='COLOR_GAMMA', size=3, min=0.0, soft_max=1.0,
+        default=_ARTICLE_FLOOR.diffuse, description="Diffuse reflectance (kd)")
+    specular: FloatVectorProperty(
+        name="Specular", subtype='COLOR_GAMMA', size=3, min=0.0, soft_max=1.0,
+        default=_ARTICLE_FLOOR.specular, description="Specular reflectance (ks)")
+    shininess: FloatProperty(
+        name="Shininess", default=_ARTICLE_FLOOR.shininess, min=0.0, soft_max=1000.0,
+        description="Blinn-Phong exponent as the article writes it (shading uses a quarter "
+                    "of it on N.H)")
+    reflection: FloatProperty(
+        name="Reflection", default=_ARTICLE_FLOOR.reflection, min=0.0, max=1.0,
+        subtype='FACTOR', description="Mirror weight of the reflected ray")
+
+
+classes = (GlintRenderSettings, GlintMaterialSettings)
+
+
+def register_pointers():
+    bpy.types.Scene.glint = PointerProperty(type=GlintRenderSettings, name="Glint")
+    bpy.types.Material.glint = PointerProperty(type=GlintMaterialSettings, name="Glint")
+
+
+def unregister_pointers():
+    del bpy.types.Material.glint
+    del bpy.types.Scene.glint

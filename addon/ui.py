@@ -1,0 +1,96 @@
+"""Panels: Glint's settings and Render button in the 3D viewport's sidebar (tab "Glint", any
+render engine) and in Render properties (when Glint is the render engine, per Blender's
+COMPAT_ENGINES convention), and a Glint section in Material properties."""
+
+from __future__ import annotations
+
+import bpy
+
+from .engine.final import GlintRenderEngine
+from .operators import GLINT_OT_render
+
+
+def draw_render_settings(layout, scene) -> None:
+    settings = scene.glint
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+
+    column = layout.column()
+    column.prop(settings, "semantics")
+    column.prop(settings, "precision")
+    column.prop(settings, "max_depth")
+
+    column = layout.column()
+    column.prop(settings, "anti_aliasing")
+    row = column.row()
+    row.active = settings.anti_aliasing != 'OFF'
+    row.prop(settings, "samples")
+    row = column.row()
+    row.active = settings.semantics == 'DEFAULT'
+    row.prop(settings, "light_samples")
+
+    layout.prop(scene.render, "film_transparent", text="Transparent Film")
+    layout.prop(settings, "image_name")
+    layout.operator(GLINT_OT_render.bl_idname, icon='RENDER_STILL')
+
+
+class GLINT_PT_render(bpy.types.Panel):
+    bl_label = "Glint"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "render"
+    COMPAT_ENGINES = {GlintRenderEngine.bl_idname}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+    def draw(self, context):
+        draw_render_settings(self.layout, context.scene)
+
+
+class GLINT_PT_sidebar(bpy.types.Panel):
+    bl_label = "Glint"
+    bl_space_type = 'VIEW_3D'
+    bl_region_type = 'UI'
+    bl_category = "Glint"
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None
+
+    def draw(self, context):
+        draw_render_settings(self.layout, context.scene)
+
+
+class GLINT_PT_material(bpy.types.Panel):
+    """Shown with every engine: the sidebar's Render button works whichever is selected."""
+
+    bl_label = "Glint"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "material"
+
+    @classmethod
+    def poll(cls, context):
+        material = context.material
+        return material is not None and not material.is_grease_pencil
+
+    def draw_header(self, context):
+        self.layout.prop(context.material.glint, "use_custom", text="")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.material.glint
+        column = layout.column()
+        column.active = settings.use_custom
+        for name in ("ambient", "diffuse", "specular", "shininess", "reflection"):
+            column.prop(settings, name)
+        if not settings.use_custom:
+            layout.label(text="Off: derived from the Principled BSDF or Viewport Display",
+                         icon='INFO')
+
+
+classes = (GLINT_PT_render, GLINT_PT_sidebar, GLINT_PT_material)

@@ -1,0 +1,59 @@
+"""Where Glint's colours meet Blender's.
+
+The core works in the article's numbers: the values it computes are the values the PNG stores,
+i.e. sRGB-encoded display values.  Blender's colours (material base colours, the world, render
+results) are scene-linear.  The sRGB transfer function (IEC 61966-2-1, the piecewise curve
+Blender's "sRGB" display and "Standard" view use) converts between the two, so that:
+
+* a colour picked in Blender keeps its look: a swatch Blender shows as 0.7 red becomes the
+  core's 0.7 red (``linear_to_srgb``);
+* a render result handed to Blender as ``srgb_to_linear(core value)`` is displayed and saved,
+  with view transform Standard, as the core's value again.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def srgb_to_linear(values):
+    """sRGB-encoded values -> linear, element-wise (array in, float64 array out)."""
+    values = np.asarray(values, np.float64)
+    return np.where(values <= 0.04045, values / 12.92,
+                    ((np.maximum(values, 0.04045) + 0.055) / 1.055) ** 2.4)
+
+
+def linear_to_srgb(values):
+    """Linear values -> sRGB-encoded, element-wise (array in, float64 array out)."""
+    values = np.asarray(values, np.float64)
+    return np.where(values <= 0.0031308, values * 12.92,
+                    1.055 * np.maximum(values, 0.0031308) ** (1 / 2.4) - 0.055)
+
+
+def colour_from_blender(rgb) -> tuple[float, float, float]:
+    """A Blender (scene-linear) colour as a core colour: sRGB-encoded, negatives clamped to 0."""
+    encoded = linear_to_srgb(np.maximum(np.asarray(rgb, np.float64)[:3], 0.0))
+    return tuple(float(c) for c in encoded)
+
+
+def premultiplied_to_scene_linear(rgba: np.ndarray) -> np.ndarray:
+    """(..., 4) premultiplied display values -> premultiplied scene-linear values (a copy).
+
+    The transfer function applies to the unpremultiplied colour; a pixel with alpha 0 stays
+    (0, 0, 0, 0).
+    """
+    out = np.array(rgba, np.float32, copy=True)
+    alpha = out[..., 3:4]
+    covered = alpha > 0
+    straight = np.divide(out[..., :3], alpha, out=np.zeros_like(out[..., :3]), where=covered)
+    out[..., :3] = np.where(covered, srgb_to_linear(straight) * alpha, 0.0)
+    return out
+
+
+def unpremultiply(rgba: np.ndarray) -> np.ndarray:
+    """(..., 4) premultiplied -> straight alpha (PNG's convention), a copy; alpha 0 gives 0."""
+    out = np.array(rgba, np.float64, copy=True)
+    alpha = out[..., 3:4]
+    out[..., :3] = np.divide(out[..., :3], alpha, out=np.zeros_like(out[..., :3]),
+                             where=alpha > 0)
+    return out

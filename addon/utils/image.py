@@ -1,0 +1,89 @@
+"""Writing a render into an Image datablock.
+
+The Image is a generated float image whose colour space is 'Non-Color': Blender treats its
+buffer as data, so it converts nothing, neither for display in the Image Editor nor when the
+image is saved.  Its pixels are the core's numbers, the Image Editor shows them as the core's
+PNG does, and saving it (or ``Image.save_render`` with view transform Standard) writes the
+core's PNG.  ('Linear Rec.709' or 'sRGB' would make Blender sRGB-encode the buffer on display
+and on save, brightening it.)  The alpha mode is premultiplied, like render results.
+"""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+
+COLOUR_SPACE = 'Non-Color'
+
+
+class ImageError(Exception):
+    """The named image exists and is not one Glint may overwrite."""
+
+
+def check_image_name(name: str) -> None:
+    """Raise ImageError unless ``name`` is free or names an image Glint may overwrite (a
+    generated one), so a render never starts only to be thrown away, and never overwrites
+    an image loaded from a file."""
+    if not name.strip():
+        raise ImageError("the Glint image name is empty: type the name of the image to render "
+                         "into")
+    image = bpy.data.images.get(name)
+    if image is not None and image.source != 'GENERATED':
+        raise ImageError(f"image '{name}' is a {image.source.lower()} image, which Glint does "
+                         f"not overwrite: choose another image name")
+
+
+def _target_image(name: str, width: int, height: int):
+    check_image_name(name)
+    image = bpy.data.images.get(name)
+    if image is None:
+        return bpy.data.images.new(name, width, height, alpha=True, float_buffer=True)
+    if not image.use_generated_float:
+        image.use_generated_float = True
+    if tuple(image.size) != (width, height):
+        image.scale(width, height)
+    return image
+
+
+def write_image(name: str, rgba: np.ndarray):
+    """Write (H, W, 4) floats (row 0 = top) into the Image ``name`` and return it.
+
+    Created if missing, resized if needed, updated in place otherwise (so editors and
+    materials using it keep their reference), and shown in an open Image Editor.
+    """
+    height, width = rgba.shape[:2]
+    image = _target_image(name, width, height)
+    image.colorspace_settings.name = COLOUR_SPACE
+    image.alpha_mode = 'PREMUL'
+    # Blender's row 0 is the bottom row.
+    image.pixels.foreach_set(np.ascontiguousarray(rgba[::-1], np.float32).ravel())
+    image.update()
+    show_in_image_editor(image)
+    return image
+
+
+def read_image(image) -> np.ndarray:
+    """An Image's pixels as (H, W, 4) float32, row 0 = top (the inverse of write_image)."""
+    width, height = image.size
+    pixels = np.empty(width * height * 4, np.float32)
+    image.pixels.foreach_get(pixels)
+    return pixels.reshape(height, width, 4)[::-1].copy()
+
+
+def show_in_image_editor(image) -> None:
+    """Show the image in an Image Editor already showing it, else in the first unpinned one."""
+    window_manager = bpy.context.window_manager
+    if window_manager is None:
+        return
+    editors = [area for window in window_manager.windows for area in window.screen.areas
+               if area.type == 'IMAGE_EDITOR']
+    for area in editors:
+        if area.spaces.active.image == image:
+            area.tag_redraw()
+            return
+    for area in editors:
+        space = area.spaces.active
+        if not space.use_image_pin:
+            space.image = image
+            area.tag_redraw()
+            return
