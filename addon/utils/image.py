@@ -34,14 +34,25 @@ def check_image_name(name: str) -> None:
 
 
 def _target_image(name: str, width: int, height: int):
+    """The image to write, created or reconfigured (float, size, colour space).
+
+    A generated image rebuilds its buffer from these settings whenever one changes, so
+    they are all set before any pixel is written.
+    """
     check_image_name(name)
     image = bpy.data.images.get(name)
     if image is None:
-        return bpy.data.images.new(name, width, height, alpha=True, float_buffer=True)
+        image = bpy.data.images.new(name, width, height, alpha=True, float_buffer=True)
     if not image.use_generated_float:
         image.use_generated_float = True
+    if (image.generated_width, image.generated_height) != (width, height):
+        image.generated_width, image.generated_height = width, height
     if tuple(image.size) != (width, height):
         image.scale(width, height)
+    if image.colorspace_settings.name != COLOUR_SPACE:
+        image.colorspace_settings.name = COLOUR_SPACE
+    if image.alpha_mode != 'PREMUL':
+        image.alpha_mode = 'PREMUL'
     return image
 
 
@@ -53,8 +64,6 @@ def write_image(name: str, rgba: np.ndarray):
     """
     height, width = rgba.shape[:2]
     image = _target_image(name, width, height)
-    image.colorspace_settings.name = COLOUR_SPACE
-    image.alpha_mode = 'PREMUL'
     # Blender's row 0 is the bottom row.
     image.pixels.foreach_set(np.ascontiguousarray(rgba[::-1], np.float32).ravel())
     image.update()

@@ -1,0 +1,147 @@
+"""Shared set-up for the add-on tests (headless pip bpy, one process).
+
+The add-on is this checkout loaded as the package ``glint`` by render.py's ``import_glint`` (the
+same way render.py runs it) and registered once per session.  Everything the add-on computes
+uses ``glint.core``; the tests therefore use ``glint.core`` too, not the top-level ``core``
+(a second copy of the same modules, whose classes would not be the add-on's).
+
+Each test builds its own small scene with the helpers below (64 x 48 by default, so every
+render takes milliseconds) in a freshly emptied file.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+
+import bmesh
+import bpy
+import numpy as np
+
+REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+RENDER_SCRIPT = os.path.join(REPOSITORY, "render.py")
+if REPOSITORY not in sys.path:
+    sys.path.insert(0, REPOSITORY)
+
+import render as render_script  # noqa: E402  (render.py, the command-line entry point)
+
+glint = render_script.import_glint()
+render_script.register_glint(glint)
+
+from glint import core  # noqa: E402
+from glint.addon.engine.job import prepare_job, render_settings  # noqa: E402
+from glint.addon.export import ExportError, export_scene  # noqa: E402
+from glint.addon.utils.image import read_image  # noqa: E402
+from glint.core.png import to_rgba8  # noqa: E402
+
+WIDTH, HEIGHT = 64, 48
+
+
+def empty_file():
+    """Start from an empty file (no objects, one scene), with the add-on still registered."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = WIDTH, HEIGHT
+    scene.render.resolution_percentage = 100
+    scene.view_settings.view_transform = 'Standard'
+    scene.view_settings.look = 'None'
+    scene.render.dither_intensity = 0.0  # Blender dithers 8-bit output by default
+    scene.glint.anti_aliasing = 'OFF'
+    return scene
+
+
+def link(obj, scene=None):
+    (scene or bpy.context.scene).collection.objects.link(obj)
+    return obj
+
+
+def uv_sphere_mesh(name="sphere", radius=1.0, segments=32, rings=16):
+    mesh = bpy.data.meshes.new(name)
+    builder = bmesh.new()
+    bmesh.ops.create_uvsphere(builder, u_segments=segments, v_segments=rings, radius=radius)
+    builder.to_mesh(mesh)
+    builder.free()
+    return mesh
+
+
+def ico_sphere_mesh(name="ico", radius=1.0, subdivisions=2):
+    mesh = bpy.data.meshes.new(name)
+    builder = bmesh.new()
+    bmesh.ops.create_icosphere(builder, subdivisions=subdivisions, radius=radius)
+    builder.to_mesh(mesh)
+    builder.free()
+    return mesh
+
+
+def cube_mesh(name="cube", size=2.0):
+    mesh = bpy.data.meshes.new(name)
+    builder = bmesh.new()
+    bmesh.ops.create_cube(builder, size=size)
+    builder.to_mesh(mesh)
+    builder.free()
+    return mesh
+
+
+def add_sphere(name="sphere", location=(0.0, 0.0, 0.0), radius=1.0, material=None, **mesh_args):
+    obj = link(bpy.data.objects.new(name, uv_sphere_mesh(name, radius, **mesh_args)))
+    obj.location = location
+    if material is not None:
+        obj.data.materials.append(material)
+    return obj
+
+
+def add_point_light(name="light", location=(5.0, 5.0, 5.0), energy=1000.0, radius=0.0,
+                    colour=(1.0, 1.0, 1.0)):
+    data = bpy.data.lights.new(name, type='POINT')
+    data.energy = energy
+    data.shadow_soft_size = radius
+    data.color = colour
+    obj = link(bpy.data.objects.new(name, data))
+    obj.location = location
+    return obj
+
+
+def add_camera(name="camera", location=(0.0, -6.0, 0.0), rotation=(math.pi / 2, 0.0, 0.0),
+               lens=50.0):
+    """A camera (default: on -Y looking at the origin along +Y, Z up) made the scene camera."""
+    data = bpy.data.cameras.new(name)
+    data.lens = lens
+    obj = link(bpy.data.objects.new(name, data))
+    obj.location = location
+    obj.rotation_euler = rotation
+    bpy.context.scene.camera = obj
+    return obj
+
+
+def simple_scene():
+    """Two spheres, a point light and a camera looking at them: a small but full scene."""
+    scene = empty_file()
+    add_sphere("big", (0.0, 0.0, 0.0), 1.0)
+    add_sphere("small", (1.2, -0.8, 0.6), 0.3)
+    add_point_light()
+    add_camera()
+    return scene
+
+
+def depsgraph():
+    graph = bpy.context.evaluated_depsgraph_get()
+    graph.update()
+    return graph
+
+
+def core_image(graph=None) -> np.ndarray:
+    """The core's own render of the exported scene, as the add-on would finish it."""
+    job = prepare_job(graph or depsgraph())
+    return job.run()
+
+
+def read_png(path: str) -> np.ndarray:
+    """(H, W, 4) uint8, row 0 = top, of any PNG Blender can read (loaded as data, so no
+    colour conversion happens)."""
+    image = bpy.data.images.load(path, check_existing=False)
+    try:
+        image.colorspace_settings.name = 'Non-Color'
+        return np.round(read_image(image) * 255).astype(np.uint8)
+    finally:
+        bpy.data.images.remove(image)

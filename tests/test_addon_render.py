@@ -1,0 +1,384 @@
+"""The add-on in Blender: registration, the Render button (operator), the render engine (F12,
+animation), the Image datablock, colour management, and failure handling."""
+
+from __future__ import annotations
+
+import os
+
+import bpy
+import numpy as np
+import pytest
+
+from addon_support import (add_camera, add_point_light, add_sphere, core, core_image, cube_mesh,
+                           depsgraph, empty_file, glint, link, prepare_job, read_png,
+                           simple_scene, to_rgba8)
+from glint.addon.engine.final import GlintRenderEngine, compatible_panels
+from glint.addon.engine.job import ThreadedRender
+from glint.addon.utils.image import COLOUR_SPACE, read_image, write_image
+
+IMAGE = "Glint Render"
+
+
+def render_button():
+    """Press the Render button the way a script does (execute, synchronous)."""
+    return bpy.ops.glint.render()
+
+
+def glint_image():
+    return read_image(bpy.data.images[IMAGE])
+
+
+def f12(tmp_path, name="f12.png", **render_kwargs):
+    """Render with the Glint engine through Blender's own render operator and read the PNG
+    Blender saved."""
+    scene = bpy.context.scene
+    scene.render.engine = 'GLINT'
+    scene.render.filepath = str(tmp_path / name)
+    scene.render.image_settings.file_format = 'PNG'
+    scene.render.image_settings.color_mode = 'RGBA'
+    scene.render.image_settings.color_depth = '8'
+    bpy.ops.render.render(write_still=True, **render_kwargs)
+    return read_png(str(tmp_path / name))
+
+
+# --- registration -----------------------------------------------------------------------------
+
+def engine_available() -> bool:
+    """Whether 'GLINT' can be chosen as the render engine (the engine enum is dynamic)."""
+    render = bpy.context.scene.render
+    previous = render.engine
+    try:
+        render.engine = 'GLINT'
+    except TypeError:
+        return False
+    render.engine = previous
+    return True
+
+
+def test_register_unregister_register_again():
+    panels = compatible_panels()
+    assert panels and all('GLINT' in panel.COMPAT_ENGINES for panel in panels)
+    assert 'GLINT' in bpy.types.RENDER_PT_format.COMPAT_ENGINES
+    assert 'GLINT' in bpy.types.EEVEE_MATERIAL_PT_context_material.COMPAT_ENGINES
+
+    glint.unregister()
+    try:
+        assert not engine_available()
+        assert not hasattr(bpy.types.Scene, "glint")
+        assert not hasattr(bpy.types.Material, "glint")
+        assert not hasattr(bpy.ops.glint, "render") or not _operator_registered()
+        assert not any('GLINT' in panel.COMPAT_ENGINES for panel in panels)
+        assert not GlintRenderEngine.is_registered
+    finally:
+        glint.register()
+
+    assert engine_available() and GlintRenderEngine.is_registered
+    assert _operator_registered()
+    assert all('GLINT' in panel.COMPAT_ENGINES for panel in panels)
+    simple_scene()
+    assert bpy.context.scene.glint.image_name == IMAGE
+    assert render_button() == {'FINISHED'}
+
+
+def _operator_registered() -> bool:
+    try:
+        bpy.ops.glint.render.get_rna_type()
+        return True
+    except KeyError:
+        return False
+
+
+def test_panels_and_engine_follow_blenders_conventions():
+    assert GlintRenderEngine.bl_idname == "GLINT" and GlintRenderEngine.bl_label == "Glint"
+    assert bpy.types.GLINT_OT_render.bl_idname == "glint.render"
+    assert bpy.ops.glint.render.idname() == "GLINT_OT_render"
+    assert bpy.types.GLINT_PT_render.COMPAT_ENGINES == {'GLINT'}
+    assert bpy.types.GLINT_PT_sidebar.bl_category == "Glint"
+    assert bpy.types.GLINT_PT_sidebar.bl_space_type == 'VIEW_3D'
+    assert bpy.types.GLINT_PT_material.bl_context == "material"
+    settings = bpy.context.scene.glint
+    for name, items in [("anti_aliasing", {'OFF', 'FIXED', 'ADAPTIVE'}),
+                        ("precision", {'AUTO', 'FLOAT64', 'FLOAT32'}),
+                        ("semantics", {'DEFAULT', 'ARTICLE'})]:
+        enum = settings.bl_rna.properties[name].enum_items
+        assert {item.identifier for item in enum} == items
+
+
+# --- the Render button and the Image ----------------------------------------------------------
+
+def test_the_render_button_writes_the_cores_pixels_into_a_float_non_color_image():
+    simple_scene()
+
+    assert render_button() == {'FINISHED'}
+
+    image = bpy.data.images[IMAGE]
+    assert image.is_float and image.source == 'GENERATED'
+    assert image.colorspace_settings.name == COLOUR_SPACE
+    assert tuple(image.size) == (64, 48)
+    expected = core_image()
+    np.testing.assert_array_equal(glint_image(), expected)
+    assert (expected[..., 3] == 1).all()  # Film > Transparent is off
+    # Not a blank image: both spheres and the background are in it.
+    assert len(np.unique(to_rgba8(expected).reshape(-1, 4), axis=0)) > 20
+
+
+def test_rendering_twice_updates_the_same_image_in_place_and_resizes_it():
+    scene = simple_scene()
+    render_button()
+    image = bpy.data.images[IMAGE]
+    pointer = image.as_pointer()
+
+    scene.render.resolution_x, scene.render.resolution_y = 40, 30
+    bpy.data.objects["small"].location.x -= 0.5
+    assert render_button() == {'FINISHED'}
+
+    assert [i.name for i in bpy.data.images if i.name.startswith(IMAGE)] == [IMAGE]
+    assert bpy.data.images[IMAGE].as_pointer() == pointer
+    assert tuple(bpy.data.images[IMAGE].size) == (40, 30)
+    np.testing.assert_array_equal(glint_image(), core_image())
+
+
+def test_the_image_name_setting_picks_the_image():
+    scene = simple_scene()
+    scene.glint.image_name = "My Render"
+    render_button()
+    assert "My Render" in bpy.data.images and IMAGE not in bpy.data.images
+
+
+def test_an_image_loaded_from_a_file_is_never_overwritten(tmp_path):
+    simple_scene()
+    path = str(tmp_path / "photo.png")
+    photo = bpy.data.images.new("photo", 4, 4)
+    photo.filepath_raw, photo.file_format = path, 'PNG'
+    photo.save()
+    loaded = bpy.data.images.load(path)
+    bpy.context.scene.glint.image_name = loaded.name
+
+    with pytest.raises(RuntimeError, match="file image, which Glint does not overwrite"):
+        render_button()
+    assert tuple(loaded.size) == (4, 4)
+
+
+def test_a_failed_render_leaves_the_previous_image_intact():
+    scene = simple_scene()
+    render_button()
+    before = glint_image()
+
+    camera = scene.camera
+    scene.camera = None
+    with pytest.raises(RuntimeError, match="has no camera"):
+        render_button()
+    scene.camera = camera
+    camera.data.type = 'PANO'
+    with pytest.raises(RuntimeError, match="panoramic"):
+        render_button()
+
+    np.testing.assert_array_equal(glint_image(), before)
+
+
+def test_a_cancelled_render_stops_and_produces_no_image():
+    simple_scene()
+    job = prepare_job(depsgraph())
+    fractions = []
+
+    class CancelAfterFirstTile(ThreadedRender):
+        def _progress(self, fraction):
+            super()._progress(fraction)
+            fractions.append(fraction)
+            self.cancel()
+
+    job.settings = core.RenderSettings(tile_size=8, threads=1, anti_aliasing="off")
+    worker = CancelAfterFirstTile(job)
+    assert worker.wait(timeout=60)
+
+    assert worker.cancelled and worker.image is None and worker.error is None
+    assert len(fractions) == 1 and fractions[0] < 1.0
+
+
+def test_the_threaded_render_gives_the_same_image_as_a_direct_one():
+    simple_scene()
+    worker = ThreadedRender(prepare_job(depsgraph()))
+    assert worker.wait(timeout=60)
+    assert worker.error is None and not worker.cancelled and worker.fraction == 1.0
+    np.testing.assert_array_equal(worker.image, core_image())
+
+
+def test_undo_after_a_render():
+    scene = simple_scene()
+    bpy.ops.ed.undo_push(message="scene ready")
+    render_button()
+    bpy.data.objects["small"].location.x = 5.0
+    bpy.ops.ed.undo_push(message="moved")
+
+    bpy.ops.ed.undo()
+
+    # Undo restores the data (the object is back) and leaves Glint working: settings are
+    # still there and the next render reflects the restored scene.
+    assert bpy.data.objects["small"].location.x == pytest.approx(1.2)
+    assert bpy.context.scene.glint.image_name == IMAGE
+    assert render_button() == {'FINISHED'}
+    np.testing.assert_array_equal(glint_image(), core_image())
+    del scene  # the pre-undo Python reference is stale; nothing of Glint kept one either
+
+
+def test_a_scene_without_spheres_renders_the_background_with_a_warning():
+    empty_file()
+    add_camera()
+    add_point_light()
+    world = bpy.data.worlds.new("grey")
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.2, 0.2, 0.2, 1)
+    bpy.context.scene.world = world
+
+    job = prepare_job(depsgraph())
+    assert any("no sphere" in w for w in job.warnings)
+    assert render_button() == {'FINISHED'}
+
+    srgb = glint.addon.utils.colour.linear_to_srgb(0.2)
+    np.testing.assert_allclose(glint_image()[..., :3], srgb, atol=1e-6)
+
+
+def test_a_scene_without_light_renders_ambient_only_with_a_warning():
+    scene = simple_scene()
+    bpy.data.objects.remove(bpy.data.objects["light"])
+    world = bpy.data.worlds.new("grey")
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.5, 0.5, 0.5, 1)
+    scene.world = world
+
+    job = prepare_job(depsgraph())
+    assert any("no point light" in w for w in job.warnings)
+    assert render_button() == {'FINISHED'}
+
+    image = glint_image()
+    material = job.scene.spheres[0].material
+    # The big sphere's centre, lit by the world only: its ambient term, plus its mirror
+    # reflection of the world straight back towards the camera; no diffuse or specular.
+    centre = image[24, 32, :3]
+    expected = (np.asarray(material.ambient) * job.scene.ambient
+                + material.reflection * np.asarray(job.scene.background))
+    np.testing.assert_allclose(centre, expected, atol=1e-6)
+
+
+def test_a_non_sphere_mesh_is_warned_about_and_left_out_of_the_render():
+    simple_scene()
+    without = core_image()
+    box = link(bpy.data.objects.new("box", cube_mesh("box", 0.5)))
+    box.location = (-1.5, 0.0, 0.0)
+
+    job = prepare_job(depsgraph())
+    assert any("box (not a sphere)" in w for w in job.warnings)
+    assert render_button() == {'FINISHED'}
+    np.testing.assert_array_equal(glint_image(), without)
+
+
+# --- the render engine ------------------------------------------------------------------------
+
+def test_f12_saves_what_the_render_button_shows(tmp_path):
+    simple_scene()
+    render_button()
+    button = to_rgba8(glint_image())
+
+    saved = f12(tmp_path)
+
+    assert saved.shape == (48, 64, 4)
+    assert np.abs(saved.astype(int) - button.astype(int)).max() <= 1
+
+
+def test_saving_the_glint_image_matches_the_cores_own_png(tmp_path):
+    scene = simple_scene()
+    render_button()
+    core_png = tmp_path / "core.png"
+    glint.core.png.write_png(str(core_png), core_image())
+
+    image = bpy.data.images[IMAGE]
+    image.save_render(str(tmp_path / "saved.png"), scene=scene)
+
+    saved, expected = read_png(str(tmp_path / "saved.png")), read_png(str(core_png))
+    assert np.abs(saved.astype(int) - expected.astype(int)).max() <= 1
+
+
+def test_f12_with_an_other_view_transform_is_colour_managed(tmp_path):
+    scene = simple_scene()
+    standard = f12(tmp_path, "standard.png")
+    scene.view_settings.view_transform = 'AgX'
+    agx = f12(tmp_path, "agx.png")
+    # Scene-linear output: Blender's view transform applies, as with any engine.
+    assert np.abs(standard.astype(int) - agx.astype(int)).max() > 10
+
+
+def test_f12_errors_are_reported_and_nothing_is_written(tmp_path):
+    scene = simple_scene()
+    scene.camera.data.type = 'PANO'
+    scene.render.engine = 'GLINT'
+    scene.render.filepath = str(tmp_path / "none.png")
+    with pytest.raises(RuntimeError, match="'camera' is panoramic"):
+        bpy.ops.render.render(write_still=True)
+    assert not os.listdir(tmp_path)
+
+
+def test_f12_renders_the_camera_view_of_objects_hidden_in_render(tmp_path):
+    simple_scene()
+    without = f12(tmp_path, "without.png")
+    hidden = add_sphere("hidden", (-1.5, 0.0, 0.0), 0.5)
+    hidden.hide_render = True
+
+    assert np.array_equal(f12(tmp_path, "hidden.png"), without)
+    hidden.hide_render = False
+    assert not np.array_equal(f12(tmp_path, "shown.png"), without)
+
+
+def test_animation_renders_every_frame(tmp_path):
+    scene = simple_scene()
+    small = bpy.data.objects["small"]
+    small.location.x = -1.0
+    small.keyframe_insert("location", frame=1)
+    small.location.x = 1.0
+    small.keyframe_insert("location", frame=2)
+    scene.frame_start, scene.frame_end = 1, 2
+    scene.render.engine = 'GLINT'
+    scene.render.filepath = str(tmp_path / "frame_")
+    scene.render.image_settings.file_format = 'PNG'
+
+    bpy.ops.render.render(animation=True)
+
+    frames = sorted(os.listdir(tmp_path))
+    assert frames == ["frame_0001.png", "frame_0002.png"]
+    first, second = (read_png(str(tmp_path / name)) for name in frames)
+    assert not np.array_equal(first, second)
+
+
+def test_transparent_film_gives_coverage_alpha_and_removes_the_background(tmp_path):
+    scene = simple_scene()
+    world = bpy.data.worlds.new("blue")
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.1, 0.2, 0.6, 1)
+    scene.world = world
+    scene.render.film_transparent = True
+
+    render_button()
+    image = glint_image()
+    raw = glint.core.render(prepare_job(depsgraph()).scene,
+                            prepare_job(depsgraph()).settings).image
+
+    np.testing.assert_array_equal(image[..., 3], raw[..., 3])
+    missed = raw[..., 3] == 0
+    assert missed.any() and (~missed).any()
+    assert (image[missed] == 0).all()
+    np.testing.assert_allclose(image[~missed], raw[~missed], atol=1e-6)
+
+    saved = f12(tmp_path)
+    np.testing.assert_array_equal(saved[..., 3], to_rgba8(image)[..., 3])
+    assert np.abs(saved[~missed].astype(int) - to_rgba8(image)[~missed].astype(int)).max() <= 1
+
+
+def test_adaptive_anti_aliasing_edges_survive_transparency():
+    scene = simple_scene()
+    scene.render.film_transparent = True
+    scene.glint.anti_aliasing = 'ADAPTIVE'
+    scene.glint.samples = 8
+
+    render_button()
+    image = glint_image()
+
+    partial = (image[..., 3] > 0) & (image[..., 3] < 1)
+    assert partial.any()
+    # Premultiplied: no colour channel exceeds the coverage.
+    assert (image[..., :3] <= image[..., 3:4] + 1e-6).all()
