@@ -1,0 +1,189 @@
+"""render.py: ``python render.py [scene.blend] --output OUT.png [options]`` with the pip bpy
+module, in a child process as a user runs it (``blender -b scene.blend --python render.py --
+...`` takes the same arguments after '--')."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import bpy
+import numpy as np
+import pytest
+
+from addon_support import (RENDER_SCRIPT, REPOSITORY, add_point_light, add_sphere, empty_file,
+                           read_image, simple_scene, to_rgba8)
+from glint.core.png import decode_png
+
+ARTICLE_REFERENCE = "/work/shared/reference/article_300x200.npy"
+
+
+def run_script(*arguments, cwd=None):
+    return subprocess.run([sys.executable, RENDER_SCRIPT, *map(str, arguments)],
+                          capture_output=True, text=True, timeout=300, cwd=cwd or REPOSITORY)
+
+
+def save_blend(path) -> str:
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    return str(path)
+
+
+def button_render():
+    bpy.ops.glint.render()
+    return to_rgba8(read_image(bpy.data.images["Glint Render"]))
+
+
+def read_script_png(path) -> np.ndarray:
+    """(H, W, 4) uint8 of a PNG render.py wrote, checking it is 8-bit RGBA."""
+    data = open(path, "rb").read()
+    bit_depth, colour_type = data[24], data[25]  # in the IHDR chunk, which comes first
+    assert (bit_depth, colour_type) == (8, 6), "not an 8-bit RGBA PNG"
+    return decode_png(data)
+
+
+def error_lines(result) -> list[str]:
+    return [line for line in result.stderr.splitlines() if line.startswith("render.py: error:")]
+
+
+def test_without_a_blend_it_renders_the_articles_scene(tmp_path):
+    output = tmp_path / "article.png"
+
+    result = run_script("--output", output)
+
+    assert result.returncode == 0, result.stderr
+    assert str(output) in result.stdout and " s" in result.stdout
+    rgba = read_script_png(output)
+    assert rgba.shape == (200, 300, 4) and (rgba[..., 3] == 255).all()
+    # The article's image, up to Blender's pixel centres ((i + 0.5) / W instead of the
+    # article's linspace): the same picture, edges shifted by under a pixel.
+    reference = np.load(ARTICLE_REFERENCE)
+    difference = np.abs(rgba[..., :3] / 255.0 - reference)
+    assert difference.mean() < 0.005
+    assert (difference.max(axis=2) > 0.1).mean() < 0.01
+    black = (rgba[..., :3] == 0).all(axis=2).sum()
+    assert abs(black - 29019) < 0.005 * 29019
+
+
+def test_arguments_may_follow_a_double_dash_as_under_blender(tmp_path):
+    output = tmp_path / "small.png"
+    result = run_script("--", "--output", output, "--width", 30, "--height", 20)
+    assert result.returncode == 0, result.stderr
+    assert read_script_png(output).shape == (20, 30, 4)
+
+
+def test_a_blend_with_options_renders_what_the_render_button_renders(tmp_path):
+    scene = simple_scene()
+    scene.glint.semantics = 'ARTICLE'
+    blend = save_blend(tmp_path / "scene.blend")
+    output = tmp_path / "out.png"
+
+    result = run_script(blend, "--output", output, "--width", 50, "--height", 40,
+                        "--percentage", 80, "--samples", 4, "--max-depth", 2,
+                        "--semantics", "default", "--precision", "float64")
+
+    assert result.returncode == 0, result.stderr
+    scene.render.resolution_x, scene.render.resolution_y = 50, 40
+    scene.render.resolution_percentage = 80
+    scene.glint.samples, scene.glint.anti_aliasing = 4, 'FIXED'
+    scene.glint.max_depth, scene.glint.semantics, scene.glint.precision = 2, 'DEFAULT', 'FLOAT64'
+    np.testing.assert_array_equal(read_script_png(output), button_render())
+    assert read_script_png(output).shape == (32, 40, 4)
+
+
+def test_frame_option_renders_that_frame(tmp_path):
+    scene = simple_scene()
+    small = bpy.data.objects["small"]
+    small.location.x = -1.0
+    small.keyframe_insert("location", frame=1)
+    small.location.x = 1.0
+    small.keyframe_insert("location", frame=10)
+    scene.frame_set(1)
+    blend = save_blend(tmp_path / "animated.blend")
+
+    result = run_script(blend, "--output", tmp_path / "f10.png", "--frame", 10)
+
+    assert result.returncode == 0, result.stderr
+    at_frame_1 = button_render()
+    scene.frame_set(10)
+    at_frame_10 = button_render()
+    rendered = read_script_png(tmp_path / "f10.png")
+    np.testing.assert_array_equal(rendered, at_frame_10)
+    assert not np.array_equal(rendered, at_frame_1)
+
+
+def test_transparent_film_gives_coverage_alpha_and_a_transparent_background(tmp_path):
+    scene = simple_scene()
+    world = bpy.data.worlds.new("sky")
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.3, 0.5, 0.9, 1)
+    scene.world = world
+    scene.render.film_transparent = True
+    blend = save_blend(tmp_path / "transparent.blend")
+
+    result = run_script(blend, "--output", tmp_path / "t.png")
+
+    assert result.returncode == 0, result.stderr
+    rgba = read_script_png(tmp_path / "t.png")
+    background = rgba[..., 3] == 0
+    assert background.any() and (rgba[..., 3][~background] == 255).all()
+    assert (rgba[background] == 0).all()
+    np.testing.assert_array_equal(rgba, button_render())
+
+
+def test_an_unreadable_blend_fails_with_one_line_and_leaves_the_output_alone(tmp_path):
+    corrupt = tmp_path / "corrupt.blend"
+    corrupt.write_bytes(b"BLENDER-v500 this is not a blend file")
+    output = tmp_path / "out.png"
+    output.write_bytes(b"previous render")
+
+    result = run_script(corrupt, "--output", output)
+
+    assert result.returncode != 0
+    (line,) = error_lines(result)
+    assert "cannot open" in line and "corrupt.blend" in line
+    assert output.read_bytes() == b"previous render"
+    assert sorted(os.listdir(tmp_path)) == ["corrupt.blend", "out.png"]
+
+
+def test_a_blend_without_camera_fails_with_one_line(tmp_path):
+    empty_file()
+    add_sphere()
+    add_point_light()
+    blend = save_blend(tmp_path / "nocamera.blend")
+
+    result = run_script(blend, "--output", tmp_path / "out.png")
+
+    assert result.returncode != 0
+    (line,) = error_lines(result)
+    assert "has no camera" in line
+    assert sorted(os.listdir(tmp_path)) == ["nocamera.blend"]
+
+
+BAD_ARGUMENTS = {
+    "missing blend": (["{tmp}/missing.blend", "--output", "{tmp}/o.png"], "no such .blend"),
+    "no output": ([], "--output"),
+    "output folder missing": (["--output", "{tmp}/nowhere/o.png"], "folder does not exist"),
+    "output is a directory": (["--output", "{tmp}/folder.png"], "is a directory"),
+    "output not png": (["--output", "{tmp}/o.jpg"], "must name a .png"),
+    "zero width": (["--output", "{tmp}/o.png", "--width", "0"], "--width"),
+    "width not a number": (["--output", "{tmp}/o.png", "--width", "wide"], "--width"),
+    "unknown semantics": (["--output", "{tmp}/o.png", "--semantics", "exact"], "--semantics"),
+    "unknown precision": (["--output", "{tmp}/o.png", "--precision", "half"], "--precision"),
+    "zero depth": (["--output", "{tmp}/o.png", "--max-depth", "0"], "--max-depth"),
+    "huge percentage": (["--output", "{tmp}/o.png", "--percentage", "20000"], "--percentage"),
+    "unknown option": (["--output", "{tmp}/o.png", "--turbo"], "--turbo"),
+}
+
+
+@pytest.mark.parametrize("case", BAD_ARGUMENTS, ids=list(BAD_ARGUMENTS))
+def test_bad_arguments_fail_with_one_line_and_write_nothing(tmp_path, case):
+    (tmp_path / "folder.png").mkdir()
+    arguments, mentioned = BAD_ARGUMENTS[case]
+
+    result = run_script(*[argument.format(tmp=tmp_path) for argument in arguments])
+
+    assert result.returncode == 2
+    assert result.stdout == ""
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith("render.py: error:") and mentioned in line
+    assert os.listdir(tmp_path) == ["folder.png"]
