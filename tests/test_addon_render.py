@@ -382,3 +382,26 @@ def test_adaptive_anti_aliasing_edges_survive_transparency():
     assert partial.any()
     # Premultiplied: no colour channel exceeds the coverage.
     assert (image[..., :3] <= image[..., 3:4] + 1e-6).all()
+
+
+@pytest.mark.parametrize("crop", [True, False])
+def test_a_render_region_holds_that_part_of_the_full_frame(tmp_path, crop):
+    scene = simple_scene()
+    full = f12(tmp_path, "full.png")
+    render = scene.render
+    render.use_border, render.use_crop_to_border = True, crop
+    render.border_min_x, render.border_max_x = 0.3, 0.8
+    render.border_min_y, render.border_max_y = 0.25, 0.9
+
+    region = f12(tmp_path, "region.png")
+
+    # Blender's pixels: x in [int(0.3 * 64), int(0.8 * 64)), rows from the bottom likewise.
+    x0, x1, y0, y1 = 19, 51, 12, 43
+    top, bottom = 48 - y1, 48 - y0
+    if crop:
+        np.testing.assert_array_equal(region, full[top:bottom, x0:x1])
+    else:
+        np.testing.assert_array_equal(region[top:bottom, x0:x1], full[top:bottom, x0:x1])
+        outside = np.ones(full.shape[:2], bool)
+        outside[top:bottom, x0:x1] = False
+        assert (region[outside] == 0).all()

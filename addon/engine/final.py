@@ -62,8 +62,12 @@ class GlintRenderEngine(bpy.types.RenderEngine):
             self.report({'WARNING'}, warning)
         width, height = job.size
         if (width, height) != (self.resolution_x, self.resolution_y):
-            self._fail(f"Glint renders the full {width}x{height} frame; region or border "
-                       f"renders ({self.resolution_x}x{self.resolution_y}) are not supported")
+            self._fail(f"Glint exported a {width}x{height} frame but Blender renders "
+                       f"{self.resolution_x}x{self.resolution_y}")
+            return
+        region = render_region(depsgraph.scene_eval.render, width, height)
+        if region is None:
+            self._fail("the render region (border) covers no whole pixel")
             return
         spheres, lights = len(job.scene.spheres), len(job.scene.lights)
         self.update_stats("Glint", f"{spheres} spheres, {lights} lights, {width}x{height}")
@@ -78,14 +82,30 @@ class GlintRenderEngine(bpy.types.RenderEngine):
                                    f"{job.precision}")
         for listener in _image_listeners:
             listener(job, image)
-        pixels = premultiplied_to_scene_linear(image[::-1])
-        result = self.begin_result(0, 0, width, height)
+        x0, y0, x1, y1 = region
+        pixels = premultiplied_to_scene_linear(image[::-1][y0:y1, x0:x1])
+        # begin_result counts from the region's corner, not the frame's.
+        result = self.begin_result(0, 0, x1 - x0, y1 - y0)
         result.layers[0].passes["Combined"].rect.foreach_set(np.ascontiguousarray(pixels).ravel())
         self.end_result(result)
 
     def _fail(self, message: str) -> None:
         self.report({'ERROR'}, message)
         self.error_set(message)
+
+
+def render_region(render, width: int, height: int):
+    """(x0, y0, x1, y1) of the pixels Blender's render result holds, rows counted from the
+    bottom: the whole frame, or the render region ("border") as Blender's render pipeline
+    computes it (float32 border fraction times size, truncated); None if that is empty.
+    Glint traces the whole frame and hands Blender that part of it."""
+    if not render.use_border:
+        return 0, 0, width, height
+    border = np.array([render.border_min_x, render.border_min_y, render.border_max_x,
+                       render.border_max_y], np.float32)
+    size = np.array([width, height, width, height], np.float32)
+    x0, y0, x1, y1 = (int(value) for value in border * size)
+    return (x0, y0, x1, y1) if x1 > x0 and y1 > y0 else None
 
 
 def compatible_panels():
