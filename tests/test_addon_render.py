@@ -405,3 +405,125 @@ def test_a_render_region_holds_that_part_of_the_full_frame(tmp_path, crop):
         outside = np.ones(full.shape[:2], bool)
         outside[top:bottom, x0:x1] = False
         assert (region[outside] == 0).all()
+
+
+# --- the interactive path, driven without a window ----------------------------------------
+# Headless Blender has no event loop, so the modal operator's methods are driven directly:
+# the same code a window runs, with recorded stand-ins for the window manager and events.
+
+class RecordingWindowManager:
+    def __init__(self):
+        self.calls = []
+
+    def progress_update(self, value):
+        self.calls.append(("progress_update", value))
+
+    def progress_end(self):
+        self.calls.append(("progress_end",))
+
+    def event_timer_remove(self, timer):
+        self.calls.append(("event_timer_remove", timer))
+
+
+class ModalDriver:
+    """A stand-in for the operator instance, using GLINT_OT_render's own methods."""
+
+    modal = bpy.types.GLINT_OT_render.modal
+    _stop_modal = bpy.types.GLINT_OT_render._stop_modal
+    _store = bpy.types.GLINT_OT_render._store
+    _running = True
+
+    def __init__(self, job, worker):
+        self._job, self._worker, self._image_name = job, worker, IMAGE
+        self._timer, self._start = object(), 0.0
+        self.reports = []
+
+    def report(self, kinds, message):
+        self.reports.append((set(kinds), message))
+
+    def event(self, kind, value='PRESS'):
+        return type("Event", (), {"type": kind, "value": value, "timer": self._timer})()
+
+
+def test_modal_render_reports_progress_and_writes_the_image_when_done():
+    simple_scene()
+    render_button()
+    before = glint_image()
+    bpy.data.objects["small"].location.x -= 0.5
+    job = prepare_job(depsgraph())
+    driver = ModalDriver(job, ThreadedRender(job))
+    context = type("Context", (), {"window_manager": RecordingWindowManager()})()
+    driver._worker.wait(timeout=60)
+
+    assert driver.modal(context, driver.event('MOUSEMOVE')) == {'PASS_THROUGH'}
+    assert driver.modal(context, driver.event('TIMER')) == {'FINISHED'}
+
+    calls = context.window_manager.calls
+    assert ("progress_update", 100) in calls and ("progress_end",) in calls
+    assert ("event_timer_remove", driver._timer) in calls
+    np.testing.assert_array_equal(glint_image(), core_image())
+    assert not np.array_equal(glint_image(), before)
+    assert driver.reports[-1][0] == {'INFO'}
+
+
+def test_modal_render_cancelled_with_esc_keeps_the_previous_image():
+    scene = simple_scene()
+    render_button()
+    before = glint_image()
+    scene.render.resolution_x, scene.render.resolution_y = 320, 240
+    job = prepare_job(depsgraph())
+    job.settings = core.RenderSettings(tile_size=8, threads=1, anti_aliasing="fixed",
+                                       samples=64)
+    driver = ModalDriver(job, ThreadedRender(job))
+    context = type("Context", (), {"window_manager": RecordingWindowManager()})()
+
+    assert driver.modal(context, driver.event('ESC')) == {'RUNNING_MODAL'}
+    assert driver._worker.wait(timeout=60)
+    assert driver.modal(context, driver.event('TIMER')) == {'CANCELLED'}
+
+    assert driver._worker.cancelled
+    np.testing.assert_array_equal(glint_image(), before)
+    kinds, message = driver.reports[-1]
+    assert kinds == {'WARNING'} and "cancelled" in message and IMAGE in message
+
+
+class RecordingLayout:
+    """Records what a panel draws, checking every property it names exists."""
+
+    def __init__(self):
+        self.drawn, self.operators = [], []
+        self.use_property_split = self.use_property_decorate = self.active = None
+
+    def column(self, **_):
+        return self
+
+    row = column
+
+    def prop(self, data, name, **_):
+        assert name in data.bl_rna.properties, f"{data} has no property {name!r}"
+        self.drawn.append(name)
+
+    def operator(self, idname, **_):
+        category, name = idname.split(".")
+        getattr(getattr(bpy.ops, category), name).get_rna_type()
+        self.operators.append(idname)
+
+    def label(self, **_):
+        pass
+
+
+def test_panels_draw_the_settings_and_the_render_button():
+    scene = simple_scene()
+    layout = RecordingLayout()
+    glint.addon.ui.draw_render_settings(layout, scene)
+    assert {"semantics", "precision", "max_depth", "anti_aliasing", "samples",
+            "film_transparent", "image_name"} <= set(layout.drawn)
+    assert layout.operators == ["glint.render"]
+
+    material = bpy.data.materials.new("m")
+    panel = type("Panel", (), {"layout": RecordingLayout()})()
+    context = type("Context", (), {"material": material})()
+    bpy.types.GLINT_PT_material.draw_header(panel, context)
+    bpy.types.GLINT_PT_material.draw(panel, context)
+    assert panel.layout.drawn == ["use_custom", "ambient", "diffuse", "specular", "shininess",
+                                  "reflection"]

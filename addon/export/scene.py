@@ -29,6 +29,10 @@ from .geometry import mesh_sphere, world_sphere
 from .lights import export_point_light
 from .materials import export_material
 
+#: The scene-linear space Glint's sRGB conversions assume (Blender's default; Blender 5.0
+#: lets a file choose another).
+WORKING_SPACE = "Linear Rec.709"
+
 #: Object types that never draw anything in a render, so skipping them needs no warning.
 NON_RENDERING_TYPES = {'CAMERA', 'EMPTY', 'LIGHT_PROBE', 'SPEAKER', 'ARMATURE', 'LATTICE'}
 
@@ -188,6 +192,10 @@ def export_scene(depsgraph, camera_override=None) -> tuple[Scene, list[str]]:
     if not lights:
         warnings.append("no point light: only the world's ambient light shows")
     warnings += notes + ([world_note] if world_note else [])
+    working_space = getattr(getattr(bpy.data, "colorspace", None), "working_space", None)
+    if working_space not in (None, WORKING_SPACE):
+        warnings.append(f"the file's working colour space is {working_space}: Glint reads and "
+                        f"writes colours as {WORKING_SPACE}")
     scene = Scene(camera=camera, spheres=tuple(spheres), lights=tuple(lights),
                   background=background, ambient=background)
     return scene, warnings
