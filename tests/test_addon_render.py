@@ -527,3 +527,13 @@ def test_panels_draw_the_settings_and_the_render_button():
     bpy.types.GLINT_PT_material.draw(panel, context)
     assert panel.layout.drawn == ["use_custom", "ambient", "diffuse", "specular", "shininess",
                                   "reflection"]
+
+
+def test_the_image_is_shown_in_an_open_image_editor():
+    simple_scene()
+    area = max(bpy.context.window.screen.areas, key=lambda a: a.width * a.height)
+    area.type = 'IMAGE_EDITOR'
+
+    render_button()
+
+    assert area.spaces.active.image == bpy.data.images[IMAGE]

@@ -168,7 +168,7 @@ def export_scene(depsgraph, camera_override=None) -> tuple[Scene, list[str]]:
                 skipped_objects.add(name, "non-uniformly scaled sphere")
                 continue
             material = _main_material(obj, mesh)
-            material_key = material.name if material is not None else None
+            material_key = material.name_full if material is not None else None
             if material_key not in materials:
                 core_material, note = export_material(material)
                 materials[material_key] = core_material
