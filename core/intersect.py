@@ -57,19 +57,17 @@ def _textbook_roots(b, c):
     return (-b - root) / 2, (-b + root) / 2, valid
 
 
-def pair_roots(origins, directions, centers, radii, *, article=False):
-    """Roots (k, n) for rays with their own origins (3, n) and directions (3, n) against
-    spheres centers (k, 3), radii (k,)."""
-    f = origins[:, None, :] - centers.T[:, :, None]                     # (3, k, n)
-    rays = directions[:, None, :]
+def offset_roots(f, rays, radii, *, article=False):
+    """Roots for rays with their own origins, any broadcast shape: f = origins - centres and
+    rays (unit directions) are (3, ...) arrays, radii (...).  Returns arrays of the broadcast
+    shape (...)."""
     if article:
-        return _textbook_roots(2.0 * dot(f, rays), dot(f, f) - (radii ** 2)[:, None])
-    b = dot(f, rays)                                                    # (k, n)
+        return _textbook_roots(2.0 * dot(f, rays), dot(f, f) - radii ** 2)
+    b = dot(f, rays)
     perp = f - b * rays
-    disc = (radii ** 2)[:, None] - dot(perp, perp)
+    disc = radii ** 2 - dot(perp, perp)
     f_len = length(f)
-    c_prime = (f_len - radii[:, None]) * (f_len + radii[:, None])
-    t_near, t_far = _press_roots(b, c_prime, disc)
+    t_near, t_far = _press_roots(b, (f_len - radii) * (f_len + radii), disc)
     return t_near, t_far, disc > 0
 
 
@@ -97,27 +95,23 @@ class OriginTerms:
         return cls(f, c_wide.astype(np.float64), np.linalg.norm(f, axis=1) ** 2 - radii ** 2)
 
 
-def shared_origin_roots(directions, terms: OriginTerms, radii, candidates, *, article=False):
-    """Roots (k, n) for rays (directions (3, n), unit) from the origin ``terms`` was built at,
-    against the spheres ``candidates`` (k,) (indices into the terms and radii arrays)."""
-    dtype = directions.dtype
-    f = terms.f[candidates].astype(dtype)                               # (k, 3)
+def origin_roots(f, c_prime, article_c, radii, rays, *, article=False):
+    """Roots for rays from one origin, any broadcast shape: f = origin - centres (3, ...) and
+    c_prime, article_c, radii (...) as ``OriginTerms`` gives them (float64), rays (3, ...) unit
+    directions in the render precision."""
+    dtype = rays.dtype
+    f = f.astype(dtype)
     if article:
-        b = 2.0 * (f @ directions)
-        return _textbook_roots(b, terms.article_c[candidates].astype(dtype)[:, None])
-    b = f @ directions                                                  # (k, n)
-    c_prime = terms.c_prime[candidates]
-    r = radii[candidates]
-    c_col = c_prime.astype(dtype)[:, None]
-    cheap = c_prime <= CHEAP_DISCRIMINANT_RATIO[np.dtype(dtype)] * r * r
+        return _textbook_roots(2.0 * dot(f, rays), article_c.astype(dtype))
+    b = dot(f, rays)
+    c_cast = c_prime.astype(dtype)
+    cheap = c_prime <= CHEAP_DISCRIMINANT_RATIO[np.dtype(dtype)] * radii * radii
     if cheap.all():
-        disc = b * b - c_col
+        disc = b * b - c_cast
     else:
-        perp = f.T[:, :, None] - b * directions[:, None, :]            # (3, k, n)
-        disc = (r * r).astype(dtype)[:, None] - dot(perp, perp)
-        if cheap.any():
-            disc[cheap] = b[cheap] ** 2 - c_col[cheap]
-    t_near, t_far = _press_roots(b, c_col, disc)
+        perp = f - b * rays
+        disc = np.where(cheap, b * b - c_cast, (radii * radii).astype(dtype) - dot(perp, perp))
+    t_near, t_far = _press_roots(b, c_cast, disc)
     return t_near, t_far, disc > 0
 
 

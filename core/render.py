@@ -12,6 +12,7 @@ spheres hit and the shadows met at every bounce) differs from a 4-neighbour's.
 
 from __future__ import annotations
 
+import math
 import os
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass
@@ -21,9 +22,14 @@ import numpy as np
 
 from .camera import camera_rays, image_size
 from .context import RayStats, TraceContext, make_context
+from .cull import PACKET_SIZE
 from .precision import choose_precision
 from .scene import RenderSettings, Scene, SceneError
 from .trace import trace_bundle
+
+
+#: Tiles are traced in BLOCK x BLOCK pixel blocks: one culling packet each.
+BLOCK = math.isqrt(PACKET_SIZE)
 
 
 class RenderCancelled(Exception):
@@ -62,8 +68,25 @@ def _trace_positions(ctx: TraceContext, camera, xs, ys, stats):
 
 
 def _pixel_grid(y0, y1, x0, x1):
-    rows, cols = np.mgrid[y0:y1, x0:x1]
-    return cols.ravel(), rows.ravel()
+    """(cols, rows) (n,) of the pixels of a region, in BLOCK x BLOCK block order, so that the
+    tracer's packets of consecutive rays cover square blocks (``core.cull``)."""
+    h, w = y1 - y0, x1 - x0
+    blocks_y, blocks_x = -(-h // BLOCK), -(-w // BLOCK)
+    rows, cols = np.mgrid[0:blocks_y * BLOCK, 0:blocks_x * BLOCK]
+
+    def in_blocks(grid):
+        return grid.reshape(blocks_y, BLOCK, blocks_x, BLOCK).transpose(0, 2, 1, 3).ravel()
+
+    rows, cols = in_blocks(rows), in_blocks(cols)
+    inside = (rows < h) & (cols < w)
+    return cols[inside] + x0, rows[inside] + y0
+
+
+def _scatter(values, cols, rows, x0, y0, shape):
+    """Values (n, ...) of pixels (cols, rows) as a (h, w, ...) grid whose corner is (x0, y0)."""
+    grid = np.empty(shape + values.shape[1:], values.dtype)
+    grid[rows - y0, cols - x0] = values
+    return grid
 
 
 def _supersample(ctx, camera, cols, rows, count, stats):
@@ -97,29 +120,32 @@ def render_tile(ctx: TraceContext, camera, tile) -> tuple[np.ndarray, RayStats]:
     stats = RayStats(tiles=1)
     mode = ctx.settings.anti_aliasing
     rgba = np.empty((h, w, 4), ctx.dtype)
+    cols, rows = _pixel_grid(y0, y1, x0, x1)
     if mode == "fixed":
-        cols, rows = _pixel_grid(y0, y1, x0, x1)
         rgb, coverage = _supersample(ctx, camera, cols, rows, ctx.settings.samples, stats)
     elif mode == "off":
-        cols, rows = _pixel_grid(y0, y1, x0, x1)
         rgb, coverage, _ = _trace_positions(ctx, camera, cols + 0.5, rows + 0.5, stats)
     else:
+        # Trace the tile and a one-pixel apron at pixel centres, then supersample the pixels
+        # whose path signature differs from a 4-neighbour's.
         width, height = image_size(camera)
-        ay0, ay1, ax0, ax1 = max(y0 - 1, 0), min(y1 + 1, height), max(x0 - 1, 0), min(x1 + 1, width)
-        cols, rows = _pixel_grid(ay0, ay1, ax0, ax1)
-        rgb, coverage, signature = _trace_positions(ctx, camera, cols + 0.5, rows + 0.5, stats)
-        shape = (ay1 - ay0, ax1 - ax0)
-        inner = (slice(y0 - ay0, y0 - ay0 + h), slice(x0 - ax0, x0 - ax0 + w))
-        rgb = rgb.reshape(shape + (3,))[inner].reshape(-1, 3)
-        coverage = coverage.reshape(shape)[inner].ravel().astype(ctx.dtype)
-        edge = _edges(signature.reshape(shape))[inner].ravel()
-        cols, rows = _pixel_grid(y0, y1, x0, x1)
+        ay0, ax0 = max(y0 - 1, 0), max(x0 - 1, 0)
+        apron = (min(y1 + 1, height) - ay0, min(x1 + 1, width) - ax0)
+        apron_cols, apron_rows = _pixel_grid(ay0, ay0 + apron[0], ax0, ax0 + apron[1])
+        centre_rgb, centre_coverage, signature = _trace_positions(
+            ctx, camera, apron_cols + 0.5, apron_rows + 0.5, stats)
+        inner = (rows - ay0) * apron[1] + (cols - ax0)
+        order = np.empty(len(apron_cols), np.intp)
+        order[(apron_rows - ay0) * apron[1] + (apron_cols - ax0)] = np.arange(len(apron_cols))
+        rgb = centre_rgb[order[inner]]
+        coverage = centre_coverage[order[inner]].astype(ctx.dtype)
+        edge = _edges(_scatter(signature, apron_cols, apron_rows, ax0, ay0, apron)).ravel()[inner]
         chosen = np.flatnonzero(edge)
         if len(chosen):
             rgb[chosen], coverage[chosen] = _supersample(
                 ctx, camera, cols[chosen], rows[chosen], ctx.settings.samples, stats)
-    rgba[..., :3] = rgb.reshape(h, w, 3)
-    rgba[..., 3] = coverage.reshape(h, w)
+    rgba[rows - y0, cols - x0, :3] = rgb
+    rgba[rows - y0, cols - x0, 3] = coverage
     return rgba, stats
 
 

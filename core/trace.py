@@ -15,13 +15,10 @@ import numpy as np
 
 from .camera import CameraRays
 from .context import ARTICLE_OFFSET, RAY_EPSILON, RayStats, TraceContext
-from .cull import bundle_cone, reachable
-from .intersect import first_hit_distance, nearest_hits, pair_roots, shared_origin_roots
-from .shading import SPHERE_CHUNK, shade
+from .cull import CELLS, DENSE_CANDIDATES, candidate_roots, direction_cells
+from .intersect import first_hit_distance, nearest_hits
+from .shading import shade
 from .vectors import dot, take
-
-#: Candidate spheres per (3, k, n) chunk for rays with their own origins.
-OWN_ORIGIN_CHUNK = 8
 
 _SIGNATURE_PRIME = np.uint64(1_000_003)
 
@@ -38,43 +35,38 @@ class BundleResult:
 
 
 def nearest_sphere(ctx: TraceContext, origins, directions, t_min, t_max, exclude,
-                   stats: RayStats, terms=None):
+                   stats: RayStats, terms=None, key=None):
     """Nearest hit per ray: (t (n,), scene sphere index (n,), -1 for none).
 
     origins (3, 1) with ``terms`` (OriginTerms at that origin) when all rays share it, else
     (3, n); directions (3, n).  t_min, t_max: scalars or (n,).  exclude: (n,) sphere each ray
-    must ignore (-1: none), or None.
+    must ignore (-1: none), or None.  key: optional (n,) packing key (``cull.candidate_roots``).
     """
     n = directions.shape[1]
     best_t = np.full(n, np.inf, directions.dtype)
     best = np.full(n, -1, np.intp)
-    if n == 0 or len(ctx.radii) == 0:
-        return best_t, best
-    apex, spread, axis, half = bundle_cone(origins, directions)
-    candidates = np.flatnonzero(reachable(ctx.centers, ctx.radii, apex, spread, axis, half,
-                                          float(np.max(t_max))))
-    shared = terms is not None
-    chunk_size = SPHERE_CHUNK if shared else OWN_ORIGIN_CHUNK
-    for first in range(0, len(candidates), chunk_size):
-        chunk = candidates[first:first + chunk_size]
-        stats.sphere_tests += n * len(chunk)
-        if shared:
-            roots = shared_origin_roots(directions, terms, ctx.radii, chunk, article=ctx.article)
-        else:
-            roots = pair_roots(origins, directions, ctx.centers[chunk].astype(directions.dtype),
-                               ctx.radii[chunk].astype(directions.dtype), article=ctx.article)
-        distances = first_hit_distance(*roots, t_min, article=ctx.article)
+    for rays, ids, t_near, t_far, valid in candidate_roots(
+            ctx.centers, ctx.radii, origins, directions, t_max, terms,
+            article=ctx.article, stats=stats, key=key):
+        distances = first_hit_distance(t_near, t_far, valid, _part(t_min, rays),
+                                       article=ctx.article)
         if exclude is not None:
-            distances[chunk[:, None] == exclude[None, :]] = np.inf
-        t, row = nearest_hits(distances, t_max)
-        if first == 0:
-            best_t, best = t, np.where(row >= 0, chunk[np.maximum(row, 0)], -1)
-            continue
-        # Strictly nearer only: on a tie the earlier chunk (earlier in scene order) keeps it.
-        better = t < best_t
-        best_t[better] = t[better]
-        best[better] = chunk[row[better]]
+            distances[ids == exclude[rays]] = np.inf
+        t, row = nearest_hits(distances, _part(t_max, rays))
+        hit = row >= 0
+        sphere = np.full(len(row), -1, np.intp)
+        columns = np.flatnonzero(hit)
+        sphere[columns] = ids[row[columns], 0 if ids.shape[1] == 1 else columns]
+        # Strictly nearer only: on a tie the earlier block (earlier in scene order) keeps it.
+        better = t < best_t[rays]
+        best_t[rays] = np.where(better, t, best_t[rays])
+        best[rays] = np.where(better, sphere, best[rays])
     return best_t, best
+
+
+def _part(values, rays):
+    """The rays' share of a per-ray array, or the scalar itself."""
+    return values[rays] if np.ndim(values) else values
 
 
 def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> BundleResult:
@@ -95,10 +87,11 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
     origins, directions = rays.origins, rays.directions
     t_min, t_max = rays.t_min, rays.t_max
     terms = ctx.camera_terms if rays.shared_origin else None
-    exclude = None
+    exclude = key = None
     stats.camera_rays += n
     for depth in range(max_depth):
-        t, sphere = nearest_sphere(ctx, origins, directions, t_min, t_max, exclude, stats, terms)
+        t, sphere = nearest_sphere(ctx, origins, directions, t_min, t_max, exclude, stats, terms,
+                                   key)
         hit = sphere >= 0
         if signature is not None:
             signature[path] = signature[path] * _SIGNATURE_PRIME + (sphere + 1).astype(np.uint64)
@@ -155,5 +148,8 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
             origins = points + scale * normals
             exclude = np.where(front, sphere, -1)
         t_min, t_max, terms = 0.0, np.inf, None
+        if len(ctx.radii) > DENSE_CANDIDATES:
+            # Reflection rays leaving one sphere in one direction cell cull well together.
+            key = sphere * (6 * CELLS * CELLS) + direction_cells(directions)
         stats.reflection_rays += len(path)
     return BundleResult(colour, coverage, signature)

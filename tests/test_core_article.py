@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import core
-from core import intersect, shading, trace
+from core import cull, intersect, shading
 from core.png import decode_png
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -45,15 +45,14 @@ def test_alpha_is_coverage_of_camera_rays(article_render, reference):
 def test_stable_intersection_agrees_with_textbook_on_reference(monkeypatch, reference):
     """Swap the article's textbook roots for the stable ones (same hit rules) everywhere."""
 
-    def stable_pair(origins, directions, centers, radii, article=False):
-        return intersect.pair_roots(origins, directions, centers, radii, article=False)
+    def stable_offset(f, rays, radii, article=False):
+        return intersect.offset_roots(f, rays, radii, article=False)
 
-    def stable_shared(directions, terms, radii, candidates, article=False):
-        return intersect.shared_origin_roots(directions, terms, radii, candidates, article=False)
+    def stable_origin(f, c_prime, article_c, radii, rays, article=False):
+        return intersect.origin_roots(f, c_prime, article_c, radii, rays, article=False)
 
-    monkeypatch.setattr(trace, "pair_roots", stable_pair)
-    monkeypatch.setattr(trace, "shared_origin_roots", stable_shared)
-    monkeypatch.setattr(shading, "shared_origin_roots", stable_shared)
+    monkeypatch.setattr(cull, "offset_roots", stable_offset)
+    monkeypatch.setattr(cull, "origin_roots", stable_origin)
     image = core.render(core.article_scene(), core.article_settings()).image
     assert np.abs(image[..., :3] - reference).max() <= 1e-9
 

@@ -73,7 +73,7 @@ def test_floor_needs_float64_and_shared_origin_terms_beat_the_textbook_form():
     """The article's c = |f|^2 - r^2 cancels ~8 digits on the floor.  In float32 every form is
     off by more than 1e-4 (why 'auto' picks float64 for the floor); in float64 the shared-origin
     form with its extended-precision c' is 100x closer to the oracle than the textbook one."""
-    from core.intersect import OriginTerms, pair_roots, shared_origin_roots
+    from core.intersect import offset_roots, origin_roots
     radius = 8999.3
     centers = np.array([[0.0, -9000.0, 0.0]])
     radii = np.array([radius])
@@ -84,13 +84,13 @@ def test_floor_needs_float64_and_shared_origin_terms_beat_the_textbook_form():
     exact = np.array([float(exact_roots(origin[0], di, centers[0], radius)[0]) for di in d])
 
     def error(dtype, article):
-        t = pair_roots(np.repeat(origin, 200, 0).T.astype(dtype), d.T.astype(dtype),
-                       centers.astype(dtype), radii.astype(dtype), article=article)[0][0]
+        f = (origin - centers).T.astype(dtype)                       # (3, 1): one ray per column
+        t = offset_roots(f, d.T.astype(dtype), radii.astype(dtype), article=article)[0]
         return np.abs(t - exact).max()
 
     assert error(np.float32, True) > 1e-4 and error(np.float32, False) > 1e-4
-    shared = shared_origin_roots(d.T.copy(), OriginTerms.at(origin[0], centers, radii), radii,
-                                 np.array([0]))[0][0]
+    terms = OriginTerms.at(origin[0], centers, radii)
+    shared = origin_roots(terms.f.T, terms.c_prime, terms.article_c, radii, d.T.copy())[0]
     assert np.abs(shared - exact).max() * 100 < error(np.float64, True)
 
 
