@@ -18,7 +18,7 @@ import time
 
 import bpy
 
-from ..core import RenderCancelled, SceneError
+from ..core import SceneError
 from .engine.job import ThreadedRender, prepare_job
 from .export import ExportError
 from .utils.image import ImageError, check_image_name, write_image
@@ -79,7 +79,7 @@ class GLINT_OT_render(bpy.types.Operator):
         try:
             image = job.run(progress=lambda fraction: window_manager.progress_update(
                 round(100 * fraction)))
-        except (SceneError, RenderCancelled) as error:
+        except SceneError as error:
             self.report({'ERROR'}, f"Glint render failed, image '{image_name}' unchanged: "
                                    f"{error}")
             return {'CANCELLED'}

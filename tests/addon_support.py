@@ -15,8 +15,8 @@ import math
 import os
 import sys
 
-import bmesh
 import bpy
+import bmesh  # after bpy: the pip module makes bmesh importable
 import numpy as np
 
 REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -30,7 +30,7 @@ glint = render_script.import_glint()
 render_script.register_glint(glint)
 
 from glint import core  # noqa: E402
-from glint.addon.engine.job import prepare_job, render_settings  # noqa: E402
+from glint.addon.engine.job import prepare_job  # noqa: E402
 from glint.addon.export import ExportError, export_scene  # noqa: E402
 from glint.addon.utils.image import read_image  # noqa: E402
 from glint.core.png import to_rgba8  # noqa: E402

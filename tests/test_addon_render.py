@@ -14,7 +14,7 @@ from addon_support import (add_camera, add_point_light, add_sphere, core, core_i
                            simple_scene, to_rgba8)
 from glint.addon.engine.final import GlintRenderEngine, compatible_panels
 from glint.addon.engine.job import ThreadedRender
-from glint.addon.utils.image import COLOUR_SPACE, read_image, write_image
+from glint.addon.utils.image import COLOUR_SPACE, read_image
 
 IMAGE = "Glint Render"
 

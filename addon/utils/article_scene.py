@@ -15,8 +15,8 @@ registered (for ``Scene.glint`` and ``Material.glint``).
 
 from __future__ import annotations
 
-import bmesh
 import bpy
+import bmesh  # after bpy: the pip module makes bmesh importable
 
 from ...core.article import ARTICLE_EYE, ARTICLE_HEIGHT, ARTICLE_LIGHT, ARTICLE_WIDTH
 from ...core.article import ARTICLE_MAX_DEPTH, article_spheres
