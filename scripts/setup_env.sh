@@ -147,7 +147,7 @@ glint_setup() {
     local started=$SECONDS
     glint_venv_is_python311 || glint_create_venv
     rm -f "$GLINT_STAMP"
-    glint_say "installing requirements-dev.txt into .venv (the first time downloads bpy, about 300 MB)"
+    glint_say "installing requirements-dev.txt into .venv (the first time downloads bpy, about 375 MB)"
     "$GLINT_PYTHON" -m pip install --disable-pip-version-check --no-input --progress-bar off -q \
         -r "$GLINT_ROOT/requirements-dev.txt" ||
         glint_fail "pip could not install requirements-dev.txt (is PyPI reachable?)"
