@@ -48,7 +48,7 @@ def import_glint():
     """The repository as the package ``glint`` (see the module docstring)."""
     module = sys.modules.get(PACKAGE_NAME)
     if module is not None:
-        if os.path.dirname(os.path.abspath(module.__file__)) != REPOSITORY:
+        if os.path.realpath(os.path.dirname(module.__file__)) != os.path.realpath(REPOSITORY):
             raise RenderScriptError(f"another package named '{PACKAGE_NAME}' is already "
                                     f"imported from {module.__file__}")
         return module
