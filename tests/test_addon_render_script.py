@@ -16,7 +16,7 @@ from addon_support import (RENDER_SCRIPT, REPOSITORY, add_point_light, add_spher
                            read_image, simple_scene, to_rgba8)
 from glint.core.png import decode_png
 
-ARTICLE_REFERENCE = "/work/shared/reference/article_300x200.npy"
+ARTICLE_REFERENCE = os.path.join(REPOSITORY, "tests", "data", "article_300x200.npy")
 
 
 def run_script(*arguments, cwd=None):

@@ -14,7 +14,8 @@ from core import cull, intersect, shading
 from core.png import decode_png
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-REFERENCE = os.path.join(REPO, "..", "shared", "reference", "article_300x200.npy")
+# The image the article's own program produces (a copy of shared/reference/article_300x200.npy).
+REFERENCE = os.path.join(REPO, "tests", "data", "article_300x200.npy")
 
 
 @pytest.fixture(scope="module")
