@@ -10,6 +10,7 @@ import numpy as np
 
 from .arrays import SceneArrays, scene_arrays
 from .camera import eye_position
+from .cull import SphereClusters, cluster_spheres
 from .intersect import OriginTerms
 from .scene import BlenderCamera, RenderSettings, Scene
 
@@ -64,6 +65,7 @@ class TraceContext:
     light_samples: tuple                 # per light: (samples, 3) float64 positions
     materials: Materials
     centers_t: np.ndarray                # (3, N) centres in the render precision
+    clusters: SphereClusters             # the spheres grouped for culling
     path_gain_bound: float               # max colour one bounce can add per unit weight
     spheres_can_reflect: bool
 
@@ -115,6 +117,7 @@ def make_context(scene: Scene, settings: RenderSettings, dtype) -> TraceContext:
                             cast(spheres.specular.T), cast(spheres.exponent),
                             cast(spheres.reflection)),
         centers_t=cast(spheres.centers.T),
+        clusters=cluster_spheres(spheres.centers, spheres.radii),
         path_gain_bound=gain,
         spheres_can_reflect=bool(len(spheres) and spheres.reflection.max() > 0),
     )

@@ -18,84 +18,171 @@ own candidates, padded to the longest list in a block of packets.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .intersect import OriginTerms, offset_roots, origin_roots
+from .vectors import dot, length, take
 
-_ANGLE_MARGIN = 1e-6  # radians
+#: Slack on cosines (about 1e-6 radians of angle) that keeps culling conservative.
+_COS_MARGIN = 1e-6
 #: Rays per packet (a 16 x 16 pixel block of camera rays).
 PACKET_SIZE = 256
 #: Rays per packet of keyed (secondary) rays, whose runs of equal keys are often short.
-KEYED_PACKET_SIZE = 64
-#: Cube-map cells per face side for grouping reflection rays by direction.
-CELLS = 8
+KEYED_PACKET_SIZE = 32
+#: Cube-map cells per face side for packing reflection rays (~11 degrees each) and shadow
+#: rays (~1.4 degrees: their origins coincide, so direction alone decides a packet's cone).
+REFLECTION_CELLS = 4
+SHADOW_CELLS = 64
 #: With at most this many bundle-level candidates, one dense pass beats per-packet culling.
 DENSE_CANDIDATES = 8
 #: Bundle-level candidates intersected at once in the dense pass; bounds (k, n) temporaries.
 DENSE_CHUNK = 16
 #: Upper bound on ray/sphere pairs per block of packets; bounds the (k, n) temporaries.
 BLOCK_PAIRS = 1 << 19
+#: Spheres per culling cluster, and how much larger than the median a sphere must be to get
+#: a cluster of its own.
+CLUSTER_SIZE = 16
+HUGE_RADIUS_RATIO = 8.0
 
 
 def cones(origins, directions):
-    """Bounding cones of P groups of R rays: (apex (P, 3), spread (P,), axis (P, 3), half (P,)).
+    """Bounding cones of P groups of R rays: (apex (3, P), spread (P,), axis (3, P), half (P,)).
 
     origins: (3, P, R), or (3, 1, 1) when every ray starts there; directions: (3, P, R) unit.
     spread is the half diagonal of the group's origin bounding box.
     """
     groups = directions.shape[1]
     if origins.shape[1] == 1 and origins.shape[2] == 1:
-        apex = np.repeat(origins[:, 0, 0].astype(np.float64)[None, :], groups, axis=0)
+        apex = np.repeat(origins[:, 0, :].astype(np.float64), groups, axis=1)
         spread = np.zeros(groups)
     else:
         low = origins.min(axis=2).astype(np.float64)
         high = origins.max(axis=2).astype(np.float64)
-        apex = ((low + high) / 2).T
-        spread = np.sqrt(((high - low) ** 2).sum(axis=0)) / 2
+        apex = (low + high) / 2
+        spread = length(high - low) / 2
     mean = directions.sum(axis=2, dtype=np.float64)                     # (3, P)
-    norm = np.sqrt((mean ** 2).sum(axis=0))
+    norm = length(mean)
     degenerate = norm < 1e-9 * directions.shape[2]
     axis = mean / np.where(degenerate, 1.0, norm)
-    cos_half = np.einsum("cp,cpr->pr", axis.astype(directions.dtype), directions).min(axis=1)
+    cos_half = dot(axis.astype(directions.dtype)[:, :, None], directions).min(axis=1)
     # The dot products were rounded in the render precision: widen by its epsilon.
     half = np.arccos(np.clip(cos_half, -1.0, 1.0)) + 4 * np.sqrt(np.finfo(directions.dtype).eps)
     half = np.where(degenerate, np.pi, np.minimum(half, np.pi))
-    return apex, spread, axis.T, half
+    return apex, spread, axis, half
 
 
 def reachable(centers, radii, apex, spread, axis, half, max_distance):
-    """(P, K) mask: may a ray of group p hit sphere k within max_distance (P,)?
+    """May a ray of a group hit a sphere within max_distance?  Broadcasting over any shape,
+    vectors first: centers, apex, axis (3, ...); radii, spread, half, max_distance (...).
+    Returns (...) bool.
 
-    centers (K, 3), radii (K,); the groups' cones as ``cones`` returns them."""
-    to_center = centers[None, :, :] - apex[:, None, :]                  # (P, K, 3)
-    distance = np.sqrt(np.einsum("pkc,pkc->pk", to_center, to_center))
-    grown = radii[None, :] + spread[:, None]
+    The groups' cones are as ``cones`` returns them; a sphere may be a cluster's bound.  The
+    angle test ``angle(c - apex, axis) <= half + asin(grown / distance)`` is done on cosines
+    (cos(a + b) = cos a cos b - sin a sin b), which needs no inverse trigonometry; cones wider
+    than a hemisphere pass everything."""
+    to_center = centers - apex
+    distance = length(to_center)
+    grown = radii + spread
     contains = distance <= grown
     with np.errstate(divide="ignore", invalid="ignore"):
-        cos_angle = np.einsum("pkc,pc->pk", to_center, axis) / distance
-        angular_radius = np.arcsin(np.clip(grown / distance, 0.0, 1.0))
-    allowed = half[:, None] + angular_radius + _ANGLE_MARGIN
-    within_cone = (allowed >= np.pi) | (np.arccos(np.clip(cos_angle, -1.0, 1.0)) <= allowed)
-    near_enough = distance - grown <= (max_distance + spread)[:, None] * (1 + 1e-9) + 1e-9
+        sin_grown = np.minimum(grown / distance, 1.0)
+        cos_limit = (np.cos(half) * np.sqrt(1.0 - sin_grown * sin_grown)
+                     - np.sin(half) * sin_grown - _COS_MARGIN)
+        within_cone = (half >= np.pi / 2) | (dot(to_center, axis) >= cos_limit * distance)
+    near_enough = distance - grown <= (max_distance + spread) * (1 + 1e-9) + 1e-9
     return contains | (within_cone & near_enough)
+
+
+@dataclass(frozen=True)
+class SphereClusters:
+    """Spheres grouped for culling: members (C, M) scene indices (-1 pads), their centres
+    (3, C, M) and radii (C, M) (pads: radius -inf, never reachable), and each cluster's
+    bounding sphere, centers (3, C) and radii (C,)."""
+
+    members: np.ndarray
+    member_centers: np.ndarray
+    member_radii: np.ndarray
+    centers: np.ndarray
+    radii: np.ndarray
+
+
+def _spread_bits(values):
+    """Insert two zero bits after each of the low 10 bits (for 3-D Morton codes)."""
+    values = values.astype(np.uint32) & 0x3FF
+    values = (values | (values << 16)) & 0x030000FF
+    values = (values | (values << 8)) & 0x0300F00F
+    values = (values | (values << 4)) & 0x030C30C3
+    return (values | (values << 2)) & 0x09249249
+
+
+def cluster_spheres(centers, radii, size: int = CLUSTER_SIZE) -> SphereClusters:
+    """Clusters of ``size`` spheres neighbouring in Morton order of their centres.  A sphere
+    much larger than the median (a floor) gets a cluster of its own, so that it does not
+    inflate its neighbours' bound."""
+    count = len(radii)
+    huge = radii > HUGE_RADIUS_RATIO * np.median(radii) if count else np.zeros(0, bool)
+    ordinary = np.flatnonzero(~huge)
+    groups = []
+    if len(ordinary):
+        points = centers[ordinary]
+        low, extent = points.min(axis=0), np.ptp(points, axis=0)
+        cells = ((points - low) / np.where(extent > 0, extent, 1) * 1023).astype(np.uint32)
+        code = (_spread_bits(cells[:, 0]) | (_spread_bits(cells[:, 1]) << 1)
+                | (_spread_bits(cells[:, 2]) << 2))
+        ordered = ordinary[np.argsort(code, kind="stable")]
+        groups += [ordered[i:i + size] for i in range(0, len(ordered), size)]
+    groups += [np.array([i]) for i in np.flatnonzero(huge)]
+    members = np.full((len(groups), size), -1, np.intp)
+    bounds = np.zeros((len(groups), 3))
+    bound_radii = np.zeros(len(groups))
+    for row, group in enumerate(groups):
+        members[row, :len(group)] = group
+        bounds[row] = centers[group].mean(axis=0)
+        bound_radii[row] = (np.linalg.norm(centers[group] - bounds[row], axis=1)
+                            + radii[group]).max() * (1 + 1e-12)
+    real = members >= 0
+    member_centers = np.where(real[None], centers[np.maximum(members, 0)].transpose(2, 0, 1), 0.0)
+    member_radii = np.where(real, radii[np.maximum(members, 0)], -np.inf)
+    return SphereClusters(members, member_centers, member_radii, bounds.T.copy(), bound_radii)
+
+
+def _packet_candidates(radii, clusters: SphereClusters, cone, reach):
+    """(packet (E,), sphere (E,)): the spheres each of P packets may hit, sorted by packet,
+    then scene order.  Each packet's cone is tested against the cluster bounds, then against
+    the members of the clusters that pass."""
+    apex, spread, axis, half = cone
+    passed = reachable(clusters.centers[:, None, :], clusters.radii[None, :],
+                       apex[:, :, None], spread[:, None], axis[:, :, None], half[:, None],
+                       reach[:, None])                                   # (P, C)
+    packet, cluster = np.nonzero(passed)
+    # Each passing (packet, cluster) pair tests the cluster's members at once.
+    hit = reachable(clusters.member_centers[:, cluster], clusters.member_radii[cluster],
+                    apex[:, packet, None], spread[packet, None], axis[:, packet, None],
+                    half[packet, None], reach[packet, None])              # (E, M)
+    pair, member = np.nonzero(hit)
+    packet, sphere = packet[pair], clusters.members[cluster[pair], member]
+    order = np.argsort(packet * len(radii) + sphere)
+    return packet[order], sphere[order]
 
 
 def _per_ray(values, n):
     return np.broadcast_to(np.asarray(values, np.float64), (n,))
 
 
-def direction_cells(directions):
-    """(n,) cube-map cell of each unit direction (3, n): CELLS x CELLS cells on each of the six
-    faces, so rays sharing a cell point within about 90 / CELLS degrees of each other."""
+def direction_cells(directions, cells):
+    """(n,) cube-map cell of each unit direction (3, n): cells x cells cells on each of the six
+    faces, so rays sharing a cell point within about 90 / cells degrees of each other."""
     major = np.argmax(np.abs(directions), axis=0)
     columns = np.arange(directions.shape[1])
     along = directions[major, columns]
     u = directions[(major + 1) % 3, columns] / np.abs(along)
     v = directions[(major + 2) % 3, columns] / np.abs(along)
     face = 2 * major + (along < 0)
-    cell_u = np.minimum(((u + 1) * (CELLS / 2)).astype(np.intp), CELLS - 1)
-    cell_v = np.minimum(((v + 1) * (CELLS / 2)).astype(np.intp), CELLS - 1)
-    return (face * CELLS + cell_u) * CELLS + cell_v
+    cell_u = np.minimum(((u + 1) * (cells / 2)).astype(np.intp), cells - 1)
+    cell_v = np.minimum(((v + 1) * (cells / 2)).astype(np.intp), cells - 1)
+    return (face * cells + cell_u) * cells + cell_v
 
 
 def _packets(n, key, size):
@@ -114,17 +201,71 @@ def _packets(n, key, size):
     return order, starts, np.minimum(size, np.repeat(run_start + run_length, pieces) - starts)
 
 
-def candidate_roots(centers, radii, origins, directions, max_distance, terms: OriginTerms = None,
-                    *, article=False, stats=None, key=None):
+@dataclass
+class DenseBlock:
+    """Every one of the bundle's rays against the same k spheres: arrays (k, n)."""
+
+    spheres: np.ndarray        # (k, 1) scene indices
+    t_near: np.ndarray
+    t_far: np.ndarray
+    valid: np.ndarray
+    rays: slice
+
+    def per_pair(self, values):
+        """A per-ray array (n,) (or a scalar) as per-pair values."""
+        return values[self.rays][None, :] if np.ndim(values) else values
+
+    def nearest(self, distances):
+        """(t (n,), sphere (n,) or -1) of the smallest distance per ray (scene order on ties)."""
+        row = np.argmin(distances, axis=0)
+        t = np.take_along_axis(distances, row[None, :], axis=0)[0]
+        return t, np.where(np.isfinite(t), self.spheres[row, 0], -1)
+
+    def any(self, hits):
+        return hits.any(axis=0)
+
+
+@dataclass
+class PairBlock:
+    """Explicit (ray, sphere) pairs, grouped by ray: arrays (E,); segments (m,) where each of
+    the block's m rays ``rays`` (m,) starts."""
+
+    spheres: np.ndarray
+    t_near: np.ndarray
+    t_far: np.ndarray
+    valid: np.ndarray
+    rays: np.ndarray
+    pair_rays: np.ndarray
+    segments: np.ndarray
+
+    def per_pair(self, values):
+        return values[self.pair_rays] if np.ndim(values) else values
+
+    def nearest(self, distances):
+        t = np.minimum.reduceat(distances, self.segments)
+        # The first pair per ray reaching the minimum: candidates are in scene order.
+        at_minimum = np.flatnonzero(distances == np.repeat(t, np.diff(np.r_[self.segments,
+                                                                            len(distances)])))
+        owner = np.searchsorted(self.segments, at_minimum, side="right") - 1
+        first = np.r_[True, owner[1:] != owner[:-1]]
+        sphere = np.full(len(t), -1, np.intp)
+        sphere[owner[first]] = self.spheres[at_minimum[first]]
+        return t, np.where(np.isfinite(t), sphere, -1)
+
+    def any(self, hits):
+        return np.logical_or.reduceat(hits, self.segments)
+
+
+def candidate_roots(centers, radii, clusters: SphereClusters, origins, directions, max_distance,
+                    terms: OriginTerms = None, *, article=False, stats=None, key=None):
     """Ray/sphere roots for every pair culling cannot rule out, in blocks.
 
-    centers (N, 3), radii (N,) in float64; origins (3, 1) with ``terms`` (OriginTerms at that
-    origin) when all rays share it, else (3, n); directions (3, n) unit; max_distance: scalar
-    or (n,), how far each ray reaches.  key: optional (n,) integers; rays with equal keys are
-    packed together (secondary rays: the sphere they leave, and their direction cell).
-    Yields ``(rays, ids, t_near, t_far, valid)``: rays, a slice or index array of the n rays;
-    ids (K, m) or (K, 1), the scene index of each row's sphere (-1 for padding, never valid);
-    the roots (K, m).  Rows keep scene order, so ties go to the sphere listed first.
+    centers (N, 3), radii (N,) in float64, and their ``clusters``; origins (3, 1) with
+    ``terms`` (OriginTerms at that origin) when all rays share it, else (3, n); directions
+    (3, n) unit; max_distance: scalar or (n,), how far each ray reaches.  key: optional (n,)
+    integers; rays with equal keys are packed together (secondary rays: the sphere they
+    leave and their direction cell).  Yields ``DenseBlock`` or ``PairBlock`` objects; every
+    pair culling keeps appears in exactly one block, candidates in scene order.
     """
     n = directions.shape[1]
     if n == 0 or len(radii) == 0:
@@ -132,12 +273,13 @@ def candidate_roots(centers, radii, origins, directions, max_distance, terms: Or
     dtype = directions.dtype
     shared = terms is not None
     reach = _per_ray(max_distance, n)
+    centers_t = centers.T
     apex, spread, axis, half = cones(origins[:, None, :], directions[:, None, :])
-    candidates = np.flatnonzero(reachable(centers, radii, apex, spread, axis, half,
-                                          np.array([reach.max()]))[0])
+    candidates = np.flatnonzero(reachable(centers_t, radii, apex, spread, axis, half,
+                                          reach.max()))
     if len(candidates) == 0:
         return
-    if len(candidates) <= DENSE_CANDIDATES or n <= PACKET_SIZE:
+    if len(candidates) <= DENSE_CANDIDATES:
         for first in range(0, len(candidates), DENSE_CHUNK):
             chunk = candidates[first:first + DENSE_CHUNK]
             if stats is not None:
@@ -148,59 +290,55 @@ def candidate_roots(centers, radii, origins, directions, max_distance, terms: Or
                                      terms.article_c[chunk][:, None], radii[chunk][:, None],
                                      directions[:, None, :], article=article)
             else:
-                roots = offset_roots(origins[:, None, :] - centers[chunk].T.astype(dtype)[:, :, None],
+                roots = offset_roots(origins[:, None, :]
+                                     - centers[chunk].T.astype(dtype)[:, :, None],
                                      directions[:, None, :],
                                      radii[chunk].astype(dtype)[:, None], article=article)
-            yield slice(0, n), chunk[:, None], *roots
+            yield DenseBlock(chunk[:, None], *roots, slice(0, n))
         return
 
-    # Second level: packets, each padded to ``size`` with copies of its last ray.
-    size = PACKET_SIZE if key is None else KEYED_PACKET_SIZE
-    order, starts, lengths = _packets(n, key, size)
-    packets = len(starts)
+    # Second level: packets of coherent rays, each with its own candidates; then explicit
+    # (ray, sphere) pairs, so no work is spent on padding.
+    order, starts, lengths = _packets(n, key, PACKET_SIZE if key is None else KEYED_PACKET_SIZE)
+    size = int(lengths.max())
     slot = np.arange(size)
-    filled = slot[None, :] < lengths[:, None]                              # (P, R)
     padded = order[starts[:, None] + np.minimum(slot[None, :], lengths[:, None] - 1)]
-    packet_dirs = directions[:, padded]                                    # (3, P, R)
     packet_origins = origins[:, None, :] if shared else origins[:, padded]
-    apex, spread, axis, half = cones(packet_origins, packet_dirs)
-    packet_reach = reach[padded].max(axis=1)
-    mask = reachable(centers[candidates], radii[candidates], apex, spread, axis, half,
-                     packet_reach)                                       # (P, Kc)
-    counts = mask.sum(axis=1)
-    # Stable sort puts each packet's candidates first, in scene order.
-    rank = np.argsort(~mask, axis=1, kind="stable")
-    first = 0
-    while first < packets:
-        # Grow the block while its padded pair count stays bounded.
-        last, widest = first, 0
-        while last < packets:
-            widest_next = max(widest, int(counts[last]))
-            if last > first and (last + 1 - first) * widest_next * size > BLOCK_PAIRS:
-                break
-            widest, last = widest_next, last + 1
-        block = slice(first, last)
-        first = last
-        if widest == 0:
+    cone = cones(packet_origins, directions[:, padded])
+    pair_packet, pair_sphere = _packet_candidates(radii, clusters, cone,
+                                                  reach[padded].max(axis=1))
+    counts = np.bincount(pair_packet, minlength=len(starts))
+    first_pair = np.cumsum(counts) - counts
+    # Per packet: its rays (lengths) times its candidates (counts), ray-major.
+    work = lengths * counts
+    block_end = np.searchsorted(np.cumsum(work), np.arange(1, work.sum() // BLOCK_PAIRS + 2)
+                                * BLOCK_PAIRS, side="right")
+    edges = np.unique(np.r_[0, np.minimum(block_end, len(starts)), len(starts)])
+    for low, high in zip(edges[:-1], edges[1:]):
+        packets = np.arange(low, high)
+        packets = packets[counts[packets] > 0]
+        if len(packets) == 0:
             continue
-        slots = rank[block, :widest]
-        ids = np.where(np.take_along_axis(mask[block], slots, axis=1),
-                       candidates[slots], -1)                              # (g, K)
-        safe = np.maximum(ids, 0)
+        # Rays of these packets, each repeated once per candidate of its packet.
+        ray_packet = np.repeat(packets, lengths[packets])
+        ray_slot = np.arange(len(ray_packet)) - np.repeat(
+            np.cumsum(lengths[packets]) - lengths[packets], lengths[packets])
+        rays = order[starts[ray_packet] + ray_slot]
+        per_ray = counts[ray_packet]
+        pair_owner = np.repeat(np.arange(len(rays)), per_ray)
+        pair_index = (np.repeat(first_pair[ray_packet], per_ray)
+                      + np.arange(len(pair_owner)) - np.repeat(np.cumsum(per_ray) - per_ray,
+                                                               per_ray))
+        spheres = pair_sphere[pair_index]
+        pair_rays = rays[pair_owner]
         if stats is not None:
-            stats.sphere_tests += int(counts[block].sum() * size)
-        rays_block = packet_dirs[:, block, None, :]                        # (3, g, 1, R)
+            stats.sphere_tests += len(spheres)
+        pair_dirs = take(directions, pair_rays)
         if shared:
-            roots = origin_roots(terms.f[safe].transpose(2, 0, 1)[..., None],
-                                 terms.c_prime[safe][..., None], terms.article_c[safe][..., None],
-                                 radii[safe][..., None], rays_block, article=article)
-        else:
-            f = (packet_origins[:, block, None, :]
-                 - centers[safe].transpose(2, 0, 1).astype(dtype)[..., None])
-            roots = offset_roots(f, rays_block, radii[safe].astype(dtype)[..., None],
+            roots = origin_roots(terms.f[spheres].T, terms.c_prime[spheres],
+                                 terms.article_c[spheres], radii[spheres], pair_dirs,
                                  article=article)
-        keep = filled[block].ravel()
-        t_near, t_far, valid = (np.moveaxis(r, 1, 0).reshape(widest, -1)[:, keep]
-                                for r in roots)                            # (K, m)
-        row_ids = np.repeat(ids.T, size, axis=1)[:, keep]
-        yield padded[block].ravel()[keep], row_ids, t_near, t_far, valid & (row_ids >= 0)
+        else:
+            roots = offset_roots(take(origins, pair_rays) - take(centers_t, spheres).astype(dtype),
+                                 pair_dirs, radii[spheres].astype(dtype), article=article)
+        yield PairBlock(spheres, *roots, rays, pair_rays, np.cumsum(per_ray) - per_ray)

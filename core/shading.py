@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from .context import ARTICLE_OFFSET, RAY_EPSILON, RayStats, TraceContext
-from .cull import candidate_roots
+from .cull import DENSE_CANDIDATES, SHADOW_CELLS, candidate_roots, direction_cells
 from .vectors import dot, length, normalize, take
 
 #: One digit of a shadow code per light: unlit (0) or visibility 0, 1/4, .., 1 (1 .. 5).
@@ -65,7 +65,7 @@ def _whole_power(base, n: int):
 
 
 def light_blocked(ctx: TraceContext, terms, origin, directions, distance, exclude,
-                  stats: RayStats, *, start=None, end=None, key=None):
+                  stats: RayStats, *, start=None, end=None):
     """Whether the segments from a light sample towards m points are blocked, (m,) bool.
 
     terms: OriginTerms at ``origin`` (3,), the light sample.  directions: (3, m) unit vectors
@@ -73,25 +73,28 @@ def light_blocked(ctx: TraceContext, terms, origin, directions, distance, exclud
     semantics: blocked if a sphere other than ``exclude`` (m,) (-1: none) is crossed in
     (0, distance - end), end (m,) the offset.  Article semantics (the points are the shifted
     points S, start (m,) = |light - P|): blocked if the reversed ray S -> light has both roots
-    positive and its nearer one below ``start``.  key: (m,) packing key, the sphere each
-    point lies on: seen from the light, the points of one sphere lie in a narrow cone.
+    positive and its nearer one below ``start``.
     """
     m = directions.shape[1]
     blocked = np.zeros(m, bool)
-    if m:
-        stats.shadow_rays += m
-    for rays, ids, t_near, t_far, valid in candidate_roots(
-            ctx.centers, ctx.radii, origin[:, None], directions, distance, terms,
-            article=ctx.article, stats=stats, key=key):
-        reach = distance[rays]
+    if m == 0:
+        return blocked
+    stats.shadow_rays += m
+    # All rays leave the light: packing them by direction makes each packet a narrow cone.
+    key = direction_cells(directions, SHADOW_CELLS) if len(ctx.radii) > DENSE_CANDIDATES else None
+    for block in candidate_roots(ctx.centers, ctx.radii, ctx.clusters, origin[:, None],
+                                 directions, distance, terms, article=ctx.article,
+                                 stats=stats, key=key):
+        t_near, t_far, valid = block.t_near, block.t_far, block.valid
+        reach = block.per_pair(distance)
         if ctx.article:
-            hit = valid & (t_far < reach) & (t_far > reach - start[rays])
+            hit = valid & (t_far < reach) & (t_far > reach - block.per_pair(start))
         else:
-            limit = reach - end[rays]
+            limit = reach - block.per_pair(end)
             hit = valid & (((t_near > 0) & (t_near < limit)) | ((t_far > 0) & (t_far < limit)))
             if exclude is not None:
-                hit &= ids != exclude[rays]
-        blocked[rays] |= hit.any(axis=0)
+                hit &= block.spheres != block.per_pair(exclude)
+        blocked[block.rays] |= block.any(hit)
     return blocked
 
 
@@ -109,7 +112,7 @@ def shade(ctx: TraceContext, points, normals, directions, spheres, front, stats:
     ka, kd, ks = take(mat.ambient, spheres), take(mat.diffuse, spheres), take(mat.specular, spheres)
     exponent = mat.exponent.take(spheres)
     if ctx.article:
-        return _shade_article(ctx, points, normals, spheres, ka, kd, ks, exponent, stats)
+        return _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats)
     return _shade_default(ctx, points, normals, directions, spheres, front, ka, kd, ks,
                           exponent, stats)
 
@@ -150,7 +153,7 @@ def _shade_default(ctx, points, normals, directions, spheres, front, ka, kd, ks,
             else:
                 towards, reach = normalize(lit_points - _column(sample, dtype))
             blocked = light_blocked(ctx, terms, sample, towards, reach, pick_row(exclude),
-                                    stats, end=pick_row(offset), key=pick_row(spheres))
+                                    stats, end=pick_row(offset))
             visibility -= blocked.astype(dtype) / len(samples)
         lit_normals = pick(normals)
         half, _ = normalize(-pick(directions) - lit_from_light)
@@ -167,7 +170,7 @@ def _shade_default(ctx, points, normals, directions, spheres, front, ka, kd, ks,
     return colour, np.ones(m, bool), shadow_code
 
 
-def _shade_article(ctx, points, normals, spheres, ka, kd, ks, exponent, stats):
+def _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats):
     lights = ctx.arrays.lights
     dtype = points.dtype
     m = points.shape[1]
@@ -181,7 +184,7 @@ def _shade_article(ctx, points, normals, spheres, ka, kd, ks, exponent, stats):
         from_light, shifted_distance = normalize(shifted - position)
         blocked = light_blocked(ctx, ctx.light_terms[light][0], lights.positions[light],
                                 from_light, shifted_distance, None, stats,
-                                start=length(position - points), key=spheres)
+                                start=length(position - points))
         # H = normalize(to_light + to_camera), with to_light = -from_light.
         half, _ = normalize(to_camera - from_light)
         term = (ka * _column(lights.ambient[light], dtype)

@@ -15,8 +15,8 @@ import numpy as np
 
 from .camera import CameraRays
 from .context import ARTICLE_OFFSET, RAY_EPSILON, RayStats, TraceContext
-from .cull import CELLS, DENSE_CANDIDATES, candidate_roots, direction_cells
-from .intersect import first_hit_distance, nearest_hits
+from .cull import DENSE_CANDIDATES, REFLECTION_CELLS, candidate_roots, direction_cells
+from .intersect import first_hit_distance
 from .shading import shade
 from .vectors import dot, take
 
@@ -45,28 +45,19 @@ def nearest_sphere(ctx: TraceContext, origins, directions, t_min, t_max, exclude
     n = directions.shape[1]
     best_t = np.full(n, np.inf, directions.dtype)
     best = np.full(n, -1, np.intp)
-    for rays, ids, t_near, t_far, valid in candidate_roots(
-            ctx.centers, ctx.radii, origins, directions, t_max, terms,
-            article=ctx.article, stats=stats, key=key):
-        distances = first_hit_distance(t_near, t_far, valid, _part(t_min, rays),
-                                       article=ctx.article)
+    for block in candidate_roots(ctx.centers, ctx.radii, ctx.clusters, origins, directions,
+                                 t_max, terms, article=ctx.article, stats=stats, key=key):
+        distances = first_hit_distance(block.t_near, block.t_far, block.valid,
+                                       block.per_pair(t_min), article=ctx.article)
+        distances[~(distances < block.per_pair(t_max))] = np.inf
         if exclude is not None:
-            distances[ids == exclude[rays]] = np.inf
-        t, row = nearest_hits(distances, _part(t_max, rays))
-        hit = row >= 0
-        sphere = np.full(len(row), -1, np.intp)
-        columns = np.flatnonzero(hit)
-        sphere[columns] = ids[row[columns], 0 if ids.shape[1] == 1 else columns]
+            distances[block.spheres == block.per_pair(exclude)] = np.inf
+        t, sphere = block.nearest(distances)
         # Strictly nearer only: on a tie the earlier block (earlier in scene order) keeps it.
-        better = t < best_t[rays]
-        best_t[rays] = np.where(better, t, best_t[rays])
-        best[rays] = np.where(better, sphere, best[rays])
+        better = t < best_t[block.rays]
+        best_t[block.rays] = np.where(better, t, best_t[block.rays])
+        best[block.rays] = np.where(better, sphere, best[block.rays])
     return best_t, best
-
-
-def _part(values, rays):
-    """The rays' share of a per-ray array, or the scalar itself."""
-    return values[rays] if np.ndim(values) else values
 
 
 def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> BundleResult:
@@ -150,6 +141,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
         t_min, t_max, terms = 0.0, np.inf, None
         if len(ctx.radii) > DENSE_CANDIDATES:
             # Reflection rays leaving one sphere in one direction cell cull well together.
-            key = sphere * (6 * CELLS * CELLS) + direction_cells(directions)
+            key = (sphere * (6 * REFLECTION_CELLS ** 2)
+                   + direction_cells(directions, REFLECTION_CELLS))
         stats.reflection_rays += len(path)
     return BundleResult(colour, coverage, signature)
