@@ -1,10 +1,11 @@
-"""Ray/sphere intersection over bundles of n rays and k candidate spheres.
+"""Ray/sphere intersection kernels, shape-generic.
 
-Rays are (3, n) bundles (``core.vectors``).  Every kernel returns the pair roots
-``(t_near, t_far, valid)``, each (k, n): the two distances
-along the (unit) ray where it crosses the sphere, and whether it crosses at all
+Vectors are (3, ...) arrays (``core.vectors``): a kernel broadcasts rays against spheres in
+whatever layout the caller gives, (3, k, n) for k spheres by n rays or (3, E) for E explicit
+pairs, and returns the pair roots ``(t_near, t_far, valid)`` in the broadcast shape: the two
+distances along the (unit) ray where it crosses the sphere, and whether it crosses at all
 (discriminant > 0, strictly, so tangent rays miss as in the article).  Callers pick what
-they need: the nearest hit (``nearest_hits``) or whether a segment is blocked (``core.shadow``).
+they need: the nearest hit (``core.trace``) or whether a segment is blocked (``core.shading``).
 
 Numerics (ARTICLE.md, "Numerics worth knowing").  With f = o - c and b' = f.d:
 
@@ -16,16 +17,15 @@ Numerics (ARTICLE.md, "Numerics worth knowing").  With f = o - c and b' = f.d:
   numbers;
 * ``c' = |f|^2 - r^2`` as ``(|f| - r)(|f| + r)``.
 
-When all rays share an origin (camera rays of a perspective camera; shadow rays, which Glint
-traces from the light towards the shaded points), f and c' are per sphere, computed once in
-float64, and b' for every pair is one matrix product.  The discriminant is then
-``b'^2 - c'``, whose error is about eps * c' against a scale of r^2: accurate while
-c' <= CHEAP_DISCRIMINANT_RATIO * r^2 (spheres near the origin, or large); the rest (small and
-far) take the vector form.
+When rays share an origin (camera rays of a perspective camera; shadow rays, which Glint
+traces from the light towards the shaded points), f and c' are per sphere (``OriginTerms``),
+computed once, c' in extended precision.  The discriminant is then ``b'^2 - c'``, whose error
+is about eps * c' against a scale of r^2: accurate while c' <= CHEAP_DISCRIMINANT_RATIO * r^2
+(spheres near the origin, or large); the rest (small and far) take the vector form.
 
 ``article=True`` computes the article's textbook form instead (b = 2 d.(o - c),
 c = |o - c|^2 - r^2, delta = b^2 - 4c), so that its rounding, and the reference image, are
-reproduced; ``core.render`` shows the two agree on the reference.
+reproduced; a test shows the stable kernels give the same reference image within 1e-9.
 """
 
 from __future__ import annotations
@@ -126,24 +126,3 @@ def first_hit_distance(t_near, t_far, valid, t_min, *, article=False):
         return np.where(valid & (t_near > 0) & (t_far > 0), t_near, np.inf)
     return np.where(valid & (t_near > t_min), t_near,
                     np.where(valid & (t_far > t_min), t_far, np.inf))
-
-
-def nearest_hits(distances, t_max=np.inf):
-    """Reduce (k, n) distances to (t (n,), row (n,)), row -1 and t inf for a miss.
-
-    On a tie the lower row wins (argmin's rule), which is the article's "listed first" as long
-    as candidate rows keep scene order.
-    """
-    k, n = distances.shape
-    if k == 0:
-        return np.full(n, np.inf, distances.dtype), np.full(n, -1, np.intp)
-    if k == 1:
-        row = np.zeros(n, np.intp)
-        t = distances[0].copy()
-    else:
-        row = np.argmin(distances, axis=0)
-        t = np.take_along_axis(distances, row[None, :], axis=0)[0]
-    missed = ~(t < t_max)
-    row[missed] = -1
-    t[missed] = np.inf
-    return t, row
