@@ -171,3 +171,13 @@ def test_render_in_float32_and_float64_returns_that_precision():
     scene = core.article_scene(30, 20)
     assert _render(scene, precision="float32").dtype == np.float32
     assert core.render(scene, core.RenderSettings(precision="float64")).image.dtype == np.float64
+
+
+def test_written_files_get_the_usual_permissions(tmp_path):
+    import stat
+    from core.png import write_png
+    out = tmp_path / "small.png"
+    write_png(str(out), np.zeros((2, 3, 4)))
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(out.stat().st_mode) == 0o666 & ~umask
