@@ -90,15 +90,23 @@ def _scatter(values, cols, rows, x0, y0, shape):
 
 
 def _supersample(ctx, camera, cols, rows, count, stats):
-    """Mean (rgb (n, 3), coverage (n,)) over ``count`` samples in each pixel (cols, rows)."""
-    rgb = np.zeros((len(cols), 3), ctx.dtype)
-    coverage = np.zeros(len(cols), ctx.dtype)
-    for dx, dy in sample_offsets(count):
-        colour, hit, _ = _trace_positions(ctx, camera, cols + dx, rows + dy, stats)
-        rgb += colour
-        coverage += hit
+    """Mean (rgb (n, 3), coverage (n,)) over ``count`` samples in each pixel (cols, rows).
+
+    All samples are traced together, a pixel's samples side by side (so packets stay
+    coherent), in bundles of at most tile_size^2 rays so memory stays bounded by the tile."""
+    offsets = sample_offsets(count)
+    rgb = np.empty((len(cols), 3), ctx.dtype)
+    coverage = np.empty(len(cols), ctx.dtype)
+    pixels_per_bundle = max(1, ctx.settings.tile_size ** 2 // count)
+    for first in range(0, len(cols), pixels_per_bundle):
+        part = slice(first, first + pixels_per_bundle)
+        xs = (cols[part, None] + offsets[None, :, 0]).ravel()
+        ys = (rows[part, None] + offsets[None, :, 1]).ravel()
+        colour, hit, _ = _trace_positions(ctx, camera, xs, ys, stats)
+        rgb[part] = colour.reshape(-1, count, 3).mean(axis=1)
+        coverage[part] = hit.reshape(-1, count).mean(axis=1)
     stats.supersampled_pixels += len(cols)
-    return rgb / count, coverage / count
+    return rgb, coverage
 
 
 def _edges(signature: np.ndarray) -> np.ndarray:
