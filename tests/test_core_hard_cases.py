@@ -153,10 +153,14 @@ def test_tiny_sphere_far_away():
     assert 200 < hits < 401
 
 
+@pytest.mark.parametrize("dtype", DTYPES)
 @pytest.mark.parametrize("semantics", ["default", "article"])
-def test_camera_inside_a_sphere(semantics):
+def test_camera_inside_a_sphere(semantics, dtype):
     center, radius = (0.3, -0.2, 0.1), 10.0
-    ctx = _context((core.Sphere(center, radius),), semantics=semantics)
+    scene = core.Scene(camera=core.ScreenCamera(2, 2, eye=(0, 0, 0)),
+                       spheres=(core.Sphere(center, radius),))
+    assert choose_precision(scene, "auto") == np.float32   # so float32 must hold too
+    ctx = _context((core.Sphere(center, radius),), dtype, semantics=semantics)
     rng = np.random.default_rng(3)
     directions = rng.normal(size=(300, 3))
     t, index = _shoot(ctx, [[0.0, 0.0, 0.0]], directions)
@@ -164,8 +168,9 @@ def test_camera_inside_a_sphere(semantics):
         assert (index == -1).all()
         return
     dirs = directions / np.linalg.norm(directions, axis=1, keepdims=True)
-    for ti, d in zip(t, dirs):
-        assert _relative_error(ti, exact_hit((0, 0, 0), d, center, radius)) < Decimal("1e-13")
+    bound = Decimal("1e-13") if dtype == np.float64 else Decimal("1e-6")
+    for ti, d in zip(t, dirs.astype(dtype)):
+        assert _relative_error(ti, exact_hit((0, 0, 0), d, center, radius)) < bound
 
 
 def _random_hits(rng, count, dtype):
@@ -233,11 +238,12 @@ def test_rays_leaving_an_inner_surface_reach_the_far_side(dtype):
     assert t2.min() > 1e-3
 
 
-def test_touching_and_coincident_spheres():
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_touching_and_coincident_spheres(dtype):
     a = core.Sphere((-1.0, 0.0, -5.0), 1.0, name="a")
     b = core.Sphere((1.0, 0.0, -5.0), 1.0, name="b")       # touches a at (0, 0, -5)
     twin = core.Sphere((1.0, 0.0, -5.0), 1.0, name="twin")  # coincides with b
-    ctx = _context((a, b, twin))
+    ctx = _context((a, b, twin), dtype)
     xs = np.linspace(-0.05, 0.05, 101)
     directions = np.column_stack([xs, np.zeros_like(xs), np.full_like(xs, -5.0)])
     t, index = _shoot(ctx, [[0.0, 0.0, 0.0]], directions)
@@ -246,8 +252,10 @@ def test_touching_and_coincident_spheres():
     assert (index != 2).all()
     scene = core.Scene(camera=core.ScreenCamera(60, 40, eye=(0, 0, 0)), spheres=(a, b, twin),
                        lights=(core.PointLight((0, 5, 0)),))
+    assert choose_precision(scene, "auto") == np.float32
     for semantics in ("default", "article"):
-        image = core.render(scene, core.RenderSettings(semantics=semantics)).image
+        image = core.render(scene, core.RenderSettings(semantics=semantics,
+                                                       precision=np.dtype(dtype).name)).image
         assert np.isfinite(image).all()
 
 
