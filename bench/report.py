@@ -1,0 +1,238 @@
+"""The Markdown report: the results table, the targets with PASS/FAIL, the cost curves."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+from .suite import BASELINE_LABEL, CURVE_GLINTS, GLINT_PLAIN, Bench, CurvePoint, Glint, Row
+
+MIB = 2 ** 20
+
+#: Target (1): float64-accurate means a max error of at most this (in [0, 1] units).
+ACCURATE = 1e-6
+BASELINE_SPEEDUP, CYCLES1_SPEEDUP = 8.0, 6.0
+ADAPTIVE_TIME_FRACTION, CYCLES16_SPEEDUP = 0.25, 20.0
+SPHERES_SLOWDOWN = 5.0
+#: Time linear in pixels: time per pixel at the largest size over that at the reference size.
+LINEAR_RANGE = (0.8, 1.25)
+#: Memory flat: working memory (peak minus the image) at the largest size over the reference.
+FLAT_MEMORY_RATIO = 1.25
+
+
+def _seconds(value: Optional[float]) -> str:
+    if value is None:
+        return "—"
+    return f"{value:.3g}" if value < 100 else f"{value:.0f}"
+
+
+def _error(value: Optional[float]) -> str:
+    if value is None:
+        return "—"
+    return "0" if value == 0 else f"{value:.2g}"
+
+
+def _memory(row: Row) -> str:
+    if row.timing.peak_bytes is None:
+        return "—"
+    mib = row.timing.peak_bytes / MIB
+    text = f"{mib:,.0f}" if mib >= 10 else f"{mib:.2g}"
+    return text + " (RSS)" if row.memory_kind == "rss" else text
+
+
+def _speedup(row: Row, baseline: Optional[Row]) -> str:
+    if baseline is None or row is baseline:
+        return "—" if baseline is None else "1x"
+    return f"{baseline.seconds / row.seconds:.2g}x"
+
+
+def table(bench: Bench) -> list[str]:
+    lines = [
+        "| Workload | Contender | Precision | Time (s) | Timed runs | Speed-up vs baseline "
+        "| Peak memory (MiB) | Max err (8-bit) | RMS err (8-bit) | Silhouette ≠ Workbench (outside floor band) "
+        "| Notes |",
+        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for row in bench.rows:
+        baseline = next((r for r in bench.rows if r.workload == row.workload
+                         and r.kind == "baseline"), None)
+        max_error = "ref" if row.is_reference else _error(row.max_error)
+        rms_error = "ref" if row.is_reference else _error(row.rms_error)
+        silhouette = ("—" if row.silhouette is None
+                      else f"{row.silhouette} ({row.silhouette_outside_band})")
+        lines.append(
+            f"| {row.title} | {row.contender} | {row.precision or '—'} | "
+            f"{_seconds(row.seconds)} | {len(row.timing.runs)} | {_speedup(row, baseline)} | "
+            f"{_memory(row)} | {max_error} | {rms_error} | {silhouette} | "
+            f"{'; '.join(row.notes)} |")
+    return lines
+
+
+# --------------------------------------------------------------------------------------------
+# Targets
+
+@dataclass
+class Target:
+    name: str
+    status: str        # PASS | FAIL | NOT MEASURED
+    details: str
+
+    def line(self) -> str:
+        return f"- **{self.status}** {self.name}: {self.details}"
+
+
+def _find(bench: Bench, workload: str, contender: str) -> Optional[Row]:
+    return next((r for r in bench.rows if r.workload == workload and r.contender == contender),
+                None)
+
+
+def _missing(name: str, what: str) -> Target:
+    return Target(name, "NOT MEASURED", f"needs {what} (run without --only/--no-blender)")
+
+
+def _status(ok: bool) -> str:
+    return "PASS" if ok else "FAIL"
+
+
+def target_accurate_speed(bench: Bench) -> Target:
+    width, height = bench.plan.article_sizes["article-hd"]
+    name = (f"(1) article {width}x{height} depth 3, float64-accurate: >= 8x the baseline and "
+            f">= 6x Cycles at 1 spp")
+    candidates = [r for r in bench.rows if r.workload == "article-hd" and r.kind == "glint"
+                  and r.semantics == "article" and r.max_error_raw is not None
+                  and r.max_error_raw <= ACCURATE]
+    baseline = _find(bench, "article-hd", BASELINE_LABEL)
+    cycles = _find(bench, "article-hd", "Cycles CPU, 1 spp")
+    if not candidates or baseline is None or cycles is None:
+        return _missing(name, "the article-hd workload with the baseline and Cycles")
+    best = min(candidates, key=lambda r: r.seconds)
+    vs_baseline = baseline.seconds / best.seconds
+    vs_cycles = cycles.seconds / best.seconds
+    return Target(name, _status(vs_baseline >= BASELINE_SPEEDUP and vs_cycles >= CYCLES1_SPEEDUP),
+                  f"fastest accurate Glint = {best.contender} at {best.seconds:.3g} s (max error "
+                  f"{best.max_error_raw:.2g} <= {ACCURATE:g}); baseline {baseline.seconds:.3g} s "
+                  f"-> {vs_baseline:.2f}x (needs {BASELINE_SPEEDUP:g}x); Cycles 1 spp "
+                  f"{cycles.seconds:.3g} s -> {vs_cycles:.2f}x (needs {CYCLES1_SPEEDUP:g}x)")
+
+
+def target_adaptive(bench: Bench) -> Target:
+    name = (f"(2) adaptive AA ({bench.plan.aa_size[0]}x{bench.plan.aa_size[1]}) reaches "
+            f"fixed-16's RMS error (vs {bench.plan.aa_reference_samples} spp) in <= 1/4 of its "
+            f"time, and is >= 20x faster than Cycles at 16 spp")
+    fixed = _find(bench, "aa-fixed16", Glint("article", "float64", "fixed", 16).label)
+    adaptive = [r for r in bench.rows if r.workload == "aa-adaptive"
+                and r.glint is not None and r.glint.semantics == "article"]
+    size = bench.plan.aa_size
+    cycles = next((r for r in bench.rows if r.contender == "Cycles CPU, 16 spp"
+                   and r.title.startswith(f"article {size[0]}x{size[1]}")), None)
+    if fixed is None or not adaptive or cycles is None:
+        return _missing(name, "the aa-adaptive and aa-fixed16 workloads and Cycles at 16 spp")
+    tried = ", ".join(f"{r.contender}: RMS {r.rms_error:.3g} in {r.seconds:.3g} s"
+                      for r in adaptive)
+    reaching = [r for r in adaptive if r.rms_error <= fixed.rms_error]
+    head = (f"fixed 16 spp: RMS {fixed.rms_error:.3g} (8-bit steps) in {fixed.seconds:.3g} s; "
+            f"{tried}")
+    if not reaching:
+        return Target(name, "FAIL", f"{head}; no adaptive setting reached fixed-16's RMS")
+    best = min(reaching, key=lambda r: r.seconds)
+    fraction = best.seconds / fixed.seconds
+    vs_cycles = cycles.seconds / best.seconds
+    ok = fraction <= ADAPTIVE_TIME_FRACTION and vs_cycles >= CYCLES16_SPEEDUP
+    return Target(name, _status(ok),
+                  f"{head}; fastest reaching it: {best.contender}, {fraction:.2f} of fixed-16's "
+                  f"time (needs <= {ADAPTIVE_TIME_FRACTION:g}); Cycles 16 spp {cycles.seconds:.3g} s "
+                  f"-> {vs_cycles:.2f}x (needs {CYCLES16_SPEEDUP:g}x)")
+
+
+def _reference_point(points: list[CurvePoint]) -> CurvePoint:
+    """1920x1080 if the curve has it, else the point in the middle."""
+    full_hd = [p for p in points if (p.width, p.height) == (1920, 1080)]
+    return full_hd[0] if full_hd else points[len(points) // 2]
+
+
+def target_scaling(bench: Bench) -> Target:
+    width, height = bench.plan.spheres_size
+    name = (f"(3) 1,000 spheres at {width}x{height} within 5x the article's time; time linear "
+            f"in pixels; peak memory flat in resolution apart from the image")
+    parts, ok, measured = [], True, False
+    ratios = []
+    for glint in GLINT_PLAIN:
+        spheres = _find(bench, "spheres", glint.label)
+        article = _find(bench, "article-hd", glint.label)
+        if spheres is not None and article is not None:
+            ratios.append(f"{glint.semantics}/{glint.precision} {spheres.seconds / article.seconds:.2f}x")
+            ok &= spheres.seconds <= SPHERES_SLOWDOWN * article.seconds
+    if ratios:
+        measured = True
+        parts.append("1,000 spheres / article (same size, each Glint setting): " + ", ".join(ratios)
+                     + f" (each needs <= {SPHERES_SLOWDOWN:g}x)")
+    for glint in CURVE_GLINTS:
+        points = sorted((p for p in bench.curve_points
+                         if p.curve == "cost-pixels" and p.contender == glint.label),
+                        key=lambda p: p.pixels)
+        if len(points) < 3:
+            continue
+        measured = True
+        largest, reference = points[-1], _reference_point(points)
+        per_pixel = (largest.seconds / largest.pixels) / (reference.seconds / reference.pixels)
+        linear = LINEAR_RANGE[0] <= per_pixel <= LINEAR_RANGE[1]
+        text = (f"{glint.label}: time per pixel at {largest.width}x{largest.height} = "
+                f"{per_pixel:.2f} x that at {reference.width}x{reference.height} "
+                f"(needs {LINEAR_RANGE[0]:g}..{LINEAR_RANGE[1]:g})")
+        ok &= linear
+        if largest.peak_bytes is not None and reference.peak_bytes is not None:
+            working_large = largest.peak_bytes - largest.image_bytes
+            working_ref = reference.peak_bytes - reference.image_bytes
+            ratio = working_large / max(working_ref, 1)
+            ok &= ratio <= FLAT_MEMORY_RATIO
+            text += (f"; working memory (peak - image) {working_large / MIB:.0f} MiB vs "
+                     f"{working_ref / MIB:.0f} MiB = {ratio:.2f}x (needs <= {FLAT_MEMORY_RATIO:g}x)")
+        parts.append(text)
+    if not measured:
+        return _missing(name, "the spheres, article-hd and cost-pixels workloads")
+    if not ratios:
+        parts.append("sphere ratio not measured")
+        ok = False
+    return Target(name, _status(ok), "; ".join(parts))
+
+
+def target_float32(bench: Bench) -> Target:
+    name = ("(4) float32 measurably faster than float64 where 'auto' picks it "
+            "(1,000 spheres without the floor, default semantics)")
+    f32 = _find(bench, "spheres-nofloor", Glint("default", "float32").label)
+    f64 = _find(bench, "spheres-nofloor", Glint("default", "float64").label)
+    auto = _find(bench, "spheres-nofloor", Glint("default", "auto").label)
+    if f32 is None or f64 is None or auto is None:
+        return _missing(name, "the spheres-nofloor workload")
+    speedup = f64.seconds / f32.seconds
+    separated = max(f32.timing.runs) < min(f64.timing.runs)
+    ok = auto.precision == "float32" and speedup > 1.0 and separated
+    return Target(name, _status(ok),
+                  f"auto picked {auto.precision}; float64 {f64.seconds:.3g} s, float32 "
+                  f"{f32.seconds:.3g} s -> {speedup:.2f}x; slowest float32 run "
+                  f"{max(f32.timing.runs):.3g} s vs fastest float64 run {min(f64.timing.runs):.3g} s "
+                  f"({'separated' if separated else 'overlapping'}); float32 error vs float64 "
+                  f"reference: max {f32.max_error:.2g}, RMS {f32.rms_error:.2g} (8-bit steps)")
+
+
+def targets(bench: Bench) -> list[Target]:
+    return [target_accurate_speed(bench), target_adaptive(bench), target_scaling(bench),
+            target_float32(bench)]
+
+
+# --------------------------------------------------------------------------------------------
+
+def curve_table(bench: Bench, curve: str) -> list[str]:
+    points = [p for p in bench.curve_points if p.curve == curve]
+    if not points:
+        return []
+    lines = ["| Contender | Size | Spheres | Time (s) | Timed runs | µs per pixel | "
+             "Peak (MiB) | Image (MiB) | Peak − image (MiB) |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for p in points:
+        peak = "—" if p.peak_bytes is None else f"{p.peak_bytes / MIB:,.1f}"
+        working = "—" if p.peak_bytes is None else f"{(p.peak_bytes - p.image_bytes) / MIB:,.1f}"
+        lines.append(f"| {p.contender} | {p.width}x{p.height} | {p.spheres} | "
+                     f"{_seconds(p.seconds)} | {p.runs} | {p.seconds / p.pixels * 1e6:.3g} | "
+                     f"{peak} | {p.image_bytes / MIB:,.1f} | {working} |")
+    return lines

@@ -1,0 +1,570 @@
+"""What ``python -m bench`` runs: the workloads, their contenders, and the cost curves.
+
+Workloads (``--only NAME``):
+
+* article-small, article-hd, article-uhd: the article's scene, depth 3, at 300x200,
+  1920x1080 and 3840x2160.
+* spheres: 1,000 small random spheres over the article's floor (``bench.scenes``), 1920x1080.
+* spheres-nofloor: the same spheres without the floor: an ordinary small scene, the kind
+  precision 'auto' renders in float32.
+* aa-adaptive, aa-fixed16: the article's scene at 1920x1080 with anti-aliasing.
+* cost-pixels, cost-spheres: time and peak memory against pixel count (up to 7680x4320) and
+  against sphere count (1 to 10,000).
+
+Contenders: Glint in each precision and semantics; the baseline (``bench.baseline``); the
+article's per-pixel program (``bench.per_pixel``), timed small and scaled per pixel; Cycles
+(CPU, 1 and 16 samples) and Workbench through bpy (``bench.blender``).
+
+Errors are in 8-bit steps against a float64 reference of the same semantics: for the article's
+semantics the baseline's image (the article's algorithm, checked against the article's own
+image at 300x200 in every run); for Glint's default semantics, Glint in float64 with
+``contribution_cutoff=0`` (no path is cut short).  ``--quick`` shrinks every size (the plan
+is printed with the table).
+"""
+
+from __future__ import annotations
+
+import glob
+import hashlib
+import os
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+import numpy as np
+
+from core import RenderSettings, Scene, render
+
+from . import baseline, per_pixel
+from .measure import Timing, measure, rgb_error, silhouette_mismatches
+from .scenes import article_scene, random_spheres_scene
+
+REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+#: The article's own image: shared/ beside the checkout, else the tests' copy of it.
+ARTICLE_REFERENCES = (
+    os.path.join(os.path.dirname(REPOSITORY), "shared", "reference", "article_300x200.npy"),
+    os.path.join(REPOSITORY, "tests", "data", "article_300x200.npy"),
+)
+#: The baseline must reproduce the article's own image this closely.
+BASELINE_TOLERANCE = 1e-9
+MAX_DEPTH = 3
+
+Size = tuple[int, int]
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Sizes and counts of one bench run (``FULL`` or ``QUICK``)."""
+
+    article_sizes: dict            # workload name -> (width, height)
+    spheres_size: Size
+    spheres_error_size: Size       # errors of the sphere scenes are computed at this size
+    sphere_count: int
+    aa_size: Size
+    aa_error_size: Size            # AA errors (against the 256-spp reference) at this size
+    aa_reference_samples: int
+    adaptive_samples: tuple
+    per_pixel_article_size: Size
+    per_pixel_spheres_size: Size
+    cycles16_max_pixels: int       # Cycles at 16 spp only up to this many pixels
+    pixel_curve: tuple
+    sphere_curve_size: Size
+    sphere_counts: tuple
+    baseline_max_elements: int     # rays x spheres of the baseline's one broadcast
+    repeats: int
+    budget: float                  # seconds of timed runs per contender after its warm-up
+
+
+FULL = Plan(
+    article_sizes={"article-small": (300, 200), "article-hd": (1920, 1080),
+                   "article-uhd": (3840, 2160)},
+    spheres_size=(1920, 1080), spheres_error_size=(480, 270), sphere_count=1000,
+    aa_size=(1920, 1080), aa_error_size=(640, 360), aa_reference_samples=256,
+    adaptive_samples=(16, 32),
+    per_pixel_article_size=(60, 40), per_pixel_spheres_size=(16, 9),
+    cycles16_max_pixels=1920 * 1080,
+    pixel_curve=((160, 90), (320, 180), (640, 360), (1280, 720), (1920, 1080), (3840, 2160),
+                 (7680, 4320)),
+    sphere_curve_size=(640, 360), sphere_counts=(1, 10, 100, 1000, 3000, 10000),
+    baseline_max_elements=40_000_000, repeats=3, budget=40.0)
+
+QUICK = Plan(
+    article_sizes={"article-small": (300, 200), "article-hd": (480, 270),
+                   "article-uhd": (640, 360)},
+    spheres_size=(480, 270), spheres_error_size=(96, 54), sphere_count=1000,
+    aa_size=(300, 200), aa_error_size=(160, 90), aa_reference_samples=256,
+    adaptive_samples=(16, 32),
+    per_pixel_article_size=(30, 20), per_pixel_spheres_size=(6, 4),
+    cycles16_max_pixels=300 * 200,
+    pixel_curve=((160, 90), (320, 180), (640, 360), (960, 540)),
+    sphere_curve_size=(160, 90), sphere_counts=(1, 10, 100, 1000),
+    baseline_max_elements=5_000_000, repeats=1, budget=5.0)
+
+SCENE_WORKLOADS = ("article-small", "article-hd", "article-uhd", "spheres", "spheres-nofloor")
+AA_WORKLOADS = ("aa-adaptive", "aa-fixed16")
+CURVES = ("cost-pixels", "cost-spheres")
+WORKLOADS = SCENE_WORKLOADS + AA_WORKLOADS + CURVES
+
+
+@dataclass(frozen=True)
+class Glint:
+    """A Glint configuration."""
+
+    semantics: str
+    precision: str
+    anti_aliasing: str = "off"
+    samples: int = 16
+
+    def settings(self, **overrides) -> RenderSettings:
+        values = dict(semantics=self.semantics, precision=self.precision, max_depth=MAX_DEPTH,
+                      anti_aliasing=self.anti_aliasing, samples=self.samples)
+        values.update(overrides)
+        return RenderSettings(**values)
+
+    @property
+    def label(self) -> str:
+        text = f"Glint {self.semantics}/{self.precision}"
+        if self.anti_aliasing != "off":
+            text += f", {self.anti_aliasing} {self.samples} spp"
+        return text
+
+
+GLINT_PLAIN = tuple(Glint(s, p) for s in ("article", "default")
+                    for p in ("float64", "float32", "auto"))
+#: The two configurations the cost curves follow: float64-accurate, and Glint's defaults.
+CURVE_GLINTS = (Glint("article", "float64"), Glint("default", "auto"))
+BASELINE_LABEL = "Baseline (vectorised NumPy)"
+PER_PIXEL_LABEL = "Per-pixel (article's program)"
+
+
+@dataclass
+class Row:
+    """One contender on one workload.  Errors are in 8-bit steps; None: not applicable."""
+
+    workload: str                  # workload name (--only)
+    title: str                     # e.g. "article 1920x1080"
+    contender: str
+    kind: str                      # glint | baseline | per-pixel | cycles | workbench
+    timing: Timing
+    seconds: float                 # median (scaled for the per-pixel program)
+    semantics: Optional[str] = None
+    precision: Optional[str] = None
+    memory_kind: str = "traced"    # traced (tracemalloc peak) | rss (resident delta)
+    max_error: Optional[float] = None
+    rms_error: Optional[float] = None
+    max_error_raw: Optional[float] = None  # in [0, 1] units
+    silhouette: Optional[int] = None
+    silhouette_outside_band: Optional[int] = None  # outside the floor's horizon band
+    is_reference: bool = False
+    glint: Optional[Glint] = None
+    notes: list = field(default_factory=list)
+
+
+@dataclass
+class CurvePoint:
+    curve: str                     # cost-pixels | cost-spheres
+    contender: str
+    width: int
+    height: int
+    spheres: int
+    seconds: float
+    runs: int
+    peak_bytes: Optional[int]
+    image_bytes: int
+
+    @property
+    def pixels(self) -> int:
+        return self.width * self.height
+
+
+_START = time.perf_counter()
+
+
+def log(message: str) -> None:
+    print(f"[bench {time.perf_counter() - _START:6.1f} s] {message}", file=sys.stderr, flush=True)
+
+
+def _source_hash(*patterns) -> str:
+    digest = hashlib.sha256()
+    for pattern in patterns:
+        for path in sorted(glob.glob(os.path.join(REPOSITORY, pattern))):
+            with open(path, "rb") as source:
+                digest.update(source.read())
+    return digest.hexdigest()[:12]
+
+
+class Bench:
+    """Runs workloads and curves, collecting ``rows`` and ``curve_points``."""
+
+    def __init__(self, plan: Plan, out_dir: str, use_blender: bool = True):
+        self.plan = plan
+        self.out_dir = out_dir
+        self.use_blender = use_blender
+        self.rows: list[Row] = []
+        self.curve_points: list[CurvePoint] = []
+        self.notes: list[str] = []
+        self._blender = None
+        self._blender_error: Optional[str] = None
+        self._blender_results = {}   # BlenderJob -> (Timing, image)
+        self._timings = {}           # (scene key, contender key) -> (Timing, image bytes)
+        self._floor_bands = {}       # size -> bool mask
+
+    # ---------------------------------------------------------------------------------------
+    # Measuring one contender
+
+    def _measure(self, key, work: Callable[[], object], image_bytes: Callable[[object], int]):
+        """(warm-up result or None if reused, Timing, image bytes), reusing a measurement of
+        the same contender on the same scene made earlier in this run."""
+        if key in self._timings:
+            timing, size = self._timings[key]
+            return None, timing, size
+        result, timing = measure(work, self.plan.repeats, self.plan.budget)
+        size = image_bytes(result)
+        self._timings[key] = (timing, size)
+        return result, timing, size
+
+    def measure_glint(self, scene_key, scene: Scene, glint: Glint):
+        """(RenderResult or None if reused, Timing, image bytes)."""
+        settings = glint.settings()
+        return self._measure((scene_key, glint), lambda: render(scene, settings),
+                             lambda result: result.image.nbytes)
+
+    def measure_baseline(self, scene_key, scene: Scene):
+        """(image or None if reused, Timing, image bytes)."""
+        return self._measure((scene_key, "baseline"), lambda: baseline.render(scene, MAX_DEPTH),
+                             lambda image: image.nbytes)
+
+    def baseline_fits(self, scene: Scene) -> bool:
+        elements = scene.camera.width * scene.camera.height * len(scene.spheres)
+        return elements <= self.plan.baseline_max_elements
+
+    # ---------------------------------------------------------------------------------------
+    # References
+
+    def check_baseline(self) -> None:
+        """The baseline must compute the article's image: asserted on every run."""
+        # Explicit raises rather than assert statements, which python -O would drop.
+        path = next((p for p in ARTICLE_REFERENCES if os.path.exists(p)), None)
+        if path is None:
+            raise FileNotFoundError(f"the article's image is missing: {ARTICLE_REFERENCES}")
+        image = baseline.render(article_scene(300, 200), MAX_DEPTH)
+        error = float(np.abs(image[..., :3] - np.load(path)).max())
+        if not error <= BASELINE_TOLERANCE:
+            raise AssertionError(f"the baseline differs from {path} by {error:.3g} "
+                                 f"(> {BASELINE_TOLERANCE:g})")
+        self.notes.append(f"Baseline vs the article's own 300x200 image ({path}): max "
+                          f"difference {error:.2g} (asserted <= {BASELINE_TOLERANCE:g}).")
+
+    def _cached(self, name: str, compute: Callable[[], np.ndarray]) -> np.ndarray:
+        os.makedirs(self.out_dir, exist_ok=True)
+        path = os.path.join(self.out_dir, name)
+        if os.path.exists(path):
+            return np.load(path)
+        log(f"computing {name}")
+        image = compute()
+        np.save(path + ".tmp.npy", image)
+        os.replace(path + ".tmp.npy", path)
+        return image
+
+    def article_reference(self, scene_key, scene: Scene) -> np.ndarray:
+        """The baseline's image of ``scene`` computed band by band (cached in out_dir, keyed
+        by the baseline's and the scenes' source)."""
+        key = "-".join(str(part) for part in scene_key)
+        name = f"reference-article-{key}-{_source_hash('bench/baseline.py', 'bench/scenes.py')}.npy"
+        return self._cached(name, lambda: baseline.render_in_chunks(scene, MAX_DEPTH))
+
+    @staticmethod
+    def default_reference(scene: Scene) -> np.ndarray:
+        return render(scene, Glint("default", "float64").settings(contribution_cutoff=0.0)).image
+
+    def aa_reference(self, semantics: str, size: Size) -> np.ndarray:
+        """Glint float64 with fixed AA at ``aa_reference_samples`` per pixel (cached, keyed by
+        the core's source)."""
+        samples = self.plan.aa_reference_samples
+        name = (f"reference-aa-{semantics}-{size[0]}x{size[1]}-{samples}spp-"
+                f"{_source_hash('core/*.py')}.npy")
+        settings = Glint(semantics, "float64", "fixed", samples).settings()
+        return self._cached(name, lambda: render(article_scene(*size), settings).image)
+
+    # ---------------------------------------------------------------------------------------
+    # Blender
+
+    def blender(self):
+        if not self.use_blender:
+            return None
+        if self._blender is None and self._blender_error is None:
+            from .blender import BlenderSession, BlenderUnavailable
+
+            try:
+                self._blender = BlenderSession()
+            except BlenderUnavailable as error:
+                self._blender_error = str(error)
+                self.notes.append(f"Blender contenders skipped: {error}.")
+        return self._blender
+
+    def blender_result(self, job):
+        """(Timing, image (H, W, 4)) of a Blender job, measured once per run."""
+        if job not in self._blender_results:
+            from .blender import measure_memory
+
+            session = self.blender()
+            log(f"{job.label} {job.width}x{job.height}")
+            session.scene(job)
+            _, timing = measure(lambda: session.render(job), self.plan.repeats,
+                                self.plan.budget, trace_memory=False)
+            image = session.last_image(job)
+            timing.peak_bytes = measure_memory(job)
+            self._blender_results[job] = (timing, image)
+        return self._blender_results[job]
+
+    def workbench_mask(self, size: Size) -> Optional[np.ndarray]:
+        """Workbench's coverage (alpha > 0.5) of the article's scene, or None without Blender."""
+        from .blender import WORKBENCH, BlenderJob
+
+        if self.blender() is None:
+            return None
+        _, image = self.blender_result(BlenderJob(WORKBENCH, 1, *size))
+        return image[..., 3] > 0.5
+
+    def floor_band(self, size: Size) -> np.ndarray:
+        """Pixels where the article's analytic floor sphere and Blender's UV-sphere floor
+        disagree about coverage: the floor mesh's facets (sagitta ~10 units) put its horizon
+        rows away from the sphere's, so silhouettes are also compared outside this band."""
+        from .blender import WORKBENCH, BlenderJob
+
+        if size not in self._floor_bands:
+            job = BlenderJob(WORKBENCH, 1, *size, floor_only=True)
+            self.blender().render(job)
+            mesh = self.blender().last_image(job)[..., 3] > 0.5
+            floor_only = article_scene(*size)
+            floor_only = Scene(camera=floor_only.camera, spheres=floor_only.spheres[-1:],
+                               lights=floor_only.lights)
+            origins, directions = baseline.camera_rays(floor_only.camera)
+            index, _ = baseline.nearest(baseline.article_arrays(floor_only), origins, directions)
+            analytic = (index >= 0).reshape(size[1], size[0])
+            self._floor_bands[size] = analytic != mesh
+        return self._floor_bands[size]
+
+    def set_silhouette(self, row: Row, mask: np.ndarray, size: Size) -> None:
+        workbench = self.workbench_mask(size)
+        if workbench is None:
+            return
+        row.silhouette = silhouette_mismatches(mask, workbench)
+        outside = ~self.floor_band(size)
+        row.silhouette_outside_band = silhouette_mismatches(mask[outside], workbench[outside])
+
+    # ---------------------------------------------------------------------------------------
+    # Workloads
+
+    def run(self, names) -> None:
+        self.check_baseline()
+        for name in names:
+            if name in self.plan.article_sizes:
+                self.article_workload(name)
+            elif name == "spheres":
+                self.spheres_workload(name, floor=True)
+            elif name == "spheres-nofloor":
+                self.spheres_workload(name, floor=False)
+            elif name in AA_WORKLOADS:
+                self.aa_workload(name)
+            elif name == "cost-pixels":
+                self.pixel_curve()
+            elif name == "cost-spheres":
+                self.sphere_curve()
+            else:
+                raise ValueError(f"unknown workload {name!r}")
+
+    def article_workload(self, name: str) -> None:
+        width, height = self.plan.article_sizes[name]
+        scene = article_scene(width, height)
+        jobs = self._blender_jobs(width, height)
+        self.scene_workload(name, f"article {width}x{height}", ("article", width, height),
+                            scene, lambda w, h: article_scene(w, h), (width, height),
+                            self.plan.per_pixel_article_size, jobs)
+
+    def spheres_workload(self, name: str, floor: bool) -> None:
+        width, height = self.plan.spheres_size
+        count = self.plan.sphere_count
+
+        def make(w, h):
+            return random_spheres_scene(count, w, h, floor=floor)
+
+        title = f"{count} spheres{'' if floor else ', no floor'} {width}x{height}"
+        self.scene_workload(name, title, ("spheres", count, floor, width, height),
+                            make(width, height), make, self.plan.spheres_error_size,
+                            self.plan.per_pixel_spheres_size, ())
+
+    def _blender_jobs(self, width: int, height: int):
+        from .blender import CYCLES, WORKBENCH, BlenderJob
+
+        jobs = [BlenderJob(WORKBENCH, 1, width, height), BlenderJob(CYCLES, 1, width, height)]
+        if width * height <= self.plan.cycles16_max_pixels:
+            jobs.append(BlenderJob(CYCLES, 16, width, height))
+        else:
+            self.notes.append(f"Cycles at 16 spp not run at {width}x{height} "
+                              f"(it would take minutes; it runs at sizes up to "
+                              f"{self.plan.cycles16_max_pixels} pixels).")
+        return jobs
+
+    def scene_workload(self, name, title, scene_key, scene, make_scene, error_size,
+                       per_pixel_size, blender_jobs) -> None:
+        """Glint in every precision and semantics, the baseline, the per-pixel program and
+        the Blender jobs on one scene."""
+        size = (scene.camera.width, scene.camera.height)
+        at_size = error_size == size
+        error_scene = scene if at_size else make_scene(*error_size)
+        error_note = "" if at_size else f"errors at {error_size[0]}x{error_size[1]}"
+        masks = {}
+        rows = []
+
+        references = {}
+        if self.baseline_fits(scene):
+            log(f"{title}: {BASELINE_LABEL}")
+            image, timing, _ = self.measure_baseline(scene_key, scene)
+            if image is None:  # measured earlier in this run: the reference is needed again
+                image = baseline.render(scene, MAX_DEPTH)
+            row = Row(name, title, BASELINE_LABEL, "baseline", timing, timing.median,
+                      semantics="article", precision="float64", is_reference=True,
+                      notes=["1 thread; the article-semantics reference"])
+            masks[row.contender] = image[..., 3] > 0.5
+            rows.append(row)
+            references["article"] = image if at_size else self.article_reference(
+                (*scene_key[:-2], *error_size), error_scene)
+            del image
+        else:
+            elements = scene.camera.width * scene.camera.height * len(scene.spheres)
+            self.notes.append(
+                f"{title}: the baseline's one broadcast would hold {elements:.2g} ray-sphere "
+                f"pairs ({baseline.one_broadcast_bytes(scene) / 2**30:.1f} GiB per (m, n) "
+                f"array, about ten of them at once); not run.")
+            references["article"] = self.article_reference(
+                (*scene_key[:-2], *error_size), error_scene)
+        references["default"] = self.default_reference(error_scene)
+
+        for glint in GLINT_PLAIN:
+            log(f"{title}: {glint.label}")
+            result, timing, _ = self.measure_glint(scene_key, scene, glint)
+            if result is None:
+                result = render(scene, glint.settings())
+            error_image = result.image if at_size else render(error_scene, glint.settings()).image
+            row = Row(name, title, glint.label, "glint", timing, timing.median,
+                      semantics=glint.semantics, precision=result.precision, glint=glint)
+            self._set_errors(row, error_image, references[glint.semantics], error_note)
+            masks[row.contender] = result.image[..., 3] > 0.5
+            rows.append(row)
+            del result, error_image
+
+        rows.append(self._per_pixel_row(name, title, make_scene, size, per_pixel_size))
+
+        if blender_jobs and self.blender() is not None:
+            for job in blender_jobs:
+                timing, image = self.blender_result(job)
+                row = Row(name, title, job.label, "cycles" if job.engine == "CYCLES"
+                          else "workbench", timing, timing.median, memory_kind="rss",
+                          notes=["all cores"])
+                if job.engine == "CYCLES":
+                    self._set_errors(row, image, references["article"], "",
+                                     "vs the article reference: a different light model "
+                                     "(physically based, 1/d^2 falloff)")
+                else:
+                    row.notes.append("RGB not comparable (studio lighting)")
+                masks[row.contender] = image[..., 3] > 0.5
+                rows.append(row)
+            for row in rows:
+                if row.contender in masks:
+                    self.set_silhouette(row, masks[row.contender], size)
+        self.rows.extend(rows)
+
+    def _set_errors(self, row: Row, image, reference, where: str = "", note: str = "") -> None:
+        row.max_error, row.rms_error = rgb_error(image, reference)
+        row.max_error_raw = row.max_error / 255.0
+        for text in (where, note):
+            if text:
+                row.notes.append(text)
+
+    def _per_pixel_row(self, name, title, make_scene, size, small_size) -> Row:
+        small = make_scene(*small_size)
+        log(f"{title}: {PER_PIXEL_LABEL} at {small_size[0]}x{small_size[1]}")
+        image, timing = measure(lambda: per_pixel.render(small, MAX_DEPTH), self.plan.repeats,
+                                self.plan.budget)
+        scale = (size[0] * size[1]) / (small_size[0] * small_size[1])
+        row = Row(name, title, PER_PIXEL_LABEL, "per-pixel", timing, timing.median * scale,
+                  semantics="article", precision="float64",
+                  notes=[f"timed at {small_size[0]}x{small_size[1]} and scaled x{scale:.0f} "
+                         f"per pixel; memory and errors at {small_size[0]}x{small_size[1]}"])
+        self._set_errors(row, image, baseline.render_in_chunks(small, MAX_DEPTH))
+        return row
+
+    def aa_workload(self, name: str) -> None:
+        width, height = self.plan.aa_size
+        error_size = self.plan.aa_error_size
+        scene = article_scene(width, height)
+        error_scene = article_scene(*error_size)
+        if name == "aa-adaptive":
+            glints = [Glint("article", "float64", "adaptive", samples)
+                      for samples in self.plan.adaptive_samples]
+            glints.append(Glint("default", "auto", "adaptive", self.plan.adaptive_samples[0]))
+        else:
+            glints = [Glint("article", "float64", "fixed", 16), Glint("default", "auto", "fixed", 16)]
+        title = f"article {width}x{height}, {name[3:]} AA"
+        samples = self.plan.aa_reference_samples
+        rows = []
+        for glint in glints:
+            log(f"{title}: {glint.label}")
+            result, timing, _ = self.measure_glint(("article", width, height), scene, glint)
+            if result is None:
+                result = render(scene, glint.settings())
+            row = Row(name, title, glint.label, "glint", timing, timing.median,
+                      semantics=glint.semantics, precision=result.precision, glint=glint)
+            self._set_errors(row, render(error_scene, glint.settings()).image,
+                             self.aa_reference(glint.semantics, error_size),
+                             f"errors vs Glint {samples} spp at {error_size[0]}x{error_size[1]}")
+            if self.blender() is not None:
+                self.set_silhouette(row, result.image[..., 3] > 0.5, (width, height))
+            rows.append(row)
+        if name == "aa-fixed16" and self.blender() is not None:
+            from .blender import CYCLES, BlenderJob
+
+            job = BlenderJob(CYCLES, 16, width, height)
+            timing, image = self.blender_result(job)
+            row = Row(name, title, job.label, "cycles", timing, timing.median,
+                      memory_kind="rss", notes=["all cores; AA error not comparable "
+                                                "(different light model)"])
+            self.set_silhouette(row, image[..., 3] > 0.5, (width, height))
+            rows.append(row)
+        self.rows.extend(rows)
+
+    # ---------------------------------------------------------------------------------------
+    # Cost curves
+
+    def _curve_point(self, curve, scene_key, scene, contender) -> None:
+        if contender == "baseline":
+            label = BASELINE_LABEL
+            _, timing, image_bytes = self.measure_baseline(scene_key, scene)
+        else:
+            label = contender.label
+            _, timing, image_bytes = self.measure_glint(scene_key, scene, contender)
+        self.curve_points.append(CurvePoint(
+            curve, label, scene.camera.width, scene.camera.height, len(scene.spheres),
+            timing.median, len(timing.runs), timing.peak_bytes, image_bytes))
+
+    def pixel_curve(self) -> None:
+        for width, height in self.plan.pixel_curve:
+            scene = article_scene(width, height)
+            contenders = list(CURVE_GLINTS) + (["baseline"] if self.baseline_fits(scene) else [])
+            for contender in contenders:
+                log(f"cost-pixels {width}x{height}: "
+                    f"{contender if contender == 'baseline' else contender.label}")
+                self._curve_point("cost-pixels", ("article", width, height), scene, contender)
+
+    def sphere_curve(self) -> None:
+        width, height = self.plan.sphere_curve_size
+        for count in self.plan.sphere_counts:
+            scene = random_spheres_scene(count, width, height)
+            contenders = list(CURVE_GLINTS) + (["baseline"] if self.baseline_fits(scene) else [])
+            for contender in contenders:
+                log(f"cost-spheres {count} spheres: "
+                    f"{contender if contender == 'baseline' else contender.label}")
+                self._curve_point("cost-spheres", ("spheres", count, True, width, height),
+                                  scene, contender)
