@@ -64,7 +64,8 @@ def plan_lines(plan, quick: bool) -> list[str]:
     return [
         f"Plan: {'QUICK (reduced sizes; targets indicative only)' if quick else 'FULL'}; "
         f"{plan.repeats} timed run(s) per contender after one warm-up (fewer if a contender's "
-        f"warm-up exceeds the {plan.budget:g} s budget); time = median.",
+        f"warm-up exceeds the {plan.budget:g} s budget); time = median.  The machine may be "
+        f"shared with other work: see the load averages and each row's min–max.",
         f"Sizes: article {', '.join(size(s) for s in plan.article_sizes.values())}; "
         f"{plan.sphere_count} spheres {size(plan.spheres_size)} (errors at "
         f"{size(plan.spheres_error_size)}); AA {size(plan.aa_size)} (errors at "

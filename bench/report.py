@@ -40,6 +40,13 @@ def _memory(row: Row) -> str:
     return text + " (RSS)" if row.memory_kind == "rss" else text
 
 
+def _runs(row: Row) -> str:
+    runs = row.timing.runs
+    if row.kind == "per-pixel" or len(runs) == 1:  # per-pixel runs are unscaled: not shown
+        return str(len(runs))
+    return f"{len(runs)} ({_seconds(min(runs))}–{_seconds(max(runs))})"
+
+
 def _speedup(row: Row, baseline: Optional[Row]) -> str:
     if baseline is None or row is baseline:
         return "—" if baseline is None else "1x"
@@ -48,7 +55,7 @@ def _speedup(row: Row, baseline: Optional[Row]) -> str:
 
 def table(bench: Bench) -> list[str]:
     lines = [
-        "| Workload | Contender | Precision | Time (s) | Timed runs | Speed-up vs baseline "
+        "| Workload | Contender | Precision | Time (s) | Timed runs (min–max s) | Speed-up vs baseline "
         "| Peak memory (MiB) | Max err (8-bit) | RMS err (8-bit) | Silhouette ≠ Workbench (outside floor band) "
         "| Notes |",
         "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|",
@@ -62,7 +69,7 @@ def table(bench: Bench) -> list[str]:
                       else f"{row.silhouette} ({row.silhouette_outside_band})")
         lines.append(
             f"| {row.title} | {row.contender} | {row.precision or '—'} | "
-            f"{_seconds(row.seconds)} | {len(row.timing.runs)} | {_speedup(row, baseline)} | "
+            f"{_seconds(row.seconds)} | {_runs(row)} | {_speedup(row, baseline)} | "
             f"{_memory(row)} | {max_error} | {rms_error} | {silhouette} | "
             f"{'; '.join(row.notes)} |")
     return lines
@@ -176,9 +183,11 @@ def target_scaling(bench: Bench) -> Target:
         largest, reference = points[-1], _reference_point(points)
         per_pixel = (largest.seconds / largest.pixels) / (reference.seconds / reference.pixels)
         linear = LINEAR_RANGE[0] <= per_pixel <= LINEAR_RANGE[1]
+        sizes = ", ".join(f"{p.width}x{p.height} {p.seconds / p.pixels * 1e6:.2f}"
+                          for p in points if p.pixels >= reference.pixels)
         text = (f"{glint.label}: time per pixel at {largest.width}x{largest.height} = "
                 f"{per_pixel:.2f} x that at {reference.width}x{reference.height} "
-                f"(needs {LINEAR_RANGE[0]:g}..{LINEAR_RANGE[1]:g})")
+                f"(needs {LINEAR_RANGE[0]:g}..{LINEAR_RANGE[1]:g}; µs per pixel: {sizes})")
         ok &= linear
         if largest.peak_bytes is not None and reference.peak_bytes is not None:
             working_large = largest.peak_bytes - largest.image_bytes
