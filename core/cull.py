@@ -151,18 +151,26 @@ def cluster_spheres(centers, radii, size: int = CLUSTER_SIZE) -> SphereClusters:
 def _packet_candidates(radii, clusters: SphereClusters, cone, reach):
     """(packet (E,), sphere (E,)): the spheres each of P packets may hit, sorted by packet,
     then scene order.  Each packet's cone is tested against the cluster bounds, then against
-    the members of the clusters that pass."""
+    the members of the clusters that pass; packets go in chunks so that the (packets,
+    clusters) tests stay within BLOCK_PAIRS elements however many spheres there are."""
     apex, spread, axis, half = cone
-    passed = reachable(clusters.centers[:, None, :], clusters.radii[None, :],
-                       apex[:, :, None], spread[:, None], axis[:, :, None], half[:, None],
-                       reach[:, None])                                   # (P, C)
-    packet, cluster = np.nonzero(passed)
-    # Each passing (packet, cluster) pair tests the cluster's members at once.
-    hit = reachable(clusters.member_centers[:, cluster], clusters.member_radii[cluster],
-                    apex[:, packet, None], spread[packet, None], axis[:, packet, None],
-                    half[packet, None], reach[packet, None])              # (E, M)
-    pair, member = np.nonzero(hit)
-    packet, sphere = packet[pair], clusters.members[cluster[pair], member]
+    chunk = max(1, BLOCK_PAIRS // max(len(clusters.radii), 1))
+    packets, spheres = [], []
+    for first in range(0, len(half), chunk):
+        part = slice(first, first + chunk)
+        passed = reachable(clusters.centers[:, None, :], clusters.radii[None, :],
+                           apex[:, part, None], spread[part, None], axis[:, part, None],
+                           half[part, None], reach[part, None])          # (p, C)
+        packet, cluster = np.nonzero(passed)
+        packet += first
+        # Each passing (packet, cluster) pair tests the cluster's members at once.
+        hit = reachable(clusters.member_centers[:, cluster], clusters.member_radii[cluster],
+                        apex[:, packet, None], spread[packet, None], axis[:, packet, None],
+                        half[packet, None], reach[packet, None])          # (E, M)
+        pair, member = np.nonzero(hit)
+        packets.append(packet[pair])
+        spheres.append(clusters.members[cluster[pair], member])
+    packet, sphere = np.concatenate(packets), np.concatenate(spheres)
     order = np.argsort(packet * len(radii) + sphere)
     return packet[order], sphere[order]
 
