@@ -22,6 +22,13 @@ RAY_EPSILON = {np.dtype(np.float64): 1500 * np.finfo(np.float64).eps,
                np.dtype(np.float32): 1500 * np.finfo(np.float32).eps}
 
 
+def ray_offsets(points: np.ndarray) -> np.ndarray:
+    """(m,) how far rays leaving points (3, m) start from them, or shadow segments stop short
+    of them, in default semantics: (1 + max|P_i|) * RAY_EPSILON of the points' precision."""
+    dtype = points.dtype
+    return (1 + np.abs(points).max(axis=0)) * dtype.type(RAY_EPSILON[dtype])
+
+
 @dataclass
 class RayStats:
     """What a render traced.  camera_rays: rays from the camera (every sample);

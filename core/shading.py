@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .context import ARTICLE_OFFSET, RAY_EPSILON, RayStats, TraceContext
+from .context import ARTICLE_OFFSET, RayStats, TraceContext, ray_offsets
 from .cull import DENSE_CANDIDATES, SHADOW_CELLS, candidate_roots, direction_cells
 from .vectors import dot, length, normalize, take
 
@@ -129,7 +129,7 @@ def _shade_default(ctx, points, normals, directions, spheres, front, ka, kd, ks,
     colour = ka * _column(lights.ambient.sum(axis=0) + ctx.arrays.ambient, dtype)
     exclude = np.where(front, spheres, -1)
     shadow_code = np.zeros(m, np.uint64)
-    offset = (1 + np.abs(points).max(axis=0)) * dtype.type(RAY_EPSILON[dtype])
+    offset = ray_offsets(points)
     for light in range(len(lights)):
         strength_d = _column(lights.diffuse[light], dtype)
         strength_s = _column(lights.specular[light], dtype)

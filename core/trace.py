@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .camera import CameraRays
-from .context import ARTICLE_OFFSET, RAY_EPSILON, RayStats, TraceContext
+from .context import ARTICLE_OFFSET, RayStats, TraceContext, ray_offsets
 from .cull import DENSE_CANDIDATES, REFLECTION_CELLS, candidate_roots, direction_cells
 from .intersect import first_hit_distance
 from .shading import shade
@@ -135,8 +135,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
             origins = points + ARTICLE_OFFSET * normals
             exclude = None
         else:
-            scale = (1 + np.abs(points).max(axis=0)) * dtype.type(RAY_EPSILON[dtype])
-            origins = points + scale * normals
+            origins = points + ray_offsets(points) * normals
             exclude = np.where(front, sphere, -1)
         t_min, t_max, terms = 0.0, np.inf, None
         if len(ctx.radii) > DENSE_CANDIDATES:

@@ -204,7 +204,7 @@ def test_rays_leaving_a_hit_point_never_rehit_its_sphere(dtype):
     """pbrt-v4 style: from many hit points on spheres of radii 1e-4..1e4, rays spawned into
     the outer hemisphere with the tracer's own offset never hit the same sphere again, even
     without the self-exclusion the tracer also applies."""
-    from core.context import RAY_EPSILON
+    from core.context import ray_offsets
     rng = np.random.default_rng(4)
     centers, radii, points, _ = _random_hits(rng, 60, dtype)
     for center, radius, point in zip(centers, radii, points):
@@ -213,7 +213,7 @@ def test_rays_leaving_a_hit_point_never_rehit_its_sphere(dtype):
         normal /= np.linalg.norm(normal)
         directions = rng.normal(size=(200, 3))
         directions[directions @ normal < 0] *= -1
-        scale = (1 + np.abs(point).max()) * RAY_EPSILON[np.dtype(dtype)]
+        scale = ray_offsets(point[:, None])[0]
         origin = (point + scale * normal.astype(dtype))[None, :]
         _, index = _shoot(ctx, np.repeat(origin, 200, 0), directions)
         assert (index == -1).all(), f"re-hit on radius {radius:g} at {center}"
