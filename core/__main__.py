@@ -13,7 +13,7 @@ import numpy as np
 from .article import article_scene, article_settings
 from .png import write_atomically, write_png
 from .render import render
-from .scene import RenderSettings, SceneError
+from .scene import SceneError
 
 SCENES = {"article": article_scene}
 

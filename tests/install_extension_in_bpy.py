@@ -12,7 +12,6 @@ and enabled with the Preferences operators. The last line printed is a JSON repo
 """
 
 import json
-import os
 import sys
 
 import bpy
