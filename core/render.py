@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Callable, Optional
@@ -30,6 +31,8 @@ from .trace import trace_bundle
 
 #: Tiles are traced in BLOCK x BLOCK pixel blocks: one culling packet each.
 BLOCK = math.isqrt(PACKET_SIZE)
+#: How often the thread loop polls should_cancel while tiles are running.
+CANCEL_POLL_SECONDS = 0.1
 
 
 class RenderCancelled(Exception):
@@ -93,7 +96,7 @@ def _scatter(values, cols, rows, x0, y0, shape):
     return grid
 
 
-def _supersample(ctx, camera, cols, rows, count, stats):
+def _supersample(ctx, camera, cols, rows, count, stats, stop=None):
     """Mean (rgb (n, 3), coverage (n,)) over ``count`` samples in each pixel (cols, rows).
 
     All samples are traced together, a pixel's samples side by side (so packets stay
@@ -103,6 +106,8 @@ def _supersample(ctx, camera, cols, rows, count, stats):
     coverage = np.empty(len(cols), ctx.dtype)
     pixels_per_bundle = max(1, ctx.settings.tile_size ** 2 // count)
     for first in range(0, len(cols), pixels_per_bundle):
+        if stop is not None and stop.is_set():
+            raise RenderCancelled("render cancelled")
         part = slice(first, first + pixels_per_bundle)
         xs = (cols[part, None] + offsets[None, :, 0]).ravel()
         ys = (rows[part, None] + offsets[None, :, 1]).ravel()
@@ -125,8 +130,11 @@ def _edges(signature: np.ndarray) -> np.ndarray:
     return edge
 
 
-def render_tile(ctx: TraceContext, camera, tile) -> tuple[np.ndarray, RayStats]:
-    """(rgba (h, w, 4), stats) for tile (y0, y1, x0, x1) of the image."""
+def render_tile(ctx: TraceContext, camera, tile, stop: Optional[threading.Event] = None
+                ) -> tuple[np.ndarray, RayStats]:
+    """(rgba (h, w, 4), stats) for tile (y0, y1, x0, x1) of the image.  stop: once set, the
+    tile raises RenderCancelled at its next bundle of rays (a cancel need not wait for whole
+    supersampled tiles)."""
     y0, y1, x0, x1 = tile
     h, w = y1 - y0, x1 - x0
     stats = RayStats(tiles=1)
@@ -134,7 +142,8 @@ def render_tile(ctx: TraceContext, camera, tile) -> tuple[np.ndarray, RayStats]:
     rgba = np.empty((h, w, 4), ctx.dtype)
     cols, rows = _pixel_grid(y0, y1, x0, x1)
     if mode == "fixed":
-        rgb, coverage = _supersample(ctx, camera, cols, rows, ctx.settings.samples, stats)
+        rgb, coverage = _supersample(ctx, camera, cols, rows, ctx.settings.samples, stats,
+                                     stop)
     elif mode == "off":
         rgb, coverage, _ = _trace_positions(ctx, camera, cols + 0.5, rows + 0.5, stats)
     else:
@@ -155,7 +164,7 @@ def render_tile(ctx: TraceContext, camera, tile) -> tuple[np.ndarray, RayStats]:
         chosen = np.flatnonzero(edge)
         if len(chosen):
             rgb[chosen], coverage[chosen] = _supersample(
-                ctx, camera, cols[chosen], rows[chosen], ctx.settings.samples, stats)
+                ctx, camera, cols[chosen], rows[chosen], ctx.settings.samples, stats, stop)
     rgba[rows - y0, cols - x0, :3] = rgb
     rgba[rows - y0, cols - x0, 3] = coverage
     return rgba, stats
@@ -206,26 +215,36 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
             finish(tile, *render_tile(ctx, scene.camera, tile), done)
         return RenderResult(image, stats, dtype.name, missed_colour(scene, settings))
 
+    stop = threading.Event()
     with ThreadPoolExecutor(max_workers=threads) as pool:
         pending = {}
         queue = iter(tiles)
         done = 0
-        while True:
-            # Keep only a few tiles in flight so a cancel is honoured promptly.
-            while len(pending) < 2 * threads:
-                tile = next(queue, None)
-                if tile is None:
+        try:
+            while True:
+                # Keep only a few tiles in flight so a cancel is honoured promptly.
+                while len(pending) < 2 * threads:
+                    tile = next(queue, None)
+                    if tile is None:
+                        break
+                    pending[pool.submit(render_tile, ctx, scene.camera, tile, stop)] = tile
+                if not pending:
                     break
-                pending[pool.submit(render_tile, ctx, scene.camera, tile)] = tile
-            if not pending:
-                break
-            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for future in finished:
-                tile = pending.pop(future)
-                rgba, tile_stats = future.result()
-                done += 1
-                finish(tile, rgba, tile_stats, done)
-            if cancelled():
-                wait(pending)  # let the tiles in flight end before the image goes away
-                raise RenderCancelled("render cancelled")
+                # Wake up regularly to poll should_cancel while long tiles run.
+                finished, _ = wait(pending, timeout=CANCEL_POLL_SECONDS,
+                                   return_when=FIRST_COMPLETED)
+                for future in finished:
+                    tile = pending.pop(future)
+                    rgba, tile_stats = future.result()
+                    done += 1
+                    finish(tile, rgba, tile_stats, done)
+                if cancelled():
+                    raise RenderCancelled("render cancelled")
+        except BaseException:
+            # Cancelled, a tile failed, or an exception (KeyboardInterrupt) arrived: stop
+            # the other tiles at their next bundle instead of finishing them.
+            stop.set()
+            for future in pending:
+                future.cancel()
+            raise
     return RenderResult(image, stats, dtype.name, missed_colour(scene, settings))
