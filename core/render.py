@@ -24,6 +24,7 @@ import numpy as np
 from .camera import camera_rays
 from .context import RayStats, TraceContext, make_context
 from .cull import PACKET_SIZE
+from .frame import canonical_scene
 from .precision import choose_precision
 from .scene import RenderSettings, Scene, SceneError
 from .trace import trace_bundle
@@ -37,6 +38,11 @@ CANCEL_POLL_SECONDS = 0.1
 
 class RenderCancelled(Exception):
     """``should_cancel()`` answered True; the render stopped between tiles."""
+
+
+class RenderError(RuntimeError):
+    """The tracer produced something no accepted scene should (a bug); the message is one
+    line saying where."""
 
 
 @dataclass
@@ -190,6 +196,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     settings = RenderSettings() if settings is None else settings
     if not isinstance(settings, RenderSettings):
         raise SceneError(f"settings must be a core.RenderSettings, got {type(settings).__name__}")
+    scene = canonical_scene(scene, settings)  # positions and units stop mattering
     dtype = choose_precision(scene, settings.precision)
     ctx = make_context(scene, settings, dtype)
     width, height = scene.camera.width, scene.camera.height
@@ -200,6 +207,9 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
 
     def finish(tile, rgba, tile_stats, done):
         y0, y1, x0, x1 = tile
+        if not np.isfinite(rgba).all():  # never a silently wrong picture, even from a bug
+            raise RenderError(f"pixels {x0}-{x1 - 1} x {y0}-{y1 - 1} came out NaN or "
+                              f"infinite; please report this scene")
         image[y0:y1, x0:x1] = rgba
         stats.add(tile_stats)
         if progress is not None:

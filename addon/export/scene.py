@@ -154,7 +154,7 @@ def export_scene(depsgraph, camera_override=None) -> tuple[Scene, list[str]]:
             try:
                 lights.append(export_point_light(obj.data, matrix, name))
             except SceneError as error:
-                raise ExportError(f"light '{name}': {error}") from None
+                raise ExportError(str(error)) from None  # the core's message names it
         elif obj.type == 'MESH':
             mesh = obj.data
             key = mesh.as_pointer()
@@ -170,7 +170,11 @@ def export_scene(depsgraph, camera_override=None) -> tuple[Scene, list[str]]:
             material = _main_material(obj, mesh)
             material_key = material.name_full if material is not None else None
             if material_key not in materials:
-                core_material, note = export_material(material)
+                try:
+                    core_material, note = export_material(material)
+                except SceneError as error:
+                    raise ExportError(f"object '{name}', material '{material_key}': "
+                                      f"{error}") from None
                 materials[material_key] = core_material
                 if note:
                     notes.append(note)
@@ -184,6 +188,11 @@ def export_scene(depsgraph, camera_override=None) -> tuple[Scene, list[str]]:
     world = depsgraph.scene_eval.world
     colour, world_note = world_colour(world)
     background = colour_from_blender(colour)
+    try:
+        Scene(camera=camera, background=background)  # checks the world's colour alone
+    except SceneError as error:
+        raise ExportError(f"world '{world.name}' (Background colour x Strength): "
+                          f"{error}") from None
 
     warnings = skipped_objects.warning("Glint renders spheres only;")
     warnings += skipped_lights.warning("Glint renders point lights only;")
