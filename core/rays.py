@@ -59,7 +59,8 @@ class SharedOrigin:
     eye, a light sample.  Made by ``Aggregate.shared_origin``; opaque to the tracer."""
 
     position: np.ndarray
-    sphere_terms: object = None      # core.intersect.OriginTerms, or None
+    sphere_terms: object = None      # core.intersect.OriginTerms of the flat-culled spheres
+    tree_terms: object = None        # OriginTerms of every sphere, for the tree's, or None
 
 
 @dataclass
