@@ -19,6 +19,7 @@ from ...core import RenderCancelled, SceneError
 from ..export import ExportError
 from ..utils.colour import premultiplied_to_scene_linear
 from .job import prepare_job
+from .viewport import ViewportEngine
 
 
 #: Callables given (job, finished image) for every frame rendered (the image holds the job's
@@ -48,9 +49,29 @@ class GlintRenderEngine(bpy.types.RenderEngine):
     bl_idname = "GLINT"
     bl_label = "Glint"
     bl_use_preview = False
-    # The viewport's Material Preview and Rendered modes fall back to EEVEE: Glint has no
-    # interactive renderer.
-    bl_use_eevee_viewport = True
+    # The viewport's Rendered (and Material Preview) shading is Glint's own, through
+    # view_update / view_draw (addon.engine.viewport), not EEVEE's.
+    bl_use_eevee_viewport = False
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._viewport = None
+
+    def __del__(self):
+        viewport = getattr(self, "_viewport", None)
+        if viewport is not None:
+            viewport.free()
+
+    def _viewport_engine(self):
+        if self._viewport is None:
+            self._viewport = ViewportEngine(self)
+        return self._viewport
+
+    def view_update(self, context, depsgraph):
+        self._viewport_engine().view_update(context, depsgraph)
+
+    def view_draw(self, context, depsgraph):
+        self._viewport_engine().view_draw(context, depsgraph)
 
     def render(self, depsgraph):
         try:

@@ -128,14 +128,18 @@ class _Skipped:
         return [f"{header} {len(self.by_name)} skipped: {listed}"]
 
 
-def export_scene(depsgraph, camera_override=None) -> tuple[Scene, list[str]]:
+def export_scene(depsgraph, camera_override=None, *, view_camera=None
+                 ) -> tuple[Scene, list[str]]:
     """(core Scene, warnings) for an evaluated depsgraph.
 
     camera_override: the camera object to render through instead of the scene camera (the
-    render engine's ``camera_override``).  Raises ExportError, naming the culprit, when the
-    scene cannot be rendered at all (no camera, a panoramic camera, invalid values).
+    render engine's ``camera_override``).  view_camera: a core camera to use instead of any
+    Blender camera (the viewport renders its own view, with or without a scene camera).
+    Raises ExportError, naming the culprit, when the scene cannot be rendered at all (no
+    camera, a panoramic camera, invalid values).
     """
-    camera = export_camera(depsgraph, camera_override)
+    camera = view_camera if view_camera is not None else export_camera(depsgraph,
+                                                                      camera_override)
     visible = _RenderVisibility(depsgraph)
     spheres, lights, notes = [], [], []
     skipped_objects, skipped_lights = _Skipped(), _Skipped()
