@@ -19,6 +19,7 @@ from ...core import RenderCancelled, SceneError
 from ..export import ExportError
 from ..utils.colour import premultiplied_to_scene_linear
 from .job import prepare_job
+from .preview import prepare_preview_job
 from .viewport import ViewportEngine
 
 
@@ -48,7 +49,8 @@ def captured_images():
 class GlintRenderEngine(bpy.types.RenderEngine):
     bl_idname = "GLINT"
     bl_label = "Glint"
-    bl_use_preview = False
+    # Material, light and world previews: addon.engine.preview.
+    bl_use_preview = True
     # The viewport's Rendered (and Material Preview) shading is Glint's own, through
     # view_update / view_draw (addon.engine.viewport), not EEVEE's.
     bl_use_eevee_viewport = False
@@ -74,8 +76,9 @@ class GlintRenderEngine(bpy.types.RenderEngine):
         self._viewport_engine().view_draw(context, depsgraph)
 
     def render(self, depsgraph):
+        prepare = prepare_preview_job if self.is_preview else prepare_job
         try:
-            job = prepare_job(depsgraph, camera_override=self.camera_override)
+            job = prepare(depsgraph, camera_override=self.camera_override)
         except (ExportError, SceneError) as error:
             self._fail(str(error))
             return
