@@ -19,9 +19,12 @@ add-on's relative imports work; it is then registered for this session (an insta
 extension, if enabled, is disabled for the session so the two do not clash).  Tests use the
 same function.
 
-Errors (missing or unreadable .blend, no camera, unwritable output, bad option) print one
-line and exit non-zero; the PNG is written through a temporary file in the output folder and
-renamed, so a failure never leaves a partial file.
+Errors (missing or unreadable .blend, no camera, unwritable or write-protected output, bad
+option, invalid values, a render that cannot fit in memory) print one line and exit non-zero;
+the PNG is written through a temporary file beside the output (the file a symlink points to)
+and renamed, so a failure never leaves a partial file and never touches the previous one.
+Ctrl-C (SIGINT) or SIGTERM cancels the render within about a tile's time, writes nothing and
+exits 128 + the signal's number (130, 143), with one line saying so.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import os
+import signal
 import sys
 import time
 
@@ -38,10 +42,59 @@ PROGRAM = "render.py"
 
 EXIT_USAGE = 2   # bad option (argparse's convention)
 EXIT_FAILURE = 1  # the render could not be made
+#: Exit status after a signal cancelled the run: the shell's convention, 128 + its number.
+EXIT_SIGNAL_BASE = 128
 
 
 class RenderScriptError(Exception):
     """A problem reported to the user as one line."""
+
+
+class Interruption:
+    """SIGINT and SIGTERM, caught so that they cancel the render instead of raising inside
+    Blender's or NumPy's code: the handler only records the signal; the engine polls
+    ``requested`` between tiles (through its FrameRequest), the PNG writer between row blocks,
+    and ``main`` between steps.  A second signal gets the default action (ends the process at
+    once).  SIGINT is left alone when it is ignored, as a shell does for a command started
+    in the background with '&'; SIGTERM then does the same job with its own exit status."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self):
+        self.signal_number = None
+
+    def install(self) -> None:
+        for number in self.SIGNALS:
+            if signal.getsignal(number) is not signal.SIG_IGN:
+                signal.signal(number, self._handle)
+
+    def _handle(self, number, frame) -> None:
+        self.signal_number = number
+        signal.signal(number, signal.SIG_DFL)
+
+    def requested(self) -> bool:
+        return self.signal_number is not None
+
+    def check(self) -> None:
+        if self.requested():
+            raise Interrupted(self.signal_number)
+
+
+class Interrupted(Exception):
+    """The run was cancelled by a signal; nothing was written."""
+
+    def __init__(self, signal_number: int):
+        super().__init__(signal_number)
+        self.signal_number = signal_number
+
+    @property
+    def exit_code(self) -> int:
+        return EXIT_SIGNAL_BASE + self.signal_number
+
+    def __str__(self) -> str:
+        name = signal.Signals(self.signal_number).name
+        how = " (Ctrl-C)" if self.signal_number == signal.SIGINT else ""
+        return f"cancelled by {name}{how}; nothing written"
 
 
 def import_glint():
@@ -137,14 +190,30 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         parser.error(f"--output {args.output!r} is a directory")
     if not os.path.isdir(folder):
         parser.error(f"--output folder does not exist: {folder}")
-    if not os.access(folder, os.W_OK):
-        parser.error(f"--output folder is not writable: {folder}")
+    target = os.path.realpath(output)  # a symlink is written through
+    if not os.path.isdir(os.path.dirname(target)):
+        parser.error(f"--output {args.output!r} links into a folder that does not exist: "
+                     f"{os.path.dirname(target)}")
+    if not os.access(os.path.dirname(target), os.W_OK):
+        parser.error(f"--output folder is not writable: {os.path.dirname(target)}")
+    if write_protected(target):
+        parser.error(f"--output {args.output!r} is write-protected: make it writable or "
+                     f"choose another file")
     args.output = output
     if args.blend is not None:
         args.blend = os.path.abspath(args.blend)
         if not os.path.isfile(args.blend):
             parser.error(f"no such .blend file: {args.blend}")
     return args
+
+
+def write_protected(path: str) -> bool:
+    """core.png's rule, without importing the package before the arguments are checked."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        return False
+    return not (mode & 0o222) or not os.access(path, os.W_OK)
 
 
 def script_arguments(argv: list[str]) -> list[str]:
@@ -203,6 +272,10 @@ def apply_options(scene, args) -> None:
     if args.precision is not None:
         settings.precision = args.precision.upper()
     if args.frame is not None:
+        frame = type(scene).bl_rna.properties["frame_current"]
+        if not frame.hard_min <= args.frame <= frame.hard_max:
+            raise RenderScriptError(f"--frame {args.frame} is outside Blender's frame range "
+                                    f"{frame.hard_min} to {frame.hard_max}")
         scene.frame_set(args.frame)
     render.engine = "GLINT"
     # One view layer, and no compositing or sequencer work whose result is not written.
@@ -211,49 +284,38 @@ def apply_options(scene, args) -> None:
     render.use_sequencer = False
 
 
-def make_current(scene):
-    """Make ``scene`` the context's scene and return its evaluated (viewport) depsgraph."""
+def render_scene(scene, interruption: Interruption):
+    """(RenderJob, JobResult) of the current frame, rendered by Glint's engine exactly as F12
+    renders it; the engine hands the core's image over through a FrameRequest and leaves
+    Blender's render result empty (this script writes the PNG itself)."""
     import bpy
 
-    window = bpy.context.window
-    if window is not None and window.scene != scene:
-        window.scene = scene
-    if bpy.context.scene == scene:
-        return bpy.context.evaluated_depsgraph_get()
-    depsgraph = scene.view_layers[0].depsgraph
-    depsgraph.update()
-    return depsgraph
+    from glint.addon.engine.final import FrameRequest, requesting_frames
 
-
-def render_scene(scene):
-    """(RenderJob, image) of the current frame, rendered by Glint's engine."""
-    import bpy
-
-    from glint.addon.engine.final import captured_images
-    from glint.addon.export import ExportError, export_scene
-
-    try:
-        # Fails early, with Glint's own message, on what the engine would refuse.
-        export_scene(make_current(scene))
-    except ExportError as error:
-        raise RenderScriptError(str(error)) from None
-    with captured_images() as frames:
+    if scene.camera is None:  # Blender refuses before the engine runs, less clearly
+        raise RenderScriptError(f"scene '{scene.name}' has no camera: add one and make it the "
+                                f"scene camera")
+    request = FrameRequest(should_cancel=interruption.requested, fill_render_result=False)
+    with requesting_frames(request):
         try:
             bpy.ops.render.render(scene=scene.name)
         except RuntimeError as error:
+            interruption.check()
             reason = str(error).strip().splitlines()[-1].removeprefix("Error: ")
-            raise RenderScriptError(f"render failed: {reason}") from None
-    if not frames:
+            raise RenderScriptError(reason) from None
+    interruption.check()
+    if not request.frames:
         raise RenderScriptError("render failed: Glint's engine produced no image")
-    return frames[-1]
+    return request.frames[-1]
 
 
-def write_output(path: str, image) -> None:
+def write_output(path: str, image, should_cancel=None) -> None:
     from glint.addon.utils.colour import unpremultiply
     from glint.core.png import write_png
 
     try:
-        write_png(path, unpremultiply(image))  # PNG stores straight alpha
+        # PNG stores straight alpha.
+        write_png(path, image, convert=unpremultiply, should_cancel=should_cancel)
     except OSError as error:
         raise RenderScriptError(f"cannot write {path}: {error.strerror or error}") from None
 
@@ -261,6 +323,8 @@ def write_output(path: str, image) -> None:
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv if argv is None else argv
     args = parse_args(script_arguments(argv))
+    interruption = Interruption()
+    interruption.install()
     try:
         import bpy  # noqa: F401  (the pip module, or Blender's own)
     except ImportError:
@@ -269,19 +333,30 @@ def main(argv: list[str] | None = None) -> int:
         glint = import_glint()
         scene = open_scene(args.blend)
         register_glint(glint)
+        interruption.check()
         if scene is None:
             from glint.addon.utils.article_scene import build_article_scene
 
             scene = build_article_scene()
         apply_options(scene, args)
+        interruption.check()
         start = time.perf_counter()
-        job, image = render_scene(scene)
-        write_output(args.output, image)
+        job, result = render_scene(scene, interruption)
+        write_output(args.output, result.image, should_cancel=interruption.requested)
+    except Interrupted as interrupted:
+        return _fail(str(interrupted), interrupted.exit_code)
     except RenderScriptError as error:
         return _fail(str(error))
+    except Exception as error:
+        if interruption.requested():  # e.g. the PNG writer stopped between row blocks
+            return _fail(str(Interrupted(interruption.signal_number)),
+                         EXIT_SIGNAL_BASE + interruption.signal_number)
+        from glint.addon.engine.job import failure_message
+
+        return _fail(failure_message(error))
     elapsed = time.perf_counter() - start
     width, height = job.size
-    print(f"{PROGRAM}: wrote {args.output} ({width}x{height}, {job.precision}, "
+    print(f"{PROGRAM}: wrote {args.output} ({width}x{height}, {result.precision}, "
           f"{job.settings.semantics} semantics) in {elapsed:.2f} s")
     return 0
 

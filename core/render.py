@@ -20,7 +20,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .camera import camera_rays, image_size
+from .camera import camera_rays
 from .context import RayStats, TraceContext, make_context
 from .cull import PACKET_SIZE
 from .precision import choose_precision
@@ -38,13 +38,17 @@ class RenderCancelled(Exception):
 
 @dataclass
 class RenderResult:
-    """image: (H, W, 4) in the render's precision, row 0 = top, RGB clipped to [0, 1], alpha =
-    fraction of the pixel's samples whose camera ray hit a sphere.  stats: RayStats.
-    precision: 'float64' or 'float32'."""
+    """image: (H, W, 4) in the render's precision (or the ``image_dtype`` asked for), row 0 =
+    top, RGB clipped to [0, 1], alpha = fraction of the pixel's samples whose camera ray hit a
+    sphere.  stats: RayStats.  precision: 'float64' or 'float32'.
+    missed_colour: (3,) float64, what a camera sample that hits nothing adds to its pixel's RGB
+    (the clipped background in default semantics, black in the article's), so a caller can
+    take the background out of a pixel exactly: ``rgb - (1 - alpha) * missed_colour``."""
 
     image: np.ndarray
     stats: RayStats
     precision: str
+    missed_colour: np.ndarray
 
 
 def sample_offsets(count: int) -> np.ndarray:
@@ -136,7 +140,7 @@ def render_tile(ctx: TraceContext, camera, tile) -> tuple[np.ndarray, RayStats]:
     else:
         # Trace the tile and a one-pixel apron at pixel centres, then supersample the pixels
         # whose path signature differs from a 4-neighbour's.
-        width, height = image_size(camera)
+        width, height = camera.width, camera.height
         ay0, ax0 = max(y0 - 1, 0), max(x0 - 1, 0)
         apron = (min(y1 + 1, height) - ay0, min(x1 + 1, width) - ax0)
         apron_cols, apron_rows = _pixel_grid(ay0, ay0 + apron[0], ax0, ax0 + apron[1])
@@ -157,10 +161,21 @@ def render_tile(ctx: TraceContext, camera, tile) -> tuple[np.ndarray, RayStats]:
     return rgba, stats
 
 
+def missed_colour(scene: Scene, settings: RenderSettings) -> np.ndarray:
+    """(3,) what a camera sample that escapes adds to its pixel (see RenderResult): the
+    tracer adds the background only in default semantics, and every sample is clipped."""
+    if settings.semantics != "default":
+        return np.zeros(3)
+    return np.clip(np.asarray(scene.background, np.float64), 0.0, 1.0)
+
+
 def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
            progress: Optional[Callable[[float], None]] = None,
-           should_cancel: Optional[Callable[[], bool]] = None) -> RenderResult:
-    """Render ``scene``; see ``core`` for the result's layout."""
+           should_cancel: Optional[Callable[[], bool]] = None,
+           image_dtype=None) -> RenderResult:
+    """Render ``scene``; see ``core`` for the result's layout.  image_dtype: the image's
+    dtype (default: the render's precision); float32 halves a float64 render's largest array
+    for callers that keep no more than float32 anyway (Blender's render results)."""
     if not isinstance(scene, Scene):
         raise SceneError(f"scene must be a core.Scene, got {type(scene).__name__}")
     settings = RenderSettings() if settings is None else settings
@@ -168,8 +183,8 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
         raise SceneError(f"settings must be a core.RenderSettings, got {type(settings).__name__}")
     dtype = choose_precision(scene, settings.precision)
     ctx = make_context(scene, settings, dtype)
-    width, height = image_size(scene.camera)
-    image = np.zeros((height, width, 4), dtype)
+    width, height = scene.camera.width, scene.camera.height
+    image = np.zeros((height, width, 4), dtype if image_dtype is None else image_dtype)
     tiles = _tiles(width, height, settings.tile_size)
     stats = RayStats()
     threads = settings.threads or os.cpu_count() or 1
@@ -189,16 +204,15 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
             if cancelled():
                 raise RenderCancelled("render cancelled")
             finish(tile, *render_tile(ctx, scene.camera, tile), done)
-        return RenderResult(image, stats, dtype.name)
+        return RenderResult(image, stats, dtype.name, missed_colour(scene, settings))
 
     with ThreadPoolExecutor(max_workers=threads) as pool:
         pending = {}
         queue = iter(tiles)
         done = 0
-        stop = False
         while True:
             # Keep only a few tiles in flight so a cancel is honoured promptly.
-            while not stop and len(pending) < 2 * threads:
+            while len(pending) < 2 * threads:
                 tile = next(queue, None)
                 if tile is None:
                     break
@@ -212,7 +226,6 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
                 done += 1
                 finish(tile, rgba, tile_stats, done)
             if cancelled():
-                stop = True
-                wait(pending)
+                wait(pending)  # let the tiles in flight end before the image goes away
                 raise RenderCancelled("render cancelled")
-    return RenderResult(image, stats, dtype.name)
+    return RenderResult(image, stats, dtype.name, missed_colour(scene, settings))

@@ -53,7 +53,7 @@ def test_a_material_preview_is_lit_and_says_nothing():
     assert job.warnings == []
     assert [light.name for light in job.scene.lights] == ["Glint preview light"]
     assert [sphere.name for sphere in job.scene.spheres] == ["preview_sphere"]
-    image = job.run()
+    image = job.run().image
     sphere = image[..., 3] > 0
     # The sphere shows the user's red, lit from the upper left: its upper-left quarter is
     # brighter than its lower-right one (ambient only there).

@@ -268,11 +268,11 @@ def test_progressive_passes_end_with_the_image_f12_renders():
     f12 = dataclasses.replace(scene, camera=view.camera())
     expected = prepare_job(depsgraph())
     expected.scene, expected.settings = f12, settings
-    np.testing.assert_array_equal(frames[-1].image, expected.run())
+    np.testing.assert_array_equal(frames[-1].image, expected.run().image)
     # The pixel-centre pass is the same picture without anti-aliasing: equal away from edges.
     centre = dataclasses.replace(settings, anti_aliasing="off")
     expected.settings = centre
-    np.testing.assert_array_equal(frames[1].image, expected.run())
+    np.testing.assert_array_equal(frames[1].image, expected.run().image)
 
 
 def test_a_cancel_stops_the_worker_between_tiles_and_keeps_the_last_frame():
@@ -374,3 +374,101 @@ def test_the_engine_draws_its_own_viewport():
     # The drawing module imports gpu only inside the function that draws.
     source = open(viewport.__file__.replace("engine/viewport.py", "draw/viewport.py")).read()
     assert "\nimport gpu" not in source and "\nfrom gpu" not in source
+
+
+# --- view_update / view_draw, with a recording drawer in place of the GPU -------------------
+
+class RecordingEngine:
+    """The parts of RenderEngine the viewport calls."""
+
+    def __init__(self):
+        self.reports, self.stats = [], []
+
+    def report(self, kinds, message):
+        self.reports.append((set(kinds), message))
+
+    def update_stats(self, stats, info):
+        self.stats.append(info)
+
+
+class RecordingDrawer:
+    def __init__(self):
+        self.frames = []
+
+    def draw(self, engine, scene, frame):
+        self.frames.append(frame)
+
+
+def camera_view_context(width, height, graph):
+    camera = bpy.context.scene.camera
+    window = camera.calc_matrix_camera(graph, x=width, y=height)
+    region, rv3d = fake_region(width, height, camera.matrix_world.inverted(), window, 'CAMERA')
+    return SimpleNamespace(region=region, region_data=rv3d, preferences=bpy.context.preferences)
+
+
+def draw_until_final(viewport_engine, engine, context, graph, limit=2000):
+    for _ in range(limit):
+        viewport_engine.view_draw(engine, context, graph)
+        if not viewport_engine.session.busy and viewport_engine._drawn is \
+                viewport_engine.session.frame:
+            return
+        viewport_engine.session.render.wait(timeout=0.01)
+    raise AssertionError("the refinement did not finish")
+
+
+def test_view_update_and_view_draw_draw_each_pass_and_warn_once():
+    from glint.addon.engine.viewport import ViewportEngine
+    from addon_support import cube_mesh, link
+
+    scene = simple_scene()
+    link(bpy.data.objects.new("box", cube_mesh("box", 0.5))).location = (-1.5, 0.0, 0.0)
+    scene.glint.anti_aliasing = 'ADAPTIVE'
+    graph = depsgraph()
+    engine, drawer = RecordingEngine(), RecordingDrawer()
+    viewport_engine = ViewportEngine()
+    viewport_engine._drawer = drawer
+    context = camera_view_context(400, 300, graph)
+
+    viewport_engine.view_update(engine, context, graph)
+    viewport_engine.view_update(engine, context, graph)   # e.g. a selection: no new warning
+    draw_until_final(viewport_engine, engine, context, graph)
+
+    warnings = [message for kinds, message in engine.reports if kinds == {'WARNING'}]
+    assert len(warnings) == 1 and "box (not a sphere)" in warnings[0]
+    assert viewport_engine.session.restarts == 1
+    assert drawer.frames[-1].final and drawer.frames[-1].rect == (0, 0, 400, 300)
+    indices = [f.index for f in drawer.frames]
+    assert indices == sorted(indices)   # never an older pass after a newer one
+    assert "done" in engine.stats[-1] and "adaptive" in engine.stats[-1]
+    viewport_engine.free()
+
+
+def test_a_camera_view_renders_only_its_render_border():
+    from glint.addon.engine.viewport import ViewportEngine
+
+    scene = simple_scene()
+    render = scene.render
+    render.use_border = True
+    render.border_min_x, render.border_max_x = 0.25, 0.75
+    render.border_min_y, render.border_max_y = 0.5, 1.0
+    graph = depsgraph()
+    engine, drawer = RecordingEngine(), RecordingDrawer()
+    viewport_engine = ViewportEngine()
+    viewport_engine._drawer = drawer
+    # The region has the render's aspect, so the camera frame fills it.
+    context = camera_view_context(640, 480, graph)
+
+    viewport_engine.view_update(engine, context, graph)
+    draw_until_final(viewport_engine, engine, context, graph)
+
+    final = drawer.frames[-1]
+    assert final.rect == (160, 240, 480, 480)
+    assert final.image.shape == (240, 320, 4)
+    # The same pixels as the whole view's, there.
+    whole = ViewportView.from_matrices(context.region_data.view_matrix,
+                                       context.region_data.window_matrix, 640, 480)
+    job = prepare_job(graph)
+    job.scene = dataclasses.replace(job.scene, camera=whole.camera())
+    job.settings = dataclasses.replace(job.settings, anti_aliasing="off")
+    expected = job.run().image
+    np.testing.assert_array_equal(final.image, expected[0:240, 160:480])

@@ -30,7 +30,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from ...core import BlenderCamera, RenderCancelled, RenderSettings, Scene, SceneError, render
-from .job import finish_image
+from .job import failure_message, finish_image
 
 #: The coarse pass traces at most this many pixels (a power-of-two fraction of the view's
 #: resolution), so the first picture of a small scene comes back in a few hundredths of a
@@ -238,7 +238,7 @@ def refinement_schedule(width: int, height: int, settings: RenderSettings,
     return passes
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ViewportFrame:
     """A finished pass: image (h, w, 4) float32 (row 0 = top, the job's display values),
     the pass's index in the schedule and how many passes there are, and the rectangle of the
@@ -283,13 +283,15 @@ class ProgressiveRender:
         for index, step in enumerate(self.schedule):
             scene = dataclasses.replace(self.scene, camera=self.view.camera(step.divisor))
             try:
-                result = render(scene, step.settings, should_cancel=self._stop.is_set)
+                result = render(scene, step.settings, should_cancel=self._stop.is_set,
+                                image_dtype=np.float32)
             except RenderCancelled:
                 return
-            except (SceneError, MemoryError) as error:
+            except BaseException as error:  # shown in the viewport's status line
                 self.error = error
                 return
-            image = finish_image(result.image, scene, step.settings, self.transparent)
+            finish_image(result.image, result.missed_colour, self.transparent)
+            image = result.image
             with self._lock:
                 if self._stop.is_set():
                     return
@@ -419,24 +421,20 @@ class ViewportEngine:
     instance.  Errors and warnings go to the engine's report once per change, and the
     viewport's status text (``update_stats``) says which pass is shown."""
 
-    def __init__(self, engine):
-        import weakref
-
-        self._engine = weakref.ref(engine)
+    def __init__(self):
         self.session = ViewportSession()
         self._reported = None
         self._drawer = None
         self._drawn = None
 
-    def _report(self, kind, messages) -> None:
-        engine = self._engine()
-        if engine is None or (kind, messages) == self._reported:
+    def _report(self, engine, kind, messages) -> None:
+        if (kind, messages) == self._reported:
             return
         self._reported = (kind, messages)
         for message in messages:
             engine.report({kind}, message)
 
-    def view_update(self, context, depsgraph) -> None:
+    def view_update(self, engine, context, depsgraph) -> None:
         from ..export import ExportError
 
         try:
@@ -444,13 +442,12 @@ class ViewportEngine:
                 depsgraph, context.preferences)
         except (ExportError, SceneError) as error:
             self.session.stop()
-            self._report('ERROR', (str(error),))
+            self._report(engine, 'ERROR', (str(error),))
             return
-        self._report('WARNING', tuple(warnings))
+        self._report(engine, 'WARNING', tuple(warnings))
         self.session.update_scene(scene, settings, transparent, size)
 
-    def view_draw(self, context, depsgraph) -> None:
-        engine = self._engine()
+    def view_draw(self, engine, context, depsgraph) -> None:
         scene = depsgraph.scene_eval
         self.session.update_view(ViewportView.from_context(context, scene))
         frame = self.session.frame
@@ -461,8 +458,7 @@ class ViewportEngine:
                 self._drawer = FrameDrawer()
             self._drawer.draw(engine, scene, frame)
             self._drawn = frame
-        if engine is not None:
-            engine.update_stats("", status_text(self.session))
+        engine.update_stats("", status_text(self.session))
         if self.session.busy:
             watch_for_frames(self)
 
@@ -480,7 +476,7 @@ def status_text(session: ViewportSession) -> str:
     if progressive is None:
         return "Glint"
     if progressive.error is not None:
-        return f"Glint: {progressive.error}"
+        return f"Glint: {failure_message(progressive.error)}"
     frame = progressive.frame
     if frame is None:
         return "Glint: rendering..."
