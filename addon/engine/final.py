@@ -36,7 +36,7 @@ import numpy as np
 from ...core import RenderCancelled
 from ..utils.colour import premultiplied_to_scene_linear
 from ..export import ExportError
-from .job import ROW_BLOCK, JobResult, failure_message, prepare_job
+from .job import failure_message, prepare_job
 from .preview import prepare_preview_job
 from .viewport import ViewportEngine
 
@@ -116,7 +116,9 @@ class GlintRenderEngine(bpy.types.RenderEngine):
         try:
             self._render(depsgraph, request)
         except RenderCancelled:
-            return  # no result: Blender writes nothing for a cancelled frame
+            # The tiles that finished stay in the render result, as with Blender's own
+            # engines; Blender writes no file for a cancelled frame.
+            return
         except BaseException as error:  # noqa: B036 - every failure must reach the user
             self._fail(failure_message(error))
 
@@ -139,28 +141,16 @@ class GlintRenderEngine(bpy.types.RenderEngine):
         def should_cancel():
             return self.test_break() or (request is not None and request.should_cancel())
 
-        result = job.run(progress=self.update_progress, should_cancel=should_cancel)
+        # Tiles go to Blender as they land (F12 fills in tile by tile, and a cancel keeps
+        # them), unless the script asking for the frames writes it itself.
+        tiles = None
+        if request is None or request.fill_render_result:
+            tiles = TileHandOver(self, region, height, depsgraph.view_layer.name)
+        result = job.run(progress=self.update_progress, should_cancel=should_cancel,
+                         on_tile=tiles.hand_over if tiles is not None else None)
         self.update_stats("Glint", f"{summary}, {result.precision}")
         if request is not None:
             request.frames.append((job, result))
-            if not request.fill_render_result:
-                return
-            result = JobResult(result.image.copy(), result.precision, result.stats)
-        self._hand_over(result.image, region, depsgraph.view_layer.name)
-
-    def _hand_over(self, image: np.ndarray, region, layer: str) -> None:
-        """Write the job's image (consumed: converted in place) into Blender's result for
-        ``layer``."""
-        pixels = blender_pixels(image, region)
-        # begin_result counts from the region's corner, not the frame's.
-        x0, y0, x1, y1 = region
-        result = self.begin_result(0, 0, x1 - x0, y1 - y0, layer=layer)
-        try:
-            result.layers[0].passes["Combined"].rect.foreach_set(pixels.reshape(-1))
-        except BaseException:
-            self.end_result(result, cancel=True)
-            raise
-        self.end_result(result)
 
     def _fail(self, message: str) -> None:
         self.report({'ERROR'}, message)
@@ -168,34 +158,44 @@ class GlintRenderEngine(bpy.types.RenderEngine):
             self.error_set(message)
 
 
+class TileHandOver:
+    """Each tile, as it lands, into Blender's render result (``begin_result`` for the tile's
+    part of the render region, ``end_result`` merges it and F12 shows it), the way Cycles hands
+    over tiles.  Tiles arrive from ``RenderJob.run(on_tile=...)``: rows from the top of the
+    frame, finished display values; Blender wants premultiplied scene-linear rows from the
+    bottom, counted from the render region's corner."""
+
+    def __init__(self, engine, region, frame_height: int, layer: str):
+        self.engine, self.region, self.frame_height, self.layer = engine, region, frame_height, layer
+
+    def hand_over(self, tile, rgba: np.ndarray) -> None:
+        y0, y1, x0, x1 = tile
+        # Rows from the bottom of the frame, intersected with the region.
+        bottom, top = self.frame_height - y1, self.frame_height - y0
+        rx0, ry0, rx1, ry1 = self.region
+        left, right = max(x0, rx0), min(x1, rx1)
+        low, high = max(bottom, ry0), min(top, ry1)
+        if left >= right or low >= high:
+            return
+        pixels = blender_pixels(rgba[top - high:top - low, left - x0:right - x0])
+        result = self.engine.begin_result(left - rx0, low - ry0, right - left, high - low,
+                                          layer=self.layer)
+        try:
+            result.layers[0].passes["Combined"].rect.foreach_set(pixels.reshape(-1))
+        except BaseException:
+            self.engine.end_result(result, cancel=True)
+            raise
+        self.engine.end_result(result)
+
+
 class RenderSetupError(ExportError):
     """Blender and the exported scene disagree about the frame; the message says how."""
 
 
-def blender_pixels(image: np.ndarray, region) -> np.ndarray:
-    """The job's (H, W, 4) float32 image (row 0 = top, display values) -> the render region's
-    pixels as Blender wants them: C-contiguous (h, w, 4) float32, row 0 = bottom, premultiplied
-    scene-linear.  The image is converted in place, ROW_BLOCK rows at a time, and returned
-    itself for the whole frame (a region is copied out)."""
-    x0, y0, x1, y1 = region
-    flip_rows(image)
-    for first in range(y0, y1, ROW_BLOCK):
-        rows = image[first:min(first + ROW_BLOCK, y1), x0:x1]
-        rows[...] = premultiplied_to_scene_linear(rows)
-    if (x0, y0, x1, y1) == (0, 0, image.shape[1], image.shape[0]):
-        return image
-    return np.ascontiguousarray(image[y0:y1, x0:x1])
-
-
-def flip_rows(image: np.ndarray) -> None:
-    """Reverse the row order of ``image`` in place, ROW_BLOCK rows at a time."""
-    height = image.shape[0]
-    for top in range(0, height // 2, ROW_BLOCK):
-        count = min(ROW_BLOCK, height // 2 - top)
-        upper = image[top:top + count].copy()
-        bottom = height - top - count
-        image[top:top + count] = image[bottom:bottom + count][::-1]
-        image[bottom:bottom + count] = upper[::-1]
+def blender_pixels(rows: np.ndarray) -> np.ndarray:
+    """(h, w, 4) finished display values, row 0 = top -> what Blender's render result holds:
+    a C-contiguous float32 (h, w, 4) copy, row 0 = bottom, premultiplied scene-linear."""
+    return np.ascontiguousarray(premultiplied_to_scene_linear(rows[::-1]), np.float32)
 
 
 def render_region(render, width: int, height: int):
