@@ -53,11 +53,13 @@ class FrameRequest:
         sets it from SIGINT/SIGTERM).
     fill_render_result: False when the script writes the frame itself: the engine then
         leaves Blender's render result empty, which spares a frame-sized copy.
+    progress: called as (RenderJob, fraction done) as tiles land (render.py's progress line).
     """
 
     should_cancel: Callable[[], bool] = lambda: False
     fill_render_result: bool = True
     frames: list = field(default_factory=list)
+    progress: Optional[Callable] = None
 
 
 _active_request: Optional[FrameRequest] = None
@@ -146,7 +148,12 @@ class GlintRenderEngine(bpy.types.RenderEngine):
         tiles = None
         if request is None or request.fill_render_result:
             tiles = TileHandOver(self, region, height, depsgraph.view_layer.name)
-        result = job.run(progress=self.update_progress, should_cancel=should_cancel,
+        def progress(fraction):
+            self.update_progress(fraction)
+            if request is not None and request.progress is not None:
+                request.progress(job, fraction)
+
+        result = job.run(progress=progress, should_cancel=should_cancel,
                          on_tile=tiles.hand_over if tiles is not None else None)
         self.update_stats("Glint", f"{summary}, {result.precision}")
         if request is not None:
