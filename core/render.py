@@ -187,10 +187,15 @@ def missed_colour(scene: Scene, settings: RenderSettings) -> np.ndarray:
 def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
            progress: Optional[Callable[[float], None]] = None,
            should_cancel: Optional[Callable[[], bool]] = None,
-           image_dtype=None) -> RenderResult:
+           image_dtype=None,
+           on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None) -> RenderResult:
     """Render ``scene``; see ``core`` for the result's layout.  image_dtype: the image's
     dtype (default: the render's precision); float32 halves a float64 render's largest array
-    for callers that keep no more than float32 anyway (Blender's render results)."""
+    for callers that keep no more than float32 anyway (Blender's render results).
+    on_tile(tile, rgba): called on the calling thread as each tile lands (before
+    ``progress``), with tile = (y0, y1, x0, x1) (rows from the top) and its (h, w, 4) pixels,
+    a view of the image: copy what must outlive the call.  Tiles land in any order; a
+    cancelled render has passed on exactly the tiles that finished."""
     if not isinstance(scene, Scene):
         raise SceneError(f"scene must be a core.Scene, got {type(scene).__name__}")
     settings = RenderSettings() if settings is None else settings
@@ -212,6 +217,8 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
                               f"infinite; please report this scene")
         image[y0:y1, x0:x1] = rgba
         stats.add(tile_stats)
+        if on_tile is not None:
+            on_tile(tile, image[y0:y1, x0:x1])
         if progress is not None:
             progress(done / len(tiles))
 

@@ -129,14 +129,19 @@ def export_light(context, obj, matrix, name: str) -> None:
         raise ExportError(str(error)) from None  # the core's message names the light
 
 
-def export_scene(depsgraph, camera_override=None) -> tuple[Scene, list[str]]:
+def export_scene(depsgraph, camera_override=None, *, view_camera=None
+                 ) -> tuple[Scene, list[str]]:
     """(core Scene, warnings) for an evaluated depsgraph.
 
     camera_override: the camera object to render through instead of the scene camera (the
-    render engine's ``camera_override``).  Raises ExportError, naming the culprit, when the
-    scene cannot be rendered at all (no camera, a panoramic camera, invalid values).
+    render engine's ``camera_override``).  view_camera: a core camera to use instead of any
+    Blender camera (the viewport renders its own view, with or without a scene camera).
+    Raises ExportError, naming the culprit, when the scene cannot be rendered at all (no
+    camera, a panoramic camera, invalid values).
     """
-    context = ExportContext.for_camera(export_camera(depsgraph, camera_override))
+    camera = view_camera if view_camera is not None else export_camera(depsgraph,
+                                                                      camera_override)
+    context = ExportContext.for_camera(camera)
     visible = _RenderVisibility(depsgraph)
     meshes = MeshExporter(context)
     bulk = InstanceExporter(context, meshes, visible)
