@@ -585,7 +585,10 @@ def render_animation(scene, args, interruption: Interruption) -> int:
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, own_process: bool = False) -> int:
+    """own_process: run as the program; with pip bpy the process is then Glint's own and gets
+    its malloc settings (``core.allocator``), never inside Blender's (``running_in_blender``),
+    where they would change the allocator of Blender and every add-on."""
     argv = sys.argv if argv is None else argv
     args = parse_args(script_arguments(argv))
     interruption = Interruption()
@@ -596,6 +599,10 @@ def main(argv: list[str] | None = None) -> int:
         return _fail("needs Blender's Python or the bpy module (pip install bpy)")
     try:
         glint = import_glint()
+        if own_process and not running_in_blender():
+            from glint.core import allocator
+
+            allocator.configure()
         scene = open_scene(args.blend)
         register_glint(glint)
         interruption.check()
@@ -635,4 +642,4 @@ def _fail(message: str, code: int = EXIT_FAILURE) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(main(own_process=True))

@@ -15,6 +15,8 @@ import os
 import sys
 import time
 
+from core import allocator
+
 from . import report
 from .measure import load_average, machine_lines
 from .plots import PlotsUnavailable, write_plots
@@ -40,6 +42,8 @@ def parse_args(argv):
                              "(at least one; default 40, quick 5)")
     parser.add_argument("--no-blender", action="store_true",
                         help="skip the Cycles and Workbench contenders")
+    parser.add_argument("--no-malloc-tuning", action="store_true",
+                        help="keep glibc's default malloc thresholds (core.allocator)")
     parser.add_argument("--out", default=OUT_DIR, help="output folder (default bench/out)")
     args = parser.parse_args(argv)
     names = []
@@ -85,6 +89,8 @@ def plan_lines(plan, quick: bool) -> list[str]:
 
 def main(argv=None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
+    if not args.no_malloc_tuning:
+        allocator.configure()  # the bench's process is Glint's own (core.allocator)
     plan = QUICK if args.quick else FULL
     overrides = {}
     if args.repeats is not None:
@@ -92,7 +98,10 @@ def main(argv=None) -> int:
     if args.budget is not None:
         overrides["budget"] = args.budget
     plan = dataclasses.replace(plan, **overrides)
-    header = ["# Glint bench", ""] + [f"- {line}" for line in machine_lines()]
+    tuning = ("on (core.allocator: mmap threshold 32 MiB, trim threshold 512 MiB)"
+              if allocator.configure() else "off") if not args.no_malloc_tuning else "off"
+    header = ["# Glint bench", ""] + [f"- {line}" for line in machine_lines()] + [
+        f"- glibc malloc tuning: {tuning}"]
     bench = Bench(plan, args.out, use_blender=not args.no_blender)
     start = time.perf_counter()
     bench.run(args.workloads)

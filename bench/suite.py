@@ -10,6 +10,10 @@ Workloads (``--only NAME``):
 * aa-adaptive, aa-fixed16: the article's scene at 1920x1080 with anti-aliasing.
 * cost-pixels, cost-spheres: time and peak memory against pixel count (up to 7680x4320) and
   against sphere count (1 to 10,000).
+* parallelism: the article's scene at article-hd's size (article/float64) on 1 and 2 threads
+  and 1 and 2 worker processes (``core.workers``), images checked bit for bit against one
+  thread; the processes' start-up is paid in the warm-up, and once more, alone, in a
+  "cold" row (workers ended first).
 
 Contenders: Glint in each precision and semantics; the baseline (``bench.baseline``); the
 article's per-pixel program (``bench.per_pixel``), timed small and scaled per pixel; Cycles
@@ -104,7 +108,7 @@ QUICK = Plan(
 SCENE_WORKLOADS = ("article-small", "article-hd", "article-uhd", "spheres", "spheres-nofloor")
 AA_WORKLOADS = ("aa-adaptive", "aa-fixed16")
 CURVES = ("cost-pixels", "cost-spheres")
-WORKLOADS = SCENE_WORKLOADS + AA_WORKLOADS + CURVES
+WORKLOADS = SCENE_WORKLOADS + AA_WORKLOADS + CURVES + ("parallelism",)
 
 
 @dataclass(frozen=True)
@@ -115,10 +119,13 @@ class Glint:
     precision: str
     anti_aliasing: str = "off"
     samples: int = 16
+    threads: Optional[int] = None          # None: one per core
+    parallelism: str = "threads"
 
     def settings(self, **overrides) -> RenderSettings:
         values = dict(semantics=self.semantics, precision=self.precision, max_depth=MAX_DEPTH,
-                      anti_aliasing=self.anti_aliasing, samples=self.samples)
+                      anti_aliasing=self.anti_aliasing, samples=self.samples,
+                      threads=self.threads, parallelism=self.parallelism)
         values.update(overrides)
         return RenderSettings(**values)
 
@@ -127,6 +134,10 @@ class Glint:
         text = f"Glint {self.semantics}/{self.precision}"
         if self.anti_aliasing != "off":
             text += f", {self.anti_aliasing} {self.samples} spp"
+        if self.threads is not None:
+            one, many = (("thread", "threads") if self.parallelism == "threads"
+                         else ("process", "processes"))
+            text += f", {self.threads} {one if self.threads == 1 else many}"
         return text
 
 
@@ -372,6 +383,8 @@ class Bench:
                 self.pixel_curve()
             elif name == "cost-spheres":
                 self.sphere_curve()
+            elif name == "parallelism":
+                self.parallelism_workload(name)
             else:
                 raise ValueError(f"unknown workload {name!r}")
 
@@ -568,3 +581,42 @@ class Bench:
                     f"{contender if contender == 'baseline' else contender.label}")
                 self._curve_point("cost-spheres", ("spheres", count, True, width, height),
                                   scene, contender)
+
+
+    def parallelism_workload(self, name: str) -> None:
+        """Threads against worker processes, 1 and 2 of each, on the article's scene."""
+        from core import workers
+
+        width, height = self.plan.article_sizes["article-hd"]
+        title = f"article {width}x{height}, parallelism"
+        scene = article_scene(width, height)
+        reference = None
+        for parallelism in ("threads", "processes"):
+            for count in (1, 2):
+                glint = Glint("article", "float64", threads=count, parallelism=parallelism)
+                log(f"{title}: {glint.label}")
+                result, timing, _ = self.measure_glint(("article", width, height), scene, glint)
+                row = Row(name, title, glint.label, "glint", timing, timing.median,
+                          semantics="article", precision=result.precision, glint=glint)
+                if reference is None:
+                    reference = result.image
+                    row.notes.append("the reference of this workload's images")
+                elif np.array_equal(result.image, reference):
+                    row.notes.append("image identical to 1 thread's")
+                else:
+                    raise AssertionError(f"{glint.label}: image differs from 1 thread's")
+                if result.parallelism != parallelism:
+                    row.notes.append(f"ran on {result.parallelism} (core.workers.MIN_PIXELS "
+                                     f"or processes unavailable)")
+                elif parallelism == "processes":
+                    row.notes.append("memory: this process only")
+                self.rows.append(row)
+        glint = Glint("article", "float64", threads=2, parallelism="processes")
+        settings = glint.settings()
+        workers.shutdown()
+        start = time.perf_counter()
+        render(scene, settings)
+        cold = time.perf_counter() - start
+        self.rows.append(Row(name, title, glint.label + ", cold", "glint", Timing([cold]), cold,
+                             semantics="article", precision="float64", glint=glint,
+                             notes=["workers started in this run"]))

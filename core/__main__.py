@@ -16,10 +16,11 @@ import time
 
 import numpy as np
 
+from . import allocator
 from .article import article_scene, article_settings
 from .png import atomic_file, write_png
 from .render import render
-from .scene import SceneError
+from .scene import PARALLELISM, SceneError
 
 SCENES = {"article": article_scene}
 
@@ -35,7 +36,13 @@ def parse_args(argv):
     parser.add_argument("--max-depth", type=int, default=3)
     parser.add_argument("--anti-aliasing", choices=["off", "fixed", "adaptive"], default="off")
     parser.add_argument("--samples", type=int, default=16)
-    parser.add_argument("--threads", type=int, default=None)
+    parser.add_argument("--threads", type=int, default=None,
+                        help="tiles rendered at once (default: one per core)")
+    parser.add_argument("--parallelism", choices=list(PARALLELISM), default="threads",
+                        help="threads, or worker processes for renders of more than one "
+                             "tile and 0.3 Mpixel")
+    parser.add_argument("--no-malloc-tuning", action="store_true",
+                        help="keep glibc's default malloc thresholds (core.allocator)")
     args = parser.parse_args(argv)
     if not args.output.endswith((".png", ".npy")):
         parser.error(f"--output must end in .png or .npy, got {args.output!r}")
@@ -53,15 +60,20 @@ def _terminate(number, frame):
     raise Terminated()
 
 
-def main(argv=None) -> int:
+def main(argv=None, own_process: bool = False) -> int:
+    """own_process: run as the program (``python -m core``), so the process is Glint's and
+    gets its malloc settings (``core.allocator``); not when called from other code."""
     args = parse_args(sys.argv[1:] if argv is None else argv)
+    if own_process and not args.no_malloc_tuning:
+        allocator.configure()
     if signal.getsignal(signal.SIGTERM) is not signal.SIG_IGN:
         signal.signal(signal.SIGTERM, _terminate)
     try:
         scene = SCENES[args.scene](args.width, args.height)
         settings = article_settings(
             semantics=args.semantics, precision=args.precision, max_depth=args.max_depth,
-            anti_aliasing=args.anti_aliasing, samples=args.samples, threads=args.threads)
+            anti_aliasing=args.anti_aliasing, samples=args.samples, threads=args.threads,
+            parallelism=args.parallelism)
         start = time.perf_counter()
         result = render(scene, settings)
         elapsed = time.perf_counter() - start
@@ -93,4 +105,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(main(own_process=True))

@@ -28,6 +28,7 @@ from .frame import canonical_scene
 from .precision import choose_precision
 from .scene import RenderSettings, Scene, SceneError
 from .trace import trace_bundle
+from . import allocator, workers
 
 
 #: Tiles are traced in BLOCK x BLOCK pixel blocks: one culling packet each.
@@ -52,12 +53,16 @@ class RenderResult:
     sphere.  stats: RayStats.  precision: 'float64' or 'float32'.
     missed_colour: (3,) float64, what a camera sample that hits nothing adds to its pixel's RGB
     (the clipped background in default semantics, black in the article's), so a caller can
-    take the background out of a pixel exactly: ``rgb - (1 - alpha) * missed_colour``."""
+    take the background out of a pixel exactly: ``rgb - (1 - alpha) * missed_colour``.
+    parallelism: how the tiles ran: 'threads' (the calling thread or a thread pool) or
+    'processes' (``core.workers``), which can differ from the setting's (small renders, or
+    processes unavailable)."""
 
     image: np.ndarray
     stats: RayStats
     precision: str
     missed_colour: np.ndarray
+    parallelism: str = "threads"
 
 
 def sample_offsets(count: int) -> np.ndarray:
@@ -184,6 +189,14 @@ def missed_colour(scene: Scene, settings: RenderSettings) -> np.ndarray:
     return np.clip(np.asarray(scene.background, np.float64), 0.0, 1.0)
 
 
+def _in_processes(settings: RenderSettings, pixels: int, tiles: int) -> bool:
+    """Whether this render's tiles go to worker processes (``RenderSettings.parallelism``).
+    A single tile or a small render stays in this process: starting a worker costs more
+    than it gains there."""
+    return (settings.parallelism == "processes" and tiles > 1
+            and pixels >= workers.MIN_PIXELS)
+
+
 def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
            progress: Optional[Callable[[float], None]] = None,
            should_cancel: Optional[Callable[[], bool]] = None,
@@ -201,6 +214,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     settings = RenderSettings() if settings is None else settings
     if not isinstance(settings, RenderSettings):
         raise SceneError(f"settings must be a core.RenderSettings, got {type(settings).__name__}")
+    allocator.configure_if_opted_in()  # only if GLINT_MALLOC_TUNING asks (core.allocator)
     scene = canonical_scene(scene, settings)  # positions and units stop mattering
     dtype = choose_precision(scene, settings.precision)
     ctx = make_context(scene, settings, dtype)
@@ -224,6 +238,15 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
 
     def cancelled():
         return should_cancel is not None and should_cancel()
+
+    if _in_processes(settings, width * height, len(tiles)):
+        try:
+            workers.render_tiles(ctx, scene.camera, tiles, image.shape, threads, finish,
+                                 should_cancel)
+            return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
+                                "processes")
+        except workers.ProcessesUnavailable:
+            pass  # no tile has landed yet: the same tiles on threads, below
 
     if threads == 1 or len(tiles) == 1:
         for done, tile in enumerate(tiles, 1):

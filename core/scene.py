@@ -28,6 +28,8 @@ Vec3 = tuple[float, float, float]
 SEMANTICS = ("default", "article")
 PRECISIONS = ("auto", "float64", "float32")
 ANTI_ALIASING = ("off", "fixed", "adaptive")
+#: How tiles run in parallel (``core.render``, ``core.workers``).
+PARALLELISM = ("threads", "processes")
 PROJECTIONS = ("PERSP", "ORTHO")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 
@@ -578,7 +580,13 @@ class RenderSettings:
     contribution_cutoff: a path stops once nothing it could still add exceeds this (a fraction
         of full white); 1e-6 keeps results float64-accurate to the 8-bit output many times over.
     tile_size: tiles are tile_size x tile_size pixels; memory per tile is bounded by it.
-    threads: worker threads over tiles (None: one per core).  Results never depend on it.
+    threads: how many tiles render at once (None: one per core), on threads or worker
+        processes as ``parallelism`` says.  Results never depend on it.
+    parallelism: 'threads' (a thread pool in this process) or 'processes' (worker
+        processes, ``core.workers``, for renders of more than one tile and at least
+        ``core.workers.MIN_PIXELS`` pixels; smaller renders, and places where processes
+        cannot start, use threads).  Threads stay the default until processes are measured
+        faster (README, Benchmark).  Results never depend on it.
     """
 
     semantics: Literal["default", "article"] = "default"
@@ -590,11 +598,13 @@ class RenderSettings:
     contribution_cutoff: float = 1e-6
     tile_size: int = 128
     threads: int | None = None
+    parallelism: Literal["threads", "processes"] = "threads"
 
     def __post_init__(self):
         _choice("settings.semantics", self.semantics, SEMANTICS)
         _choice("settings.precision", self.precision, PRECISIONS)
         _choice("settings.anti_aliasing", self.anti_aliasing, ANTI_ALIASING)
+        _choice("settings.parallelism", self.parallelism, PARALLELISM)
         _count("settings.max_depth", self.max_depth, maximum=MAX_DEPTH)
         _count("settings.samples", self.samples, maximum=MAX_SAMPLES)
         _count("settings.light_samples", self.light_samples, maximum=MAX_LIGHT_SAMPLES)

@@ -1,0 +1,159 @@
+"""Tiles in worker processes (core.workers): the same image bit for bit as one thread, tiles
+finished in the parent, cancel, errors as themselves, fallback to threads, no re-run of the
+caller's script."""
+
+import os
+import subprocess
+import sys
+import textwrap
+import threading
+
+import numpy as np
+import pytest
+
+import core
+from core import workers
+from core.render import RenderCancelled, render_tile
+from core.scene import SceneError
+
+REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+@pytest.fixture
+def small_renders_in_processes(monkeypatch):
+    """Let test-sized renders use processes (renders under MIN_PIXELS stay in-process)."""
+    monkeypatch.setattr(workers, "MIN_PIXELS", 0)
+
+
+def _settings(**values):
+    return core.RenderSettings(**{"tile_size": 32, **values})
+
+
+@pytest.mark.parametrize("semantics, anti_aliasing", [("article", "off"),
+                                                      ("default", "adaptive")])
+def test_processes_give_the_threads_image_bit_for_bit(small_renders_in_processes, semantics,
+                                                      anti_aliasing):
+    scene = core.article_scene(150, 100)
+    common = dict(semantics=semantics, precision="float64", anti_aliasing=anti_aliasing,
+                  samples=4)
+    reference = core.render(scene, _settings(threads=1, **common))
+    assert reference.parallelism == "threads"
+    for count in (1, 2, 3):
+        result = core.render(scene, _settings(threads=count, parallelism="processes", **common))
+        assert result.parallelism == "processes"
+        assert np.array_equal(result.image, reference.image)
+        assert result.stats == reference.stats     # summed over the workers' tiles
+        assert result.image.dtype == reference.image.dtype
+
+
+def test_tiles_are_finished_in_the_parent(small_renders_in_processes):
+    scene = core.article_scene(100, 70)
+    landed, progress = [], []
+    caller = threading.get_ident()
+
+    def on_tile(tile, rgba):
+        assert threading.get_ident() == caller
+        landed.append((tile, rgba.copy()))
+
+    result = core.render(scene, _settings(threads=2, parallelism="processes"),
+                         on_tile=on_tile, progress=progress.append, image_dtype=np.float32)
+    assert result.parallelism == "processes" and result.image.dtype == np.float32
+    assert len(landed) == len(progress) == result.stats.tiles == 4 * 3
+    assert progress[-1] == 1.0
+    for (y0, y1, x0, x1), rgba in landed:
+        assert np.array_equal(rgba, result.image[y0:y1, x0:x1])
+
+
+def test_cancel_stops_the_workers_and_keeps_them_usable(small_renders_in_processes):
+    scene = core.article_scene(160, 160)
+    settings = _settings(threads=2, parallelism="processes", tile_size=16)
+    landed = []
+    with pytest.raises(RenderCancelled):
+        core.render(scene, settings, on_tile=lambda tile, rgba: landed.append(tile),
+                    should_cancel=lambda: len(landed) >= 1)
+    assert 1 <= len(landed) < 100          # stopped long before the 100 tiles
+    # The same workers render the next frame, whole and right.
+    again = core.render(scene, settings)
+    assert again.parallelism == "processes"
+    assert np.array_equal(again.image, core.render(scene, _settings(threads=1,
+                                                                    tile_size=16)).image)
+
+
+def test_an_error_in_a_worker_is_raised_as_itself(small_renders_in_processes):
+    from core.context import make_context
+
+    scene = core.article_scene(64, 64)
+    settings = _settings(semantics="article", precision="float64")
+    ctx = make_context(scene, settings, np.float64)
+    bad_tile = (0, 32)                    # not a (y0, y1, x0, x1) rectangle
+    with pytest.raises(ValueError) as in_process:
+        render_tile(ctx, scene.camera, bad_tile)
+    with pytest.raises(ValueError) as in_worker:
+        workers.render_tiles(ctx, scene.camera, [(0, 32, 0, 32), bad_tile], (64, 64, 4), 1,
+                             lambda *finished: None)
+    assert str(in_worker.value) == str(in_process.value)
+    assert "in a render worker process" in "".join(getattr(in_worker.value, "__notes__", []))
+
+
+def test_fallback_to_threads_where_workers_cannot_start(small_renders_in_processes,
+                                                        monkeypatch, tmp_path):
+    scene = core.article_scene(64, 64)
+    reference = core.render(scene, _settings(threads=1))
+    fake = tmp_path / "python3"          # named like a Python, exits at once
+    fake.write_text("#!/bin/sh\nexit 3\n")
+    fake.chmod(0o755)
+    workers.shutdown()
+    monkeypatch.setattr(workers, "unavailable_reason", None)
+    monkeypatch.setattr(sys, "executable", str(fake))
+    result = core.render(scene, _settings(threads=2, parallelism="processes"))
+    assert result.parallelism == "threads"
+    assert np.array_equal(result.image, reference.image)
+    assert "exited while starting (exit code 3)" in workers.unavailable_reason
+
+    monkeypatch.setattr(workers, "unavailable_reason", None)
+    monkeypatch.setattr(sys, "executable", "/bin/sh")   # not a Python at all
+    result = core.render(scene, _settings(threads=2, parallelism="processes"))
+    assert result.parallelism == "threads"
+    assert "is not a Python" in workers.unavailable_reason
+
+
+def test_small_renders_and_single_tiles_stay_in_process():
+    small = core.render(core.article_scene(64, 64), _settings(threads=2,
+                                                              parallelism="processes"))
+    assert small.parallelism == "threads"     # 4096 pixels < MIN_PIXELS
+
+
+def test_parallelism_is_validated():
+    with pytest.raises(SceneError, match="settings.parallelism must be one of"):
+        core.RenderSettings(parallelism="gpu")
+
+
+def test_workers_do_not_rerun_the_callers_script(tmp_path):
+    """multiprocessing's spawn would run this unguarded script again in every worker."""
+    log = tmp_path / "runs.log"
+    script = tmp_path / "unguarded.py"
+    script.write_text(textwrap.dedent(f"""
+        import core
+        from core import workers
+        with open({str(log)!r}, "a") as out:
+            out.write("run\\n")
+        workers.MIN_PIXELS = 0
+        result = core.render(core.article_scene(96, 64), core.RenderSettings(
+            tile_size=32, threads=2, parallelism="processes"))
+        print(result.parallelism, len(workers._pool.workers))
+    """))
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          cwd=REPOSITORY, env={**os.environ, "PYTHONPATH": REPOSITORY},
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["processes", "2"]
+    assert log.read_text() == "run\n"
+
+
+def test_shutdown_ends_the_workers(small_renders_in_processes):
+    core.render(core.article_scene(64, 64), _settings(threads=2, parallelism="processes"))
+    processes = [worker.process for worker in workers._pool.workers]
+    assert len(processes) == 2 and all(p.poll() is None for p in processes)
+    workers.shutdown()
+    assert all(p.poll() is not None for p in processes)
+    assert workers._pool.workers == []
