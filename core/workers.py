@@ -23,13 +23,14 @@ tile), so large renders run their tiles in ``count`` worker processes instead:
   the article's scene, the arrays themselves for big ones), dropped when the render ends.
 * the parent sends tile rectangles, at most two in flight per worker; a worker renders a
   tile with the same ``core.render.render_tile`` as a thread would and writes its pixels into
-  one shared-memory image (``multiprocessing.shared_memory``), then answers with the tile's
-  RayStats.  The parent finishes every tile itself (NaN check, copy into the result, on_tile,
+  one shared-memory image (``multiprocessing.shared_memory``, kept for the next render of
+  the same or smaller size up to ``KEEP_SHARED_BYTES``, so its pages fault once), then
+  answers with the tile's RayStats.  The parent finishes every tile itself (NaN check, copy into the result, on_tile,
   progress), in the order they land, exactly as the thread pool does: the image does not
   depend on the number of workers or on how they are run.
 * the parent polls ``should_cancel`` at least every ``CANCEL_POLL_SECONDS``; a cancel (or any
   exception in the parent, KeyboardInterrupt included) sets a shared stop event that running
-  tiles check at every bundle of rays (a byte after the image in the shared memory), and the
+  tiles check at every bundle of rays (the first byte of the shared memory), and the
   workers are then stopped.
 * an exception in a worker is sent back pickled and raised in the parent as the same type
   with the same message (the worker's traceback text is attached as a note); a worker that
@@ -68,6 +69,11 @@ TILES_IN_FLIGHT = 2
 #: Renders below this many pixels stay in the calling process: starting a worker (a Python
 #: and NumPy import, 0.1-0.3 s, once per process) costs more than a small render gains.
 MIN_PIXELS = 300_000
+#: The shared image is kept between renders up to this size (a 1920 x 1080 float64 image is
+#: 63 MiB); larger ones are freed when their render ends.
+KEEP_SHARED_BYTES = 256 * 2 ** 20
+#: The shared memory holds the stop byte at 0 and the image from this offset (aligned).
+IMAGE_OFFSET = 64
 
 _BOOT_FILE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "_worker_boot.py")
 _CORE_PACKAGE = __name__.rpartition(".")[0]
@@ -107,17 +113,14 @@ def _python_executable() -> str | None:
 class _Job:
     """One render as a worker sees it: its context, camera and the shared image."""
 
-    def __init__(self, shared_name: str, shape, dtype_name: str, payload: bytes):
-        self.memory = _attach(shared_name)
-        dtype = np.dtype(dtype_name)
-        image_bytes = int(np.prod(shape)) * dtype.itemsize
-        self.image = np.ndarray(tuple(shape), dtype, buffer=self.memory.buf)
-        self.stop = _StopFlag(self.memory.buf[image_bytes:image_bytes + 1])
+    def __init__(self, memory, shape, dtype_name: str, payload: bytes):
+        self.image = np.ndarray(tuple(shape), np.dtype(dtype_name), buffer=memory.buf,
+                                offset=IMAGE_OFFSET)
+        self.stop = _StopFlag(memory.buf[:1])
         self.ctx, self.camera = pickle.loads(payload)
 
     def close(self) -> None:
         self.image = self.stop = self.ctx = self.camera = None
-        self.memory.close()
 
 
 def worker_loop(connection, setup: dict) -> None:
@@ -131,7 +134,7 @@ def worker_loop(connection, setup: dict) -> None:
     from .render import RenderCancelled, render_tile
 
     allocator.configure()
-    job = None
+    job = memory = None
     try:
         while True:
             try:
@@ -143,7 +146,12 @@ def worker_loop(connection, setup: dict) -> None:
             if message[0] == "render":
                 payload = connection.recv_bytes()
                 try:
-                    job = _Job(*message[1:], payload)
+                    if memory is None or memory.name != message[1]:
+                        if memory is not None:
+                            memory.close()
+                        memory = None
+                        memory = _attach(message[1])
+                    job = _Job(memory, *message[2:], payload)
                 except Exception as error:
                     _send_error(connection, None, error)
                     continue
@@ -169,6 +177,8 @@ def worker_loop(connection, setup: dict) -> None:
     finally:
         if job is not None:
             job.close()
+        if memory is not None:
+            memory.close()
 
 
 def _attach(name: str):
@@ -226,12 +236,27 @@ class _Pool:
         self.lock = threading.Lock()      # one render at a time uses the workers
         self.workers: list[_Worker] = []
         self.owner = os.getpid()
+        self.memory = None                # the shared image, kept between renders
+
+    def shared_memory(self, size: int):
+        """Shared memory of at least ``size`` bytes: the kept one if it is large enough."""
+        if self.memory is not None and self.memory.size < size:
+            self.free_memory()
+        if self.memory is None:
+            self.memory = shared_memory.SharedMemory(create=True, size=size)
+        return self.memory
+
+    def free_memory(self) -> None:
+        if self.memory is not None:
+            self.memory.close()
+            self.memory.unlink()
+            self.memory = None
 
     def grow(self, count: int) -> None:
         """Start workers until there are ``count`` (raises ProcessesUnavailable)."""
         global unavailable_reason
         if self.owner != os.getpid():     # a fork of the process that started them
-            self.workers, self.owner = [], os.getpid()
+            self.workers, self.memory, self.owner = [], None, os.getpid()
         executable = _python_executable()
         if executable is None:
             unavailable_reason = f"sys.executable ({sys.executable!r}) is not a Python"
@@ -277,6 +302,7 @@ class _Pool:
         with self.lock:
             for worker in list(self.workers):
                 self.drop(worker)
+            self.free_memory()
 
 
 _pool = _Pool()
@@ -295,9 +321,10 @@ class _Render:
         self.dtype = np.dtype(ctx.dtype)
         self.shape = tuple(shape)
         image_bytes = int(np.prod(self.shape)) * self.dtype.itemsize
-        self.memory = shared_memory.SharedMemory(create=True, size=image_bytes + 1)
-        self.image = np.ndarray(self.shape, self.dtype, buffer=self.memory.buf)
-        self.stop = self.memory.buf[image_bytes:image_bytes + 1]
+        self.memory = _pool.shared_memory(IMAGE_OFFSET + image_bytes)
+        self.image = np.ndarray(self.shape, self.dtype, buffer=self.memory.buf,
+                                offset=IMAGE_OFFSET)
+        self.stop = self.memory.buf[:1]
         self.stop[0] = 0
         self.payload = pickle.dumps((ctx, camera), protocol=5)
         self.workers = _pool.workers[:count]
@@ -393,9 +420,11 @@ class _Render:
             if not _wait_for_end(worker, deadline):
                 _pool.drop(worker)
             worker.in_flight.clear()
-        self.image = self.stop = None
-        self.memory.close()
-        self.memory.unlink()
+        self.image = None
+        self.stop.release()
+        self.stop = None
+        if self.memory.size > KEEP_SHARED_BYTES:
+            _pool.free_memory()
 
 
 def _wait_for_end(worker: _Worker, deadline: float) -> bool:

@@ -157,3 +157,30 @@ def test_shutdown_ends_the_workers(small_renders_in_processes):
     workers.shutdown()
     assert all(p.poll() is not None for p in processes)
     assert workers._pool.workers == []
+
+
+def test_workers_import_core_under_a_blender_extension_name(tmp_path):
+    """Inside Blender the core is ``bl_ext.<repository>.glint.core``, whose parents a plain
+    Python cannot import: the workers stand in for them and load core from its folder."""
+    code = textwrap.dedent(f"""
+        import sys
+        sys.path.insert(0, {os.path.join(REPOSITORY, 'core')!r})
+        import _worker_boot
+        sys.path.pop(0)
+        core = _worker_boot.load_core("bl_ext.user_default.glint.core",
+                                      {os.path.join(REPOSITORY, 'core')!r})
+        import importlib
+        workers = importlib.import_module("bl_ext.user_default.glint.core.workers")
+        workers.MIN_PIXELS = 0
+        import numpy as np
+        scene = core.article_scene(96, 64)
+        result = core.render(scene, core.RenderSettings(tile_size=32, threads=2,
+                                                        parallelism="processes"))
+        alone = core.render(scene, core.RenderSettings(tile_size=32, threads=1))
+        print(result.parallelism, np.array_equal(result.image, alone.image),
+              "core" in sys.modules)
+    """)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          cwd=str(tmp_path), timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["processes", "True", "False"]
