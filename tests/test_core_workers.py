@@ -184,3 +184,66 @@ def test_workers_import_core_under_a_blender_extension_name(tmp_path):
                           cwd=str(tmp_path), timeout=120)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["processes", "True", "False"]
+
+
+def test_ctrl_c_to_the_process_group_stops_parent_and_workers(tmp_path):
+    """A terminal's Ctrl-C reaches every process of the group: the workers ignore it, the
+    parent cancels, ends them and writes nothing."""
+    import signal
+    import time
+
+    output = tmp_path / "out.png"
+    output.write_bytes(b"previous render")
+    process = subprocess.Popen(
+        [sys.executable, "-m", "core", "--width", "1920", "--height", "1080",
+         "--anti-aliasing", "fixed", "--samples", "64", "--parallelism", "processes",
+         "--threads", "2", "--output", str(output)],
+        cwd=REPOSITORY, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    time.sleep(5.0)
+    assert process.poll() is None, "the render ended before the signal: make it bigger"
+    children = subprocess.run(["ps", "-o", "pid=", "--ppid", str(process.pid)],
+                              capture_output=True, text=True).stdout.split()
+    assert len(children) >= 2                # the two workers (and a resource tracker)
+    os.killpg(process.pid, signal.SIGINT)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == 130, err
+    (line,) = err.strip().splitlines()
+    assert "cancelled by SIGINT" in line
+    assert output.read_bytes() == b"previous render"
+
+    def running(pid):
+        try:
+            with open(f"/proc/{pid}/stat") as stat:
+                return stat.read().rsplit(")", 1)[1].split()[0] != "Z"
+        except FileNotFoundError:
+            return False
+    deadline = time.monotonic() + 10
+    while any(running(pid) for pid in children) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(running(pid) for pid in children)
+
+
+def test_workers_start_from_a_pip_bpy_process():
+    """With pip bpy, sys.executable is the venv's Python and core is render.py's glint.core;
+    the workers import neither bpy nor the add-on."""
+    code = textwrap.dedent(f"""
+        import importlib, sys
+        sys.path.insert(0, {REPOSITORY!r})
+        import bpy, numpy as np
+        import render
+        render.import_glint()
+        core = importlib.import_module("glint.core")
+        workers = importlib.import_module("glint.core.workers")
+        workers.MIN_PIXELS = 0
+        scene = core.article_scene(96, 64)
+        result = core.render(scene, core.RenderSettings(tile_size=32, threads=2,
+                                                        parallelism="processes"))
+        alone = core.render(scene, core.RenderSettings(tile_size=32, threads=1))
+        print(result.parallelism, np.array_equal(result.image, alone.image))
+    """)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          cwd=REPOSITORY, timeout=180)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split()[-2:] == ["processes", "True"]
