@@ -224,9 +224,13 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     stats = RayStats()
     threads = settings.threads or os.cpu_count() or 1
 
-    def finish(tile, rgba, tile_stats, done):
+    def finish(tile, rgba, tile_stats, done, finite=None):
+        """finite: whether every value of rgba is finite, if already known (workers check
+        their own tiles, sparing the parent a pass over the image)."""
         y0, y1, x0, x1 = tile
-        if not np.isfinite(rgba).all():  # never a silently wrong picture, even from a bug
+        if finite is None:
+            finite = bool(np.isfinite(rgba).all())
+        if not finite:  # never a silently wrong picture, even from a bug
             raise RenderError(f"pixels {x0}-{x1 - 1} x {y0}-{y1 - 1} came out NaN or "
                               f"infinite; please report this scene")
         image[y0:y1, x0:x1] = rgba

@@ -25,11 +25,12 @@ tile), so large renders run their tiles in ``count`` worker processes instead:
   tile with the same ``core.render.render_tile`` as a thread would and writes its pixels into
   one shared-memory image (``multiprocessing.shared_memory``, kept for the next render of
   the same or smaller size up to ``KEEP_SHARED_BYTES``, so its pages fault once), then
-  answers with the tile's RayStats.  The parent finishes every tile itself (NaN check, copy into the result, on_tile,
-  progress), in the order they land, exactly as the thread pool does: the image does not
-  depend on the number of workers or on how they are run.
+  answers with the tile's RayStats and whether its values are all finite.  The parent
+  finishes every tile itself (a tile with NaN is the same RenderError as with threads; copy
+  into the result, on_tile, progress), in the order they land, exactly as the thread pool
+  does: the image does not depend on the number of workers or on how they are run.
 * the parent polls ``should_cancel`` at least every ``CANCEL_POLL_SECONDS``; a cancel (or any
-  exception in the parent, KeyboardInterrupt included) sets a shared stop event that running
+  exception in the parent, KeyboardInterrupt included) sets a shared stop byte that running
   tiles check at every bundle of rays (the first byte of the shared memory), and the
   workers are then stopped.
 * an exception in a worker is sent back pickled and raised in the parent as the same type
@@ -128,7 +129,7 @@ def worker_loop(connection, setup: dict) -> None:
 
     Messages in: ('render', shared name, shape, dtype) followed by the pickled (context,
     camera) as bytes; a tile (y0, y1, x0, x1); ('end',); None.  Answers: ('ready',),
-    ('done', tile, stats), ('cancelled', tile), ('error', tile, exception, traceback text),
+    ('done', tile, stats, whether every value is finite), ('cancelled', tile), ('error', tile, exception, traceback text),
     ('ended',)."""
     from . import allocator
     from .render import RenderCancelled, render_tile
@@ -169,7 +170,7 @@ def worker_loop(connection, setup: dict) -> None:
                     rgba, stats = render_tile(job.ctx, job.camera, tile, job.stop)
                     y0, y1, x0, x1 = tile
                     job.image[y0:y1, x0:x1] = rgba
-                    connection.send(("done", tile, stats))
+                    connection.send(("done", tile, stats, bool(np.isfinite(rgba).all())))
                 except RenderCancelled:
                     connection.send(("cancelled", tile))
                 except Exception as error:
@@ -362,8 +363,9 @@ class _Render:
                     _raise_worker_error(message)
 
     def run(self, tiles, finish, should_cancel) -> None:
-        """Render ``tiles``; finish(tile, rgba, stats, done) is called in this process for
-        each as it lands, rgba a view of the shared image."""
+        """Render ``tiles``; finish(tile, rgba, stats, done, finite) is called in this
+        process for each as it lands, rgba a view of the shared image, finite whether all
+        its values are finite (checked by the worker)."""
         from .render import RenderCancelled, RenderError
 
         queue = iter(tiles)
@@ -391,7 +393,7 @@ class _Render:
                     raise RenderCancelled("render cancelled")
                 done += 1
                 y0, y1, x0, x1 = tile
-                finish(tile, self.image[y0:y1, x0:x1], message[2], done)
+                finish(tile, self.image[y0:y1, x0:x1], message[2], done, message[3])
                 self._feed(worker, queue)
             if should_cancel is not None and should_cancel():
                 raise RenderCancelled("render cancelled")

@@ -201,11 +201,15 @@ def test_ctrl_c_to_the_process_group_stops_parent_and_workers(tmp_path):
         cwd=REPOSITORY, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         start_new_session=True,
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    time.sleep(5.0)
+    deadline = time.monotonic() + 30
+    children = []
+    while len(children) < 3 and time.monotonic() < deadline:   # 2 workers + resource tracker
+        time.sleep(0.2)
+        children = subprocess.run(["ps", "-o", "pid=", "--ppid", str(process.pid)],
+                                  capture_output=True, text=True).stdout.split()
+    time.sleep(1.0)                          # the workers are rendering
     assert process.poll() is None, "the render ended before the signal: make it bigger"
-    children = subprocess.run(["ps", "-o", "pid=", "--ppid", str(process.pid)],
-                              capture_output=True, text=True).stdout.split()
-    assert len(children) >= 2                # the two workers (and a resource tracker)
+    assert len(children) >= 2
     os.killpg(process.pid, signal.SIGINT)
     _, err = process.communicate(timeout=60)
     assert process.returncode == 130, err
@@ -247,3 +251,24 @@ def test_workers_start_from_a_pip_bpy_process():
                           cwd=REPOSITORY, timeout=180)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split()[-2:] == ["processes", "True"]
+
+
+@pytest.mark.parametrize("parallelism", ["threads", "processes"])
+def test_a_tile_with_nan_is_the_same_render_error(small_renders_in_processes, monkeypatch,
+                                                  parallelism):
+    """No accepted scene makes NaN; a bug that did (here: NaN diffuse colours slipped into
+    the context) must stop the render with one line, whichever process traced the tile."""
+    import dataclasses
+    import importlib
+
+    core_render = importlib.import_module("core.render")   # core.render is also the function
+
+    def poisoned_context(*args, **kwargs):
+        ctx = make_context(*args, **kwargs)
+        materials = dataclasses.replace(ctx.materials, diffuse=ctx.materials.diffuse * np.nan)
+        return dataclasses.replace(ctx, materials=materials)
+
+    make_context = core_render.make_context
+    monkeypatch.setattr(core_render, "make_context", poisoned_context)
+    with pytest.raises(core_render.RenderError, match=r"pixels \d+-\d+ x \d+-\d+ came out NaN"):
+        core.render(core.article_scene(64, 64), _settings(threads=2, parallelism=parallelism))
