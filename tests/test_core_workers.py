@@ -272,3 +272,23 @@ def test_a_tile_with_nan_is_the_same_render_error(small_renders_in_processes, mo
     monkeypatch.setattr(core_render, "make_context", poisoned_context)
     with pytest.raises(core_render.RenderError, match=r"pixels \d+-\d+ x \d+-\d+ came out NaN"):
         core.render(core.article_scene(64, 64), _settings(threads=2, parallelism=parallelism))
+
+
+def test_a_tree_scene_of_meshes_and_sphere_sets_renders_the_same_in_workers(
+        small_renders_in_processes):
+    """The context sent to the workers carries a BVH, triangles and a sphere set."""
+    rng = np.random.default_rng(3)
+    materials = (core.Material(reflection=0.5), core.Material(diffuse=(0.8, 0.2, 0.1)))
+    cloud = core.SphereSet(rng.uniform(-5, 5, (600, 3)), rng.uniform(0.02, 0.3, 600),
+                           rng.integers(0, 2, 600), materials, name="cloud")
+    corners = rng.uniform(-4, 4, (100, 3, 3))
+    soup = core.TriangleMesh(corners.reshape(-1, 3), np.arange(300).reshape(100, 3), None,
+                             rng.integers(0, 2, 100), materials, name="soup")
+    scene = core.Scene(camera=core.ScreenCamera(96, 64, eye=(0, 0, 12)), sphere_sets=(cloud,),
+                       meshes=(soup,), lights=(core.PointLight((3, 20, 8)),))
+    reference = core.render(scene, _settings(threads=1))
+    result = core.render(scene, _settings(threads=2, parallelism="processes"))
+    assert result.parallelism == "processes"
+    assert reference.stats.node_tests > 0            # the tree was used
+    assert np.array_equal(result.image, reference.image)
+    assert result.stats == reference.stats
