@@ -57,10 +57,11 @@ def morton_order(points: np.ndarray) -> np.ndarray:
 class BVH:
     """primitives: (P,) primitive ids in leaf order, padded with -1 to a whole number of
     leaves; levels[0] the leaves' boxes, levels[-1] the root's: each (low (3, k), high
-    (3, k)) float64."""
+    (3, k)) float64; blocks[k]: level k's boxes as (k-level parents, WIDTH, 6) rows."""
 
     primitives: np.ndarray
     levels: tuple
+    blocks: tuple = ()       # per level below the root: (parents, WIDTH, 6) child boxes
 
     @classmethod
     def build(cls, ids: np.ndarray, low: np.ndarray, high: np.ndarray) -> "BVH":
@@ -80,7 +81,15 @@ class BVH:
                            np.maximum.reduceat(below_high, starts, axis=1)))
         padded = np.full(levels[0][0].shape[1] * LEAF_SIZE, -1, np.intp)
         padded[:len(ids)] = ids
-        return cls(padded, tuple(levels))
+        # Each node's children as one contiguous block of rows (low xyz, high xyz), so that
+        # expanding a (ray, node) pair gathers its WIDTH child boxes at once.
+        blocks = []
+        for low_k, high_k in levels[:-1]:
+            count = low_k.shape[1]
+            rows = np.zeros((-(-count // WIDTH) * WIDTH, 6))
+            rows[:count, :3], rows[:count, 3:] = low_k.T, high_k.T
+            blocks.append(rows.reshape(-1, WIDTH, 6))
+        return cls(padded, tuple(levels), tuple(blocks))
 
     # ---- traversal ----------------------------------------------------------------------
 
@@ -178,9 +187,22 @@ class BVH:
         """The children at ``level`` of pairs (ray, node one level up) that the rays'
         segments reach: (rays, children, entry distances), still grouped by ray."""
         count = self.levels[level][0].shape[1]
-        children = (nodes[:, None] * WIDTH + np.arange(WIDTH)).ravel()
-        rays = np.repeat(rays, WIDTH)
-        exists = children < count
-        rays, children = rays[exists], children[exists]
-        hit, near = self._boxes(level, children, rays, origins, inverse, t_min, t_max, stats)
-        return rays[hit], children[hit], near[hit]
+        boxes = self.blocks[level][nodes]                                    # (m, W, 6)
+        children = nodes[:, None] * WIDTH + np.arange(WIDTH)
+        o = origins if origins.shape[1] == 1 else origins[:, rays]
+        inv = inverse[:, rays]
+        near = far = None
+        with np.errstate(invalid="ignore"):
+            for axis in range(3):
+                a = (boxes[:, :, axis] - o[axis][:, None]) * inv[axis][:, None]
+                b = (boxes[:, :, axis + 3] - o[axis][:, None]) * inv[axis][:, None]
+                low, high = np.fmin(a, b), np.fmax(a, b)
+                near = low if near is None else np.fmax(near, low)
+                far = high if far is None else np.fmin(far, high)
+        near = np.maximum(near, t_min[rays][:, None] if np.ndim(t_min) else t_min)
+        far = np.minimum(far, t_max[rays][:, None])
+        hit = (near <= far) & (children < count)
+        if stats is not None:
+            stats.node_tests += int((children < count).sum())
+        rows, slots = np.nonzero(hit)
+        return rays[rows], children[rows, slots], near[rows, slots]
