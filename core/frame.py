@@ -60,13 +60,37 @@ class Frame:
         return float(d) * self.scale
 
 
+def _mesh_corners(mesh) -> np.ndarray:
+    """(8 K, 3) world-space corners of each instance's box around the mesh's vertices."""
+    if len(mesh.vertices) == 0:
+        return np.zeros((0, 3))
+    low, high = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
+    box = np.array([[(low, high)[i >> k & 1][k] for k in range(3)] for i in range(8)])
+    linear, offset = mesh.transforms[:, :3, :3], mesh.transforms[:, :3, 3]
+    return (np.einsum("kij,cj->kci", linear, box) + offset[:, None, :]).reshape(-1, 3)
+
+
+def _radii(scene: Scene) -> np.ndarray:
+    """Every sphere's radius: spheres listed one by one, then the sphere sets'."""
+    return np.concatenate([np.array([s.radius for s in scene.spheres], np.float64)]
+                          + [sphere_set.radii for sphere_set in scene.sphere_sets])
+
+
 def scene_bounds(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """(lower (3,), upper (3,)) of spheres, lights (with radii) and the camera's eye."""
+    """(lower (3,), upper (3,)) of spheres, sphere sets, meshes, lights (with radii) and the
+    camera's eye."""
     points = [eye_position(scene.camera)[None, :]]
     reach = [np.zeros(1)]
     if scene.spheres:
         points.append(np.array([s.center for s in scene.spheres], np.float64))
         reach.append(np.array([s.radius for s in scene.spheres], np.float64))
+    for sphere_set in scene.sphere_sets:
+        points.append(sphere_set.centers)
+        reach.append(sphere_set.radii)
+    for mesh in scene.meshes:
+        corners = _mesh_corners(mesh)
+        points.append(corners)
+        reach.append(np.zeros(len(corners)))
     if scene.lights:
         points.append(np.array([light.position for light in scene.lights], np.float64))
         reach.append(np.array([light.radius for light in scene.lights], np.float64))
@@ -87,7 +111,8 @@ def scene_frame(scene: Scene) -> Frame:
     """The frame whose unit is the scene's smallest sphere, centred on the camera's eye
     (module docstring)."""
     centre = eye_position(scene.camera)
-    unit = min((s.radius for s in scene.spheres), default=scene_reach(scene))
+    radii = _radii(scene)
+    unit = float(radii.min()) if len(radii) else scene_reach(scene)
     if unit == 0.0:
         return Frame(centre, 1.0)
     exponent = math.frexp(unit)[1]  # unit = m 2^e, 0.5 <= m < 1
@@ -97,16 +122,25 @@ def scene_frame(scene: Scene) -> Frame:
 def check_resolvable(scene: Scene) -> None:
     """Raise SceneError when float64 cannot resolve the scene's smallest sphere from where
     rays reach."""
-    if not scene.spheres:
+    radii = _radii(scene)
+    if not len(radii):
         return
-    radii = np.array([s.radius for s in scene.spheres])
     smallest = int(radii.argmin())
     ratio = scene_reach(scene) / radii[smallest]
     if ratio > MAX_SCALE_RATIO:
-        sphere = scene.spheres[smallest]
-        name = f"sphere '{sphere.name}'" if sphere.name else f"sphere {smallest}"
+        if smallest < len(scene.spheres):
+            sphere = scene.spheres[smallest]
+            name = f"sphere '{sphere.name}'" if sphere.name else f"sphere {smallest}"
+        else:
+            index = smallest - len(scene.spheres)
+            for sphere_set in scene.sphere_sets:
+                if index < len(sphere_set):
+                    break
+                index -= len(sphere_set)
+            label = f"sphere set '{sphere_set.name}'" if sphere_set.name else "sphere set"
+            name = f"{label}: radii[{index}]"
         raise SceneError(
-            f"{name} (radius {sphere.radius:g}) is {ratio:.1e} times smaller than the "
+            f"{name} (radius {radii[smallest]:g}) is {ratio:.1e} times smaller than the "
             f"scene's extent, more than the {MAX_SCALE_RATIO:.0e} float64 can render exactly: "
             f"enlarge it, or move far-away objects, lights or the camera closer")
 
@@ -149,5 +183,16 @@ def canonical_scene(scene: Scene, settings: RenderSettings) -> Scene:
     lights = tuple(dataclasses.replace(light, position=frame.point(light.position),
                                        radius=frame.length(light.radius))
                    for light in scene.lights)
+    # Sets and meshes move as arrays: centres, and each instance's object-to-world matrix
+    # (the vertices stay in object space; a power-of-two scale keeps normals exact).
+    sphere_sets = tuple(dataclasses.replace(
+        sphere_set, centers=(sphere_set.centers - frame.centre) * frame.scale,
+        radii=sphere_set.radii * frame.scale) for sphere_set in scene.sphere_sets)
+    meshes = []
+    for mesh in scene.meshes:
+        transforms = mesh.transforms.copy()
+        transforms[:, :3, :3] *= frame.scale
+        transforms[:, :3, 3] = (transforms[:, :3, 3] - frame.centre) * frame.scale
+        meshes.append(dataclasses.replace(mesh, transforms=transforms))
     return dataclasses.replace(scene, camera=_camera(scene.camera, frame), spheres=spheres,
-                               lights=lights)
+                               lights=lights, sphere_sets=sphere_sets, meshes=tuple(meshes))
