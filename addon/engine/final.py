@@ -109,7 +109,11 @@ class GlintRenderEngine(bpy.types.RenderEngine):
         def should_cancel():
             return self.test_break() or (request is not None and request.should_cancel())
 
-        result = job.run(progress=self.update_progress, should_cancel=should_cancel)
+        # Blender's render result is a float32 frame of its own, and a script that wants
+        # both that and its own copy needs a third.
+        copies = 1 if request is None else int(request.fill_render_result) * 2
+        result = job.run(progress=self.update_progress, should_cancel=should_cancel,
+                         reserve_bytes=copies * job.frame_bytes)
         self.update_stats("Glint", f"{summary}, {result.precision}")
         if request is not None:
             request.frames.append((job, result))
