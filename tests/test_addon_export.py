@@ -126,6 +126,8 @@ def test_a_non_uniformly_scaled_sphere_is_skipped_and_named(scene):
     egg.scale = (1.0, 1.0, 1.5)
     sheared = add_sphere("sheared", (-3.0, 0.0, 0.0))
     sheared.matrix_world = Matrix.Translation((-3, 0, 0)) @ Matrix.Shear('XY', 4, (0.3, 0.0))
+    flat = add_sphere("flat", (0.0, 3.0, 0.0))
+    flat.scale = (0.0, 0.0, 0.0)
 
     exported, warnings = export()
 
@@ -133,6 +135,7 @@ def test_a_non_uniformly_scaled_sphere_is_skipped_and_named(scene):
     (skipped,) = [w for w in warnings if "skipped" in w]
     assert "egg (non-uniformly scaled sphere)" in skipped
     assert "sheared (non-uniformly scaled sphere)" in skipped
+    assert "flat (sphere scaled to zero)" in skipped
 
 
 def test_mirrored_spheres_are_spheres():

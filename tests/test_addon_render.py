@@ -573,3 +573,45 @@ def test_each_view_layer_renders_its_own_visibility_into_its_own_layer(tmp_path)
     np.testing.assert_allclose(layers["Everything"], linear(everything), atol=1e-6)
     np.testing.assert_allclose(layers["Without small"], linear(alone), atol=1e-6)
     assert not np.allclose(layers["Everything"], layers["Without small"], atol=1e-3)
+
+
+# --- the hand-over to Blender, in place ---------------------------------------------------
+
+@pytest.mark.parametrize("height", [1, 7, 64, 129, 300])
+def test_flip_rows_reverses_any_height_in_place(height):
+    from glint.addon.engine.final import flip_rows
+
+    image = np.arange(height * 3 * 4, dtype=np.float32).reshape(height, 3, 4)
+    expected = image[::-1].copy()
+    flip_rows(image)
+    np.testing.assert_array_equal(image, expected)
+
+
+def test_the_hand_over_converts_the_frame_in_place():
+    import tracemalloc
+
+    from glint.addon.engine.final import blender_pixels
+
+    linear = glint.addon.utils.colour.premultiplied_to_scene_linear
+    rng = np.random.default_rng(5)
+
+    def hand_over(height):
+        image = rng.random((height, 800, 4)).astype(np.float32)
+        image[..., :3] *= image[..., 3:4]  # premultiplied
+        expected = linear(image[::-1])
+        tracemalloc.start()
+        try:
+            pixels = blender_pixels(image, (0, 0, 800, height))
+            _, peak = tracemalloc.get_traced_memory()
+        finally:
+            tracemalloc.stop()
+        assert pixels is image and pixels.flags.c_contiguous
+        np.testing.assert_allclose(pixels, expected, atol=1e-6)
+        return peak, image.nbytes
+
+    short, _ = hand_over(300)
+    tall, tall_bytes = hand_over(2400)
+    # Blocks of rows: eight times the rows cost no more (a whole-frame conversion: 8x).
+    assert tall < 1.5 * short and tall < tall_bytes / 4, f"{short / 1e6:.1f}, {tall / 1e6:.1f} MB"
+    region = blender_pixels(np.zeros((60, 80, 4), np.float32), (10, 5, 30, 25))
+    assert region.shape == (20, 20, 4) and region.flags.c_contiguous

@@ -165,7 +165,9 @@ def export_scene(depsgraph, camera_override=None) -> tuple[Scene, list[str]]:
                 continue
             placed = world_sphere(fits[key], matrix)
             if placed is None:
-                skipped_objects.add(name, "non-uniformly scaled sphere")
+                flat = not np.any(np.asarray(matrix)[:3, :3])
+                skipped_objects.add(name, "sphere scaled to zero" if flat
+                                    else "non-uniformly scaled sphere")
                 continue
             material = _main_material(obj, mesh)
             material_key = material.name_full if material is not None else None
