@@ -215,3 +215,35 @@ def test_the_settings_hard_maximums_are_the_cores_limits():
                                                                     limits.MAX_DEPTH)
     resolution = bpy.types.RenderSettings.bl_rna.properties["resolution_x"]
     assert render_script.MAX_RESOLUTION == resolution.hard_max
+
+
+CORE_COMMAND_ERRORS = {
+    "width not a number": (["--width", "abc"], "--width"),
+    "negative width": (["--width", "-5"], "camera.width"),
+    "zero samples": (["--samples", "0", "--anti-aliasing", "fixed"], "settings.samples"),
+    "samples past the limit": (["--samples", "100000000"], "settings.samples must be at most"),
+    "zero threads": (["--threads", "0"], "settings.threads"),
+    "depth past the limit": (["--max-depth", "1000"], "settings.max_depth must be at most"),
+    "unknown semantics": (["--semantics", "exact"], "--semantics"),
+}
+
+
+@pytest.mark.parametrize("case", CORE_COMMAND_ERRORS)
+def test_python_m_core_gives_one_line_for_bad_options(tmp_path, case):
+    arguments, mentioned = CORE_COMMAND_ERRORS[case]
+    result = subprocess.run([sys.executable, "-m", "core", *arguments, "--output",
+                             str(tmp_path / "o.png")], capture_output=True, text=True,
+                            cwd=REPOSITORY, timeout=120)
+    assert result.returncode == 2
+    (line,) = result.stderr.strip().splitlines()
+    assert mentioned in line
+    assert os.listdir(tmp_path) == []
+
+
+def test_render_script_refuses_samples_past_the_limit_in_one_line(tmp_path):
+    result = subprocess.run([sys.executable, RENDER_SCRIPT, "--output", str(tmp_path / "o.png"),
+                             "--samples", "100000000"], capture_output=True, text=True,
+                            cwd=REPOSITORY, timeout=120)
+    assert result.returncode == 2
+    (line,) = result.stderr.strip().splitlines()
+    assert "--samples" in line and "at most 16384" in line
