@@ -188,11 +188,16 @@ def missed_colour(scene: Scene, settings: RenderSettings) -> np.ndarray:
 def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
            progress: Optional[Callable[[float], None]] = None,
            should_cancel: Optional[Callable[[], bool]] = None,
-           image_dtype=None, reserve_bytes: int = 0) -> RenderResult:
+           image_dtype=None, reserve_bytes: int = 0,
+           on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None) -> RenderResult:
     """Render ``scene``; see ``core`` for the result's layout.  image_dtype: the image's
     dtype (default: the render's precision); float32 halves a float64 render's largest array
     for callers that keep no more than float32 anyway (Blender's render results).
     reserve_bytes: memory the caller will need besides the render (counted in the plan).
+    on_tile(tile, rgba): called on the calling thread as each tile lands (before
+    ``progress``), with tile = (y0, y1, x0, x1) (rows from the top) and its (h, w, 4) pixels,
+    a view of the image: copy what must outlive the call.  Tiles land in any order; a
+    cancelled render has passed on exactly the tiles that finished.
 
     Before anything is allocated, the render's memory is planned (``core.memory``) and a
     render that cannot fit raises memory.NotEnoughMemory, a SceneError."""
@@ -220,6 +225,8 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
                               f"infinite; please report this scene")
         image[y0:y1, x0:x1] = rgba
         stats.add(tile_stats)
+        if on_tile is not None:
+            on_tile(tile, image[y0:y1, x0:x1])
         if progress is not None:
             progress(done / len(tiles))
 

@@ -17,8 +17,8 @@ exported with its own visibility and written to its own layer of the result
 Blender expects scene-linear render results; the core's values are display values, so they
 are handed over through the inverse sRGB transfer function, and with view transform Standard
 Blender shows and saves the core's own numbers.  Render results have row 0 at the bottom.
-The hand-over is done in place, a block of rows at a time, so a frame costs one float32 image
-besides Blender's own buffer.
+Tiles are handed over as they land (``TileHandOver``), so a frame costs the job's float32
+image and Blender's own buffer, plus a tile.
 
 Scripts that want the core's numbers rather than Blender's colour-managed result (render.py)
 ask for them explicitly with ``FrameRequest`` (below).
@@ -36,7 +36,9 @@ import numpy as np
 from ...core import RenderCancelled
 from ..utils.colour import premultiplied_to_scene_linear
 from ..export import ExportError
-from .job import ROW_BLOCK, JobResult, failure_message, prepare_job
+from .job import failure_message, prepare_job
+from .preview import prepare_preview_job
+from .viewport import ViewportEngine
 
 
 @dataclass
@@ -51,11 +53,13 @@ class FrameRequest:
         sets it from SIGINT/SIGTERM).
     fill_render_result: False when the script writes the frame itself: the engine then
         leaves Blender's render result empty, which spares a frame-sized copy.
+    progress: called as (RenderJob, fraction done) as tiles land (render.py's progress line).
     """
 
     should_cancel: Callable[[], bool] = lambda: False
     fill_render_result: bool = True
     frames: list = field(default_factory=list)
+    progress: Optional[Callable] = None
 
 
 _active_request: Optional[FrameRequest] = None
@@ -77,22 +81,52 @@ def requesting_frames(request: FrameRequest):
 class GlintRenderEngine(bpy.types.RenderEngine):
     bl_idname = "GLINT"
     bl_label = "Glint"
-    bl_use_preview = False
-    # The viewport's Material Preview and Rendered modes fall back to EEVEE: Glint has no
-    # interactive renderer.
-    bl_use_eevee_viewport = True
+    # Material, light and world previews: addon.engine.preview.
+    bl_use_preview = True
+    # The viewport's Rendered (and Material Preview) shading is Glint's own, through
+    # view_update / view_draw (addon.engine.viewport), not EEVEE's.
+    bl_use_eevee_viewport = False
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._viewport = None
+
+    def __del__(self):
+        # Blender frees a viewport's engine when Rendered shading ends: stop its worker.  An
+        # engine whose Blender data is already gone (a finished F12) raises ReferenceError on
+        # any attribute, and has no viewport to stop.
+        try:
+            viewport = self._viewport
+        except (AttributeError, ReferenceError):
+            return
+        if viewport is not None:
+            viewport.free()
+
+    def _viewport_engine(self):
+        if self._viewport is None:
+            self._viewport = ViewportEngine()
+        return self._viewport
+
+    def view_update(self, context, depsgraph):
+        self._viewport_engine().view_update(self, context, depsgraph)
+
+    def view_draw(self, context, depsgraph):
+        self._viewport_engine().view_draw(self, context, depsgraph)
 
     def render(self, depsgraph):
         request = _active_request
         try:
             self._render(depsgraph, request)
         except RenderCancelled:
-            return  # no result: Blender writes nothing for a cancelled frame
+            # The tiles that finished stay in the render result, as with Blender's own
+            # engines; Blender writes no file for a cancelled frame.
+            return
         except BaseException as error:  # noqa: B036 - every failure must reach the user
             self._fail(failure_message(error))
 
     def _render(self, depsgraph, request: Optional[FrameRequest]) -> None:
-        job = prepare_job(depsgraph, camera_override=self.camera_override)
+        prepare = prepare_preview_job if self.is_preview else prepare_job
+        job = prepare(depsgraph, camera_override=self.camera_override)
         for warning in job.warnings:
             self.report({'WARNING'}, warning)
         width, height = job.size
@@ -109,32 +143,24 @@ class GlintRenderEngine(bpy.types.RenderEngine):
         def should_cancel():
             return self.test_break() or (request is not None and request.should_cancel())
 
-        # Blender's render result is a float32 frame of its own, and a script that wants
-        # both that and its own copy needs a third.
-        copies = 1 if request is None else int(request.fill_render_result) * 2
-        result = job.run(progress=self.update_progress, should_cancel=should_cancel,
-                         reserve_bytes=copies * job.frame_bytes)
+        # Tiles go to Blender as they land (F12 fills in tile by tile, and a cancel keeps
+        # them), unless the script asking for the frames writes it itself.
+        tiles = None
+        if request is None or request.fill_render_result:
+            tiles = TileHandOver(self, region, height, depsgraph.view_layer.name)
+
+        def progress(fraction):
+            self.update_progress(fraction)
+            if request is not None and request.progress is not None:
+                request.progress(job, fraction)
+
+        # Blender's render result is a float32 frame of its own besides the job's.
+        result = job.run(progress=progress, should_cancel=should_cancel,
+                         on_tile=tiles.hand_over if tiles is not None else None,
+                         reserve_bytes=job.frame_bytes if tiles is not None else 0)
         self.update_stats("Glint", f"{summary}, {result.precision}")
         if request is not None:
             request.frames.append((job, result))
-            if not request.fill_render_result:
-                return
-            result = JobResult(result.image.copy(), result.precision, result.stats)
-        self._hand_over(result.image, region, depsgraph.view_layer.name)
-
-    def _hand_over(self, image: np.ndarray, region, layer: str) -> None:
-        """Write the job's image (consumed: converted in place) into Blender's result for
-        ``layer``."""
-        pixels = blender_pixels(image, region)
-        # begin_result counts from the region's corner, not the frame's.
-        x0, y0, x1, y1 = region
-        result = self.begin_result(0, 0, x1 - x0, y1 - y0, layer=layer)
-        try:
-            result.layers[0].passes["Combined"].rect.foreach_set(pixels.reshape(-1))
-        except BaseException:
-            self.end_result(result, cancel=True)
-            raise
-        self.end_result(result)
 
     def _fail(self, message: str) -> None:
         self.report({'ERROR'}, message)
@@ -142,34 +168,44 @@ class GlintRenderEngine(bpy.types.RenderEngine):
             self.error_set(message)
 
 
+class TileHandOver:
+    """Each tile, as it lands, into Blender's render result (``begin_result`` for the tile's
+    part of the render region, ``end_result`` merges it and F12 shows it), the way Cycles hands
+    over tiles.  Tiles arrive from ``RenderJob.run(on_tile=...)``: rows from the top of the
+    frame, finished display values; Blender wants premultiplied scene-linear rows from the
+    bottom, counted from the render region's corner."""
+
+    def __init__(self, engine, region, frame_height: int, layer: str):
+        self.engine, self.region, self.frame_height, self.layer = engine, region, frame_height, layer
+
+    def hand_over(self, tile, rgba: np.ndarray) -> None:
+        y0, y1, x0, x1 = tile
+        # Rows from the bottom of the frame, intersected with the region.
+        bottom, top = self.frame_height - y1, self.frame_height - y0
+        rx0, ry0, rx1, ry1 = self.region
+        left, right = max(x0, rx0), min(x1, rx1)
+        low, high = max(bottom, ry0), min(top, ry1)
+        if left >= right or low >= high:
+            return
+        pixels = blender_pixels(rgba[top - high:top - low, left - x0:right - x0])
+        result = self.engine.begin_result(left - rx0, low - ry0, right - left, high - low,
+                                          layer=self.layer)
+        try:
+            result.layers[0].passes["Combined"].rect.foreach_set(pixels.reshape(-1))
+        except BaseException:
+            self.engine.end_result(result, cancel=True)
+            raise
+        self.engine.end_result(result)
+
+
 class RenderSetupError(ExportError):
     """Blender and the exported scene disagree about the frame; the message says how."""
 
 
-def blender_pixels(image: np.ndarray, region) -> np.ndarray:
-    """The job's (H, W, 4) float32 image (row 0 = top, display values) -> the render region's
-    pixels as Blender wants them: C-contiguous (h, w, 4) float32, row 0 = bottom, premultiplied
-    scene-linear.  The image is converted in place, ROW_BLOCK rows at a time, and returned
-    itself for the whole frame (a region is copied out)."""
-    x0, y0, x1, y1 = region
-    flip_rows(image)
-    for first in range(y0, y1, ROW_BLOCK):
-        rows = image[first:min(first + ROW_BLOCK, y1), x0:x1]
-        rows[...] = premultiplied_to_scene_linear(rows)
-    if (x0, y0, x1, y1) == (0, 0, image.shape[1], image.shape[0]):
-        return image
-    return np.ascontiguousarray(image[y0:y1, x0:x1])
-
-
-def flip_rows(image: np.ndarray) -> None:
-    """Reverse the row order of ``image`` in place, ROW_BLOCK rows at a time."""
-    height = image.shape[0]
-    for top in range(0, height // 2, ROW_BLOCK):
-        count = min(ROW_BLOCK, height // 2 - top)
-        upper = image[top:top + count].copy()
-        bottom = height - top - count
-        image[top:top + count] = image[bottom:bottom + count][::-1]
-        image[bottom:bottom + count] = upper[::-1]
+def blender_pixels(rows: np.ndarray) -> np.ndarray:
+    """(h, w, 4) finished display values, row 0 = top -> what Blender's render result holds:
+    a C-contiguous float32 (h, w, 4) copy, row 0 = bottom, premultiplied scene-linear."""
+    return np.ascontiguousarray(premultiplied_to_scene_linear(rows[::-1]), np.float32)
 
 
 def render_region(render, width: int, height: int):

@@ -28,7 +28,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from ...core import RenderCancelled, RenderSettings, Scene, SceneError, render
-from ...core.render import RayStats
+from ...core.render import RayStats, missed_colour
 from ..export import ExportError, export_scene
 
 #: Set (to anything) to have unexpected errors print their traceback to stderr as well.
@@ -77,13 +77,24 @@ class RenderJob:
 
     def run(self, progress: Optional[Callable[[float], None]] = None,
             should_cancel: Optional[Callable[[], bool]] = None,
-            reserve_bytes: int = 0) -> JobResult:
+            reserve_bytes: int = 0,
+            on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None) -> JobResult:
         """The finished frame (module docstring).  Raises core.RenderCancelled if
         should_cancel() answers True, core.SceneError for settings the core rejects or a
-        render that cannot fit in memory with ``reserve_bytes`` more (the caller's copies)."""
+        render that cannot fit in memory with ``reserve_bytes`` more (the caller's copies).
+        on_tile(tile, rgba): each tile as it lands (``core.render``'s tile, rows from the top),
+        its pixels finished as the frame's will be (a copy the callee may keep)."""
+        missed = missed_colour(self.scene, self.settings)
+
+        def finished_tile(tile, rgba):
+            pixels = np.array(rgba, np.float32, copy=True)
+            finish_image(pixels, missed, self.transparent)
+            on_tile(tile, pixels)
+
         result = render(self.scene, self.settings, progress=progress,
                         should_cancel=should_cancel, image_dtype=np.float32,
-                        reserve_bytes=reserve_bytes)
+                        reserve_bytes=reserve_bytes,
+                        on_tile=finished_tile if on_tile is not None else None)
         finish_image(result.image, result.missed_colour, self.transparent)
         return JobResult(result.image, result.precision, result.stats)
 
