@@ -27,6 +27,15 @@ from ...core.camera import blender_view_plane, camera_to_world
 from .materials import export_material
 
 
+def instance_name(instance) -> str:
+    """How warnings and sets name an instance: 'object (instanced by parent)', or the object's
+    name for its own evaluated geometry (a curve's mesh is an instance of the curve)."""
+    name = instance.object.name
+    if instance.is_instance and instance.parent is not None and instance.parent.name != name:
+        return f"{name} (instanced by {instance.parent.name})"
+    return name
+
+
 class Skipped:
     """Names of what was not exported, by reason, for one warning per kind."""
 

@@ -36,11 +36,11 @@ import bpy
 from ...core import Scene, SceneError
 from ..utils.colour import colour_from_blender
 from .camera import export_camera
-from .context import ExportContext
+from .context import ExportContext, instance_name
 from .errors import ExportError
 from .instances import InstanceExporter
 from .lights import export_point_light
-from .meshes import MeshExporter
+from .meshes import EVALUATED_AS_MESH, MeshExporter
 from .pointclouds import export_point_cloud
 
 #: The scene-linear space Glint's sRGB conversions assume (Blender's default; Blender 5.0
@@ -49,9 +49,6 @@ WORKING_SPACE = "Linear Rec.709"
 
 #: Object types that never draw anything in a render, so skipping them needs no warning.
 NON_RENDERING_TYPES = {'CAMERA', 'EMPTY', 'LIGHT_PROBE', 'SPEAKER', 'ARMATURE', 'LATTICE'}
-#: Object types whose evaluated mesh the depsgraph yields as a MESH instance of the object
-#: itself; their own entry has nothing more to draw.
-EVALUATED_AS_MESH = {'CURVE', 'FONT', 'SURFACE', 'META'}
 
 
 def _collections_hidden_for_render() -> set:
@@ -70,11 +67,17 @@ class _RenderVisibility:
     def __init__(self, depsgraph):
         self.filter = depsgraph.mode != 'RENDER'
         self.hidden_collections = _collections_hidden_for_render() if self.filter else set()
+        self.hidden_objects: dict[int, bool] = {}  # original object pointer -> hidden
 
     def _hidden(self, obj) -> bool:
-        collections = obj.users_collection
-        return obj.hide_render or bool(collections) and all(
-            collection.name in self.hidden_collections for collection in collections)
+        # Once per object: users_collection searches every collection.
+        key = obj.as_pointer()
+        hidden = self.hidden_objects.get(key)
+        if hidden is None:
+            collections = obj.users_collection
+            hidden = self.hidden_objects[key] = obj.hide_render or bool(collections) and all(
+                collection.name in self.hidden_collections for collection in collections)
+        return hidden
 
     def __call__(self, instance) -> bool:
         if not self.filter:
@@ -83,15 +86,6 @@ class _RenderVisibility:
             return False
         parent = instance.parent if instance.is_instance else None
         return parent is None or not self._hidden(parent.original)
-
-
-def instance_name(instance) -> str:
-    """How warnings and sets name an instance: 'object (instanced by parent)', or the object's
-    name for its own evaluated geometry (a curve's mesh is an instance of the curve)."""
-    name = instance.object.name
-    if instance.is_instance and instance.parent is not None and instance.parent.name != name:
-        return f"{name} (instanced by {instance.parent.name})"
-    return name
 
 
 def world_colour(world) -> tuple[tuple[float, float, float], str | None]:
@@ -149,11 +143,7 @@ def export_scene(depsgraph, camera_override=None) -> tuple[Scene, list[str]]:
         obj = instance.object
         kind = obj.type
         if kind == 'MESH':
-            if instance.is_instance:
-                meshes.add(obj, instance.matrix_world, None, instance_name(instance))
-            else:
-                name = obj.name
-                meshes.add(obj, instance.matrix_world, name, name)
+            meshes.add(instance)
         elif kind == 'LIGHT':
             export_light(context, obj, [list(row) for row in instance.matrix_world],
                          instance_name(instance))
