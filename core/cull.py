@@ -167,7 +167,8 @@ def _packet_candidates(radii, clusters: SphereClusters, cone, reach):
         hit = reachable(clusters.member_centers[:, cluster], clusters.member_radii[cluster],
                         apex[:, packet, None], spread[packet, None], axis[:, packet, None],
                         half[packet, None], reach[packet, None])          # (E, M)
-        pair, member = np.nonzero(hit)
+        # Padding never counts (with an unbounded reach the test alone would let it pass).
+        pair, member = np.nonzero(hit & (clusters.members[cluster] >= 0))
         packets.append(packet[pair])
         spheres.append(clusters.members[cluster[pair], member])
     packet, sphere = np.concatenate(packets), np.concatenate(spheres)

@@ -37,15 +37,35 @@ class SceneError(ValueError):
 
 
 # --------------------------------------------------------------------------------------------
+# Limits.  Validation accepts only values whose every product and sum in the tracer stays
+# finite, so no NaN or inf can reach an image from an accepted scene: lengths and coordinates
+# up to 1e300 (``core.frame`` moves and scales every scene to about unit size before tracing,
+# so differences of them never overflow), colours and light intensities up to 1e12 (a path
+# adds a few products of two such factors, far below float32's 3.4e38), Blinn-Phong exponents
+# up to 1e7 (Blender's roughness 0 maps to 8e6), and counts that bound the work per pixel.
+
+MAX_MAGNITUDE = 1e300
+MAX_COLOUR = 1e12
+MAX_SHININESS = 1e7
+MAX_SAMPLES = 16384
+MAX_LIGHT_SAMPLES = 1024
+MAX_DEPTH = 256
+MAX_TILE_SIZE = 1024
+MAX_THREADS = 1024
+
+
+# --------------------------------------------------------------------------------------------
 # Validation helpers: each takes the field's full name so that errors point at the culprit.
 
-def _finite(name: str, value) -> float:
+def _finite(name: str, value, limit: float = MAX_MAGNITUDE) -> float:
     try:
         number = float(value)
     except (TypeError, ValueError):
         raise SceneError(f"{name} must be a number, got {value!r}") from None
     if not math.isfinite(number):
         raise SceneError(f"{name} must be finite, got {value!r}")
+    if abs(number) > limit:
+        raise SceneError(f"{name} must be at most {limit:g} in size, got {value!r}")
     return number
 
 
@@ -56,25 +76,25 @@ def _positive(name: str, value) -> float:
     return number
 
 
-def _non_negative(name: str, value) -> float:
-    number = _finite(name, value)
+def _non_negative(name: str, value, limit: float = MAX_MAGNITUDE) -> float:
+    number = _finite(name, value, limit)
     if number < 0.0:
         raise SceneError(f"{name} must be >= 0, got {value!r}")
     return number
 
 
-def _vec3(name: str, value) -> Vec3:
+def _vec3(name: str, value, limit: float = MAX_MAGNITUDE) -> Vec3:
     try:
         items = tuple(value)
     except TypeError:
         raise SceneError(f"{name} must be 3 numbers, got {value!r}") from None
     if len(items) != 3:
         raise SceneError(f"{name} must be 3 numbers, got {len(items)}: {value!r}")
-    return tuple(_finite(f"{name}[{i}]", v) for i, v in enumerate(items))
+    return tuple(_finite(f"{name}[{i}]", v, limit) for i, v in enumerate(items))
 
 
 def _colour(name: str, value) -> Vec3:
-    rgb = _vec3(name, value)
+    rgb = _vec3(name, value, MAX_COLOUR)
     for i, channel in enumerate(rgb):
         if channel < 0.0:
             raise SceneError(f"{name}[{i}] must be >= 0, got {channel!r}")
@@ -87,9 +107,11 @@ def _choice(name: str, value, allowed: Sequence[str]) -> str:
     return value
 
 
-def _count(name: str, value, minimum: int = 1) -> int:
+def _count(name: str, value, minimum: int = 1, maximum: int | None = None) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
         raise SceneError(f"{name} must be a whole number >= {minimum}, got {value!r}")
+    if maximum is not None and value > maximum:
+        raise SceneError(f"{name} must be at most {maximum}, got {value!r}")
     return value
 
 
@@ -118,7 +140,8 @@ class Material:
     def validate(self, where: str = "material") -> "Material":
         for name in ("ambient", "diffuse", "specular"):
             _set(self, name, _colour(f"{where}.{name}", getattr(self, name)))
-        _set(self, "shininess", _non_negative(f"{where}.shininess", self.shininess))
+        _set(self, "shininess",
+             _non_negative(f"{where}.shininess", self.shininess, MAX_SHININESS))
         reflection = _finite(f"{where}.reflection", self.reflection)
         if not 0.0 <= reflection <= 1.0:
             raise SceneError(f"{where}.reflection must be in [0, 1], got {self.reflection!r}")
@@ -144,6 +167,9 @@ class Sphere:
         _set(self, "radius", _positive(f"{where}.radius", self.radius))
         if not isinstance(self.material, Material):
             raise SceneError(f"{where}.material must be a Material, got {self.material!r}")
+        # Named here: a material shared by many spheres is checked again for each, so an
+        # invalid one (built past its own check) names the sphere that uses it.
+        self.material.validate(f"{where}.material")
 
 
 @dataclass(frozen=True)
@@ -186,7 +212,8 @@ class PointLight:
         """
         where = f"light {name!r}" if name else "light"
         rgb = _colour(f"{where}.color", colour)
-        scale = _non_negative(f"{where}.energy", power_w) / cls.REFERENCE_POWER_W
+        scale = _non_negative(f"{where}.energy", power_w,
+                              MAX_COLOUR * cls.REFERENCE_POWER_W) / cls.REFERENCE_POWER_W
         intensity = tuple(c * scale for c in rgb)
         return cls(position=position, ambient=intensity, diffuse=intensity,
                    specular=intensity, radius=radius, name=name)
@@ -565,11 +592,11 @@ class RenderSettings:
         _choice("settings.semantics", self.semantics, SEMANTICS)
         _choice("settings.precision", self.precision, PRECISIONS)
         _choice("settings.anti_aliasing", self.anti_aliasing, ANTI_ALIASING)
-        _count("settings.max_depth", self.max_depth)
-        _count("settings.samples", self.samples)
-        _count("settings.light_samples", self.light_samples)
-        _count("settings.tile_size", self.tile_size, minimum=8)
+        _count("settings.max_depth", self.max_depth, maximum=MAX_DEPTH)
+        _count("settings.samples", self.samples, maximum=MAX_SAMPLES)
+        _count("settings.light_samples", self.light_samples, maximum=MAX_LIGHT_SAMPLES)
+        _count("settings.tile_size", self.tile_size, minimum=8, maximum=MAX_TILE_SIZE)
         if self.threads is not None:
-            _count("settings.threads", self.threads)
+            _count("settings.threads", self.threads, maximum=MAX_THREADS)
         _set(self, "contribution_cutoff",
              _non_negative("settings.contribution_cutoff", self.contribution_cutoff))

@@ -92,4 +92,4 @@ def watertight(v0, v1, v2, origins, shear: Shear, t_min, t_max):
         inverse = 1 / det
         t = depth * inverse
         valid = inside & (det != 0) & (t > t_min) & (t < t_max)
-    return t, u * inverse, v * inverse, w * inverse, valid
+        return t, u * inverse, v * inverse, w * inverse, valid

@@ -139,7 +139,7 @@ def depsgraph():
 def core_image(graph=None) -> np.ndarray:
     """The core's own render of the exported scene, as the add-on would finish it."""
     job = prepare_job(graph or depsgraph())
-    return job.run()
+    return job.run().image
 
 
 def read_png(path: str) -> np.ndarray:

@@ -11,7 +11,6 @@ import pytest
 
 import core
 from core import shading
-from core.camera import image_size
 from core.context import make_context
 from core.png import decode_png
 from core.precision import choose_precision
@@ -52,7 +51,7 @@ def _render_with_root_formula(scene, settings, root_formula):
     dtype = choose_precision(scene, settings.precision)
     ctx = make_context(scene, settings, dtype, root_formula=root_formula)
     assert ctx.geometry.root_formula == root_formula
-    width, height = image_size(scene.camera)
+    width, height = scene.camera.width, scene.camera.height
     rgba, _ = render_tile(ctx, scene.camera, (0, height, 0, width))
     return rgba
 

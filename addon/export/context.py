@@ -23,7 +23,9 @@ from typing import Optional
 
 import numpy as np
 
+from ...core import SceneError
 from ...core.camera import blender_view_plane, camera_to_world
+from .errors import ExportError
 from .materials import export_material
 
 
@@ -116,12 +118,16 @@ class ExportContext:
     def for_camera(cls, camera) -> "ExportContext":
         return cls(camera=camera, footprint=CameraFootprint.of(camera))
 
-    def material(self, material):
+    def material(self, material, owner: str):
         """The core material for a bpy Material (None: Blender's default surface), converted
-        once per export; the converter's note, if any, is kept for the warnings."""
+        once per export; the converter's note, if any, is kept for the warnings.  An invalid
+        value raises ExportError naming ``owner`` (the object), the material and the field."""
         key = material.name_full if material is not None else None
         if key not in self.materials:
-            core_material, note = export_material(material)
+            try:
+                core_material, note = export_material(material)
+            except SceneError as error:
+                raise ExportError(f"object '{owner}', material '{key}': {error}") from None
             self.materials[key] = core_material
             if note:
                 self.note(note)

@@ -193,7 +193,8 @@ class MeshExporter:
         arrays, fit = self._arrays(use.mesh)
         if len(arrays.triangles) == 0:
             return
-        slot_materials = [context.material(m) for m in use.materials] or [context.material(None)]
+        slot_materials = ([context.material(m, use.name) for m in use.materials]
+                          or [context.material(None, use.name)])
         if fit is not None and drawn.any():
             placed = sphere_instances(fit, matrices[drawn], context.footprint, forced[drawn])
             as_sphere = np.zeros(len(matrices), bool)

@@ -52,8 +52,8 @@ def export_point_cloud(context, obj, matrix_world, name: str) -> None:
         positions, radii, slots = positions[keep], radii[keep], slots[keep]
     if len(radii) == 0:
         return
-    materials = [context.material(slot.material) for slot in obj.material_slots] or \
-        [context.material(None)]
+    materials = [context.material(slot.material, name) for slot in obj.material_slots] or \
+        [context.material(None, name)]
     centers = positions.astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
     try:
         context.sphere_sets.append(SphereSet(

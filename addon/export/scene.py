@@ -120,17 +120,22 @@ def export_light(context, obj, matrix, name: str) -> None:
     try:
         context.lights.append(export_point_light(obj.data, matrix, name))
     except SceneError as error:
-        raise ExportError(f"light '{name}': {error}") from None
+        raise ExportError(str(error)) from None  # the core's message names the light
 
 
-def export_scene(depsgraph, camera_override=None) -> tuple[Scene, list[str]]:
+def export_scene(depsgraph, camera_override=None, *, view_camera=None
+                 ) -> tuple[Scene, list[str]]:
     """(core Scene, warnings) for an evaluated depsgraph.
 
     camera_override: the camera object to render through instead of the scene camera (the
-    render engine's ``camera_override``).  Raises ExportError, naming the culprit, when the
-    scene cannot be rendered at all (no camera, a panoramic camera, invalid values).
+    render engine's ``camera_override``).  view_camera: a core camera to use instead of any
+    Blender camera (the viewport renders its own view, with or without a scene camera).
+    Raises ExportError, naming the culprit, when the scene cannot be rendered at all (no
+    camera, a panoramic camera, invalid values).
     """
-    context = ExportContext.for_camera(export_camera(depsgraph, camera_override))
+    camera = view_camera if view_camera is not None else export_camera(depsgraph,
+                                                                      camera_override)
+    context = ExportContext.for_camera(camera)
     visible = _RenderVisibility(depsgraph)
     meshes = MeshExporter(context)
     bulk = InstanceExporter(context, meshes, visible)
@@ -156,6 +161,11 @@ def export_scene(depsgraph, camera_override=None) -> tuple[Scene, list[str]]:
     world = depsgraph.scene_eval.world
     colour, world_note = world_colour(world)
     background = colour_from_blender(colour)
+    try:
+        Scene(camera=context.camera, background=background)  # checks the world's colour alone
+    except SceneError as error:
+        raise ExportError(f"world '{world.name}' (Background colour x Strength): "
+                          f"{error}") from None
     context.note(world_note)
 
     warnings = context.skipped_objects.warning("Glint renders meshes, spheres and point "
