@@ -123,19 +123,34 @@ def export_light(context, obj, matrix, name: str) -> None:
         raise ExportError(str(error)) from None  # the core's message names the light
 
 
+def _render_camera(depsgraph, camera_override):
+    """The scene's render camera as a core camera, or None when it has none (or one Glint
+    cannot render through)."""
+    try:
+        return export_camera(depsgraph, camera_override)
+    except ExportError:
+        return None
+
+
 def export_scene(depsgraph, camera_override=None, *, view_camera=None
                  ) -> tuple[Scene, list[str]]:
     """(core Scene, warnings) for an evaluated depsgraph.
 
     camera_override: the camera object to render through instead of the scene camera (the
     render engine's ``camera_override``).  view_camera: a core camera to use instead of any
-    Blender camera (the viewport renders its own view, with or without a scene camera).
+    Blender camera (the viewport renders its own view, with or without a scene camera).  The
+    sphere-or-triangles rule (``geometry``) always judges from the scene's render camera, so
+    the viewport draws the shapes the final render will; without one, sphere-like meshes are
+    analytic spheres.
     Raises ExportError, naming the culprit, when the scene cannot be rendered at all (no
     camera, a panoramic camera, invalid values).
     """
-    camera = view_camera if view_camera is not None else export_camera(depsgraph,
-                                                                      camera_override)
-    context = ExportContext.for_camera(camera)
+    if view_camera is None:
+        camera = export_camera(depsgraph, camera_override)
+        context = ExportContext.for_camera(camera)
+    else:
+        context = ExportContext.for_camera(view_camera, _render_camera(depsgraph,
+                                                                       camera_override))
     visible = _RenderVisibility(depsgraph)
     meshes = MeshExporter(context)
     bulk = InstanceExporter(context, meshes, visible)
