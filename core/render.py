@@ -12,6 +12,7 @@ spheres hit and the shadows met at every bounce) differs from a 4-neighbour's.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import threading
@@ -24,6 +25,7 @@ import numpy as np
 from .camera import camera_rays
 from .context import RayStats, TraceContext, make_context
 from .cull import PACKET_SIZE
+from . import memory
 from .frame import canonical_scene
 from .precision import choose_precision
 from .scene import RenderSettings, Scene, SceneError
@@ -200,15 +202,19 @@ def _in_processes(settings: RenderSettings, pixels: int, tiles: int) -> bool:
 def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
            progress: Optional[Callable[[float], None]] = None,
            should_cancel: Optional[Callable[[], bool]] = None,
-           image_dtype=None,
+           image_dtype=None, reserve_bytes: int = 0,
            on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None) -> RenderResult:
     """Render ``scene``; see ``core`` for the result's layout.  image_dtype: the image's
     dtype (default: the render's precision); float32 halves a float64 render's largest array
     for callers that keep no more than float32 anyway (Blender's render results).
+    reserve_bytes: memory the caller will need besides the render (counted in the plan).
     on_tile(tile, rgba): called on the calling thread as each tile lands (before
     ``progress``), with tile = (y0, y1, x0, x1) (rows from the top) and its (h, w, 4) pixels,
     a view of the image: copy what must outlive the call.  Tiles land in any order; a
-    cancelled render has passed on exactly the tiles that finished."""
+    cancelled render has passed on exactly the tiles that finished.
+
+    Before anything is allocated, the render's memory is planned (``core.memory``) and a
+    render that cannot fit raises memory.NotEnoughMemory, a SceneError."""
     if not isinstance(scene, Scene):
         raise SceneError(f"scene must be a core.Scene, got {type(scene).__name__}")
     settings = RenderSettings() if settings is None else settings
@@ -217,12 +223,20 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     allocator.configure_if_opted_in()  # only if GLINT_MALLOC_TUNING asks (core.allocator)
     scene = canonical_scene(scene, settings)  # positions and units stop mattering
     dtype = choose_precision(scene, settings.precision)
-    ctx = make_context(scene, settings, dtype)
     width, height = scene.camera.width, scene.camera.height
-    image = np.zeros((height, width, 4), dtype if image_dtype is None else image_dtype)
-    tiles = _tiles(width, height, settings.tile_size)
-    stats = RayStats()
     threads = settings.threads or os.cpu_count() or 1
+    image_dtype = dtype if image_dtype is None else np.dtype(image_dtype)
+    tiles = _tiles(width, height, settings.tile_size)
+    in_processes = _in_processes(settings, width * height, len(tiles))
+    memory_plan = memory.plan(scene, settings, image_dtype, threads, reserve_bytes)
+    if in_processes:  # plus the shared image and each worker's interpreter and scene
+        memory_plan = dataclasses.replace(memory_plan, other=memory_plan.other + workers.
+                                          planned_bytes((height, width, 4), dtype, threads,
+                                                        memory_plan.scene))
+    memory.check(memory_plan, width, height)
+    ctx = make_context(scene, settings, dtype)
+    image = np.zeros((height, width, 4), image_dtype)
+    stats = RayStats()
 
     def finish(tile, rgba, tile_stats, done, finite=None):
         """finite: whether every value of rgba is finite, if already known (workers check
@@ -243,7 +257,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     def cancelled():
         return should_cancel is not None and should_cancel()
 
-    if _in_processes(settings, width * height, len(tiles)):
+    if in_processes:
         try:
             workers.render_tiles(ctx, scene.camera, tiles, image.shape, threads, finish,
                                  should_cancel)
