@@ -292,3 +292,19 @@ def test_a_tree_scene_of_meshes_and_sphere_sets_renders_the_same_in_workers(
     assert reference.stats.node_tests > 0            # the tree was used
     assert np.array_equal(result.image, reference.image)
     assert result.stats == reference.stats
+
+
+def test_the_memory_plan_counts_the_workers(small_renders_in_processes, monkeypatch):
+    """Memory that fits a threaded render but not the shared image and the workers: the
+    render with processes is refused before anything starts, naming what it needs."""
+    import importlib
+
+    memory = importlib.import_module("core.memory")
+    scene = core.article_scene(64, 64)
+    settings = _settings(threads=2)
+    threaded = memory.plan(scene, settings, np.float64, 2)
+    monkeypatch.setattr(memory, "available_memory",
+                        lambda: threaded.total + memory.HEADROOM + 1024)
+    assert core.render(scene, settings).parallelism == "threads"
+    with pytest.raises(memory.NotEnoughMemory, match="a 64x64 render needs about"):
+        core.render(scene, _settings(threads=2, parallelism="processes"))
