@@ -301,13 +301,17 @@ class _Pool:
         raise ProcessesUnavailable(unavailable_reason) from None
 
     def drop(self, worker: _Worker) -> None:
-        self.workers.remove(worker)
-        worker.end()
+        if worker in self.workers:
+            self.workers.remove(worker)
+            worker.end()
+
+    def drop_all(self) -> None:
+        for worker in list(self.workers):
+            self.drop(worker)
 
     def shutdown(self) -> None:
         with self.lock:
-            for worker in list(self.workers):
-                self.drop(worker)
+            self.drop_all()
             self.free_memory()
 
 
@@ -416,6 +420,7 @@ class _Render:
         """Stop running tiles at their next bundle, let every worker drop this render (a
         worker that does not answer is replaced next time), free the image."""
         self.stop[0] = 1
+        self.workers = [w for w in self.workers if w in _pool.workers]   # not dropped
         for worker in list(self.workers):
             try:
                 worker.connection.send(("end",))
@@ -471,11 +476,18 @@ def render_tiles(ctx, camera, tiles, shape, count: int, finish, should_cancel=No
     if not _pool.lock.acquire(blocking=False):
         raise ProcessesUnavailable("another render is using the worker processes")
     try:
-        _pool.grow(count)
+        try:
+            _pool.grow(count)
+        except ProcessesUnavailable:
+            _pool.drop_all()
+            raise
         render = _Render(ctx, camera, shape, count)
         try:
             render.start(should_cancel)
             render.run(tiles, finish, should_cancel)
+        except ProcessesUnavailable:
+            _pool.drop_all()    # the others started the same way: none is trusted
+            raise
         finally:
             render.end()
     finally:

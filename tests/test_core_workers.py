@@ -103,18 +103,25 @@ def test_fallback_to_threads_where_workers_cannot_start(small_renders_in_process
     fake.write_text("#!/bin/sh\nexit 3\n")
     fake.chmod(0o755)
     workers.shutdown()
+    real_python = sys.executable
     monkeypatch.setattr(workers, "unavailable_reason", None)
     monkeypatch.setattr(sys, "executable", str(fake))
     result = core.render(scene, _settings(threads=2, parallelism="processes"))
     assert result.parallelism == "threads"
     assert np.array_equal(result.image, reference.image)
     assert "exited while starting (exit code 3)" in workers.unavailable_reason
+    assert workers._pool.workers == []       # no half-started worker is kept
 
     monkeypatch.setattr(workers, "unavailable_reason", None)
     monkeypatch.setattr(sys, "executable", "/bin/sh")   # not a Python at all
     result = core.render(scene, _settings(threads=2, parallelism="processes"))
     assert result.parallelism == "threads"
     assert "is not a Python" in workers.unavailable_reason
+
+    monkeypatch.setattr(workers, "unavailable_reason", None)  # a real Python again
+    monkeypatch.setattr(sys, "executable", real_python)
+    assert core.render(scene, _settings(threads=2, parallelism="processes")).parallelism \
+        == "processes"
 
 
 def test_small_renders_and_single_tiles_stay_in_process():
