@@ -134,8 +134,8 @@ def worker_loop(connection, setup: dict) -> None:
 
     Messages in: ('render', shared name, shape, dtype) followed by the pickled (context,
     camera) as bytes; a tile (y0, y1, x0, x1); ('end',); None.  Answers: ('ready',),
-    ('done', tile, stats, whether every value is finite), ('cancelled', tile), ('error', tile, exception, traceback text),
-    ('ended',)."""
+    ('done', tile, stats, whether every value is finite), ('cancelled', tile),
+    ('error', tile, exception, traceback text), ('ended',)."""
     from . import allocator
     from .render import RenderCancelled, render_tile
 
@@ -152,6 +152,9 @@ def worker_loop(connection, setup: dict) -> None:
             if message[0] == "render":
                 payload = connection.recv_bytes()
                 try:
+                    if job is not None:       # a render whose end never came
+                        job.close()
+                        job = None
                     if memory is None or memory.name != message[1]:
                         if memory is not None:
                             memory.close()
@@ -310,6 +313,9 @@ class _Pool:
             self.drop(worker)
 
     def shutdown(self) -> None:
+        if self.owner != os.getpid():     # a fork: the workers are its parent's, not ours
+            self.workers, self.memory = [], None
+            return
         with self.lock:
             self.drop_all()
             self.free_memory()
