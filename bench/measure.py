@@ -124,3 +124,21 @@ def machine_lines() -> list[str]:
         f"Load average at start (1, 5, 15 min): {load_average()}",
         f"Command: python -m bench {' '.join(sys.argv[1:])}".rstrip(),
     ]
+
+
+def cpu_seconds(pids=()) -> Optional[float]:
+    """User + system CPU seconds of this process and of the processes ``pids`` (Linux's
+    /proc; None where it cannot be read)."""
+    import resource
+
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    total = usage.ru_utime + usage.ru_stime
+    tick = os.sysconf("SC_CLK_TCK")
+    for pid in pids:
+        try:
+            with open(f"/proc/{pid}/stat") as stat:
+                fields = stat.read().rsplit(")", 1)[1].split()
+        except OSError:
+            return None
+        total += (int(fields[11]) + int(fields[12])) / tick
+    return total

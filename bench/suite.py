@@ -12,7 +12,8 @@ Workloads (``--only NAME``):
   against sphere count (1 to 10,000).
 * cost-sphere-sets: time and peak memory of Glint default/auto against sphere count when the
   spheres are one ``core.SphereSet`` (1,000 to 1,000,000 at 640x360; ``bench.scenes``).
-* parallelism: the article's scene at article-hd's size (article/float64) on 1 and 2 threads
+* parallelism: the article's scene at article-hd's size (800x450 with --quick, so that
+  processes are used) (article/float64) on 1 and 2 threads
   and 1 and 2 worker processes (``core.workers``), images checked bit for bit against one
   thread; the processes' start-up is paid in the warm-up, and once more, alone, in a
   "cold" row (workers ended first).
@@ -43,7 +44,7 @@ import numpy as np
 from core import RenderSettings, Scene, render
 
 from . import baseline, per_pixel
-from .measure import Timing, measure, rgb_error, silhouette_mismatches
+from .measure import Timing, cpu_seconds, measure, rgb_error, silhouette_mismatches
 from .scenes import article_scene, random_sphere_set_scene, random_spheres_scene, sphere_count
 
 REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -607,6 +608,8 @@ class Bench:
         from core import workers
 
         width, height = self.plan.article_sizes["article-hd"]
+        if width * height < workers.MIN_PIXELS:   # --quick: big enough to use processes
+            width, height = 800, 450
         title = f"article {width}x{height}, parallelism"
         scene = article_scene(width, height)
         reference = None
@@ -624,6 +627,12 @@ class Bench:
                     row.notes.append("image identical to 1 thread's")
                 else:
                     raise AssertionError(f"{glint.label}: image differs from 1 thread's")
+                before = cpu_seconds(workers.worker_pids())
+                render(scene, glint.settings())
+                after = cpu_seconds(workers.worker_pids())
+                if before is not None and after is not None:
+                    row.notes.append(f"CPU per frame {after - before:.2f} s (this process and "
+                                     f"its workers, one more render)")
                 if result.parallelism != parallelism:
                     row.notes.append(f"ran on {result.parallelism} (core.workers.MIN_PIXELS "
                                      f"or processes unavailable)")
@@ -634,8 +643,9 @@ class Bench:
         settings = glint.settings()
         workers.shutdown()
         start = time.perf_counter()
-        render(scene, settings)
+        ran = render(scene, settings).parallelism
         cold = time.perf_counter() - start
         self.rows.append(Row(name, title, glint.label + ", cold", "glint", Timing([cold]), cold,
                              semantics="article", precision="float64", glint=glint,
-                             notes=["workers started in this run"]))
+                             notes=["workers started in this run" if ran == "processes"
+                                    else f"ran on {ran}"]))

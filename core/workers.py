@@ -325,6 +325,11 @@ _pool = _Pool()
 atexit.register(_pool.shutdown)
 
 
+def worker_pids() -> list[int]:
+    """Process ids of the live workers (for measurements: the benchmark's CPU time)."""
+    return [worker.process.pid for worker in _pool.workers]
+
+
 def shutdown() -> None:
     """End the worker processes (the next render with processes starts new ones)."""
     _pool.shutdown()
