@@ -315,3 +315,27 @@ def test_the_memory_plan_counts_the_workers(small_renders_in_processes, monkeypa
     assert core.render(scene, settings).parallelism == "threads"
     with pytest.raises(memory.NotEnoughMemory, match="a 64x64 render needs about"):
         core.render(scene, _settings(threads=2, parallelism="processes"))
+
+
+def test_a_worker_that_dies_is_a_render_error_and_is_replaced(small_renders_in_processes):
+    import importlib
+    import signal
+
+    scene = core.article_scene(160, 160)
+    settings = _settings(threads=2, parallelism="processes", tile_size=16)
+    core.render(scene, settings)                     # two workers, warm
+    victim = workers.worker_pids()[0]
+
+    def kill_on_first_tile(tile, rgba):
+        if victim in workers.worker_pids():
+            os.kill(victim, signal.SIGKILL)
+
+    render_module = importlib.import_module("core.render")   # core.render is the function
+    with pytest.raises(render_module.RenderError,
+                       match=r"a render worker process died \(exit code -9\)"):
+        core.render(scene, settings, on_tile=kill_on_first_tile)
+    assert victim not in workers.worker_pids()
+    again = core.render(scene, settings)             # a new worker takes its place
+    assert again.parallelism == "processes" and len(workers.worker_pids()) == 2
+    assert np.array_equal(again.image, core.render(scene, _settings(threads=1,
+                                                                    tile_size=16)).image)
