@@ -234,6 +234,8 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
                                           planned_bytes((height, width, 4), dtype, threads,
                                                         memory_plan.scene))
     memory.check(memory_plan, width, height)
+    if in_processes:
+        workers.prestart(threads)  # they start while the context is built
     ctx = make_context(scene, settings, dtype)
     image = np.zeros((height, width, 4), image_dtype)
     stats = RayStats()

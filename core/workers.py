@@ -472,6 +472,20 @@ def _raise_worker_error(message):
     raise RuntimeError(str(error))
 
 
+def prestart(count: int) -> None:
+    """Start ``count`` workers now without waiting for them, so that their start-up (a Python
+    and NumPy import) overlaps the caller's preparation (the render's context, a BVH); a
+    failure is left for ``render_tiles`` to find."""
+    if unavailable_reason is not None or not _pool.lock.acquire(blocking=False):
+        return
+    try:
+        _pool.grow(count)
+    except ProcessesUnavailable:
+        _pool.drop_all()
+    finally:
+        _pool.lock.release()
+
+
 def planned_bytes(shape, dtype, count: int, scene_bytes: int) -> int:
     """What rendering in ``count`` workers holds beyond a threaded render (``core.memory``):
     the shared image of ``shape`` in the render's ``dtype``, and per worker its interpreter
