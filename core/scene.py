@@ -586,7 +586,7 @@ class RenderSettings:
         processes, ``core.workers``, for renders of more than one tile and at least
         ``core.workers.MIN_PIXELS`` pixels; smaller renders, and places where processes
         cannot start, use threads).  Threads stay the default until processes are measured
-        faster (README, Benchmark).  Results never depend on it.
+        faster (README: "Worker processes and malloc settings").  Results never depend on it.
     """
 
     semantics: Literal["default", "article"] = "default"
