@@ -12,6 +12,9 @@ Workloads (``--only NAME``):
   against sphere count (1 to 10,000).
 * cost-sphere-sets: time and peak memory of Glint default/auto against sphere count when the
   spheres are one ``core.SphereSet`` (1,000 to 1,000,000 at 640x360; ``bench.scenes``).
+* malloc: the article's scene at article-hd's size (article/float64, 1 thread) in child
+  processes with glibc's defaults and with ``core.allocator``'s settings: minor page faults,
+  system and user time per render (``bench.allocation``).
 * parallelism: the article's scene at article-hd's size (800x450 with --quick, so that
   processes are used) (article/float64) on 1 and 2 threads
   and 1 and 2 worker processes (``core.workers``), images checked bit for bit against one
@@ -115,7 +118,7 @@ QUICK = Plan(
 SCENE_WORKLOADS = ("article-small", "article-hd", "article-uhd", "spheres", "spheres-nofloor")
 AA_WORKLOADS = ("aa-adaptive", "aa-fixed16")
 CURVES = ("cost-pixels", "cost-spheres", "cost-sphere-sets")
-WORKLOADS = SCENE_WORKLOADS + AA_WORKLOADS + CURVES + ("parallelism",)
+WORKLOADS = SCENE_WORKLOADS + AA_WORKLOADS + CURVES + ("parallelism", "malloc")
 
 
 @dataclass(frozen=True)
@@ -398,6 +401,8 @@ class Bench:
                 self.sphere_set_curve()
             elif name == "parallelism":
                 self.parallelism_workload(name)
+            elif name == "malloc":
+                self.malloc_workload(name)
             else:
                 raise ValueError(f"unknown workload {name!r}")
 
@@ -649,3 +654,22 @@ class Bench:
                              semantics="article", precision="float64", glint=glint,
                              notes=["workers started in this run" if ran == "processes"
                                     else f"ran on {ran}"]))
+
+    def malloc_workload(self, name: str) -> None:
+        """Faults and system time per render, glibc's defaults against core.allocator."""
+        from . import allocation
+
+        width, height = self.plan.article_sizes["article-hd"]
+        title = f"article {width}x{height}, malloc"
+        log(f"{title}: child processes, glibc defaults and tuned")
+        results = allocation.compare(width, height, threads=1, renders=self.plan.repeats)
+        for mode, runs in results.items():
+            label = f"Glint article/float64, 1 thread, malloc {mode}"
+            if runs is None:
+                self.notes.append(f"{title}: tuned malloc not applicable (not Linux with glibc)")
+                continue
+            timing = Timing([run["wall"] for run in runs])
+            self.rows.append(Row(name, title, label, "glint", timing, timing.median,
+                                 semantics="article", precision="float64",
+                                 notes=[allocation.summary(runs) + " per render, in 2 child "
+                                        "processes after a warm-up render each"]))
