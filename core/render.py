@@ -264,7 +264,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
             workers.render_tiles(ctx, scene.camera, tiles, image.shape, threads, finish,
                                  should_cancel)
             return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
-                                "processes")
+                                parallelism="processes")
         except workers.ProcessesUnavailable:
             pass  # no tile has landed yet: the same tiles on threads, below
 
