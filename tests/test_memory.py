@@ -144,3 +144,14 @@ def test_the_png_writer_streams_rows(tmp_path):
     # cost no more memory (a whole-image conversion would cost 8x, and more than the image).
     assert tall < 1.5 * short, f"{short / 1e6:.1f} MB for 256 rows, {tall / 1e6:.1f} for 2048"
     assert tall < tall_bytes / 4
+
+
+def test_a_million_spheres_at_64x64_stay_within_their_plan():
+    """The issue's case (before the aggregate: 13-20 GB, then a MemoryError).  A million
+    spheres is the size the claim is about, so this test builds them (about 5 s here)."""
+    scene = sphere_set_scene(1_000_000, False)
+    settings = core.RenderSettings(threads=2)
+    result, peak = traced_peak(lambda: core.render(scene, settings))
+    plan = memory.plan(scene, settings, result.image.dtype, 2)
+    assert peak <= plan.total < 4e9, f"allocated {peak / 1e9:.2f} GB, planned {plan.total / 1e9:.2f}"
+    assert result.image[..., 3].mean() > 0.2  # the spheres are there (a third of the frame)
