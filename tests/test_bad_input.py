@@ -214,7 +214,8 @@ def test_the_settings_hard_maximums_are_the_cores_limits():
     assert (render_script.MAX_SAMPLES, render_script.MAX_DEPTH) == (limits.MAX_SAMPLES,
                                                                     limits.MAX_DEPTH)
     resolution = bpy.types.RenderSettings.bl_rna.properties["resolution_x"]
-    assert render_script.MAX_RESOLUTION == resolution.hard_max
+    assert (render_script.MIN_RESOLUTION, render_script.MAX_RESOLUTION) == (
+        resolution.hard_min, resolution.hard_max)
 
 
 CORE_COMMAND_ERRORS = {
