@@ -430,8 +430,8 @@ def grid_positions(count, spacing=0.6):
 def export_per_instance(monkeypatch):
     """The export with the bulk path switched off: every instance through the walk."""
     with monkeypatch.context() as patch:
-        patch.setattr(instances_module.InstanceExporter, "_export_bulk",
-                      lambda self, instance, parent: False)
+        patch.setattr(instances_module.InstanceExporter, "_read_source",
+                      staticmethod(lambda parent: None))
         return export()
 
 

@@ -123,6 +123,36 @@ def export_light(context, obj, matrix, name: str) -> None:
         raise ExportError(str(error)) from None  # the core's message names the light
 
 
+class _ObjectEntry:
+    """An evaluated object as the depsgraph walk's entry for it (the fields of
+    ``DepsgraphObjectInstance`` the exporters read), for exports that skip the walk."""
+
+    is_instance = False
+    parent = None
+    show_self = True
+
+    def __init__(self, obj):
+        self.object = obj
+        self.matrix_world = obj.matrix_world
+
+
+def _export_entry(context, meshes, instance, visible) -> None:
+    """One depsgraph entry (an object or an instance) to the exporter of its type."""
+    if not instance.show_self or not visible(instance):
+        return
+    obj = instance.object
+    kind = obj.type
+    if kind == 'MESH':
+        meshes.add(instance)
+    elif kind == 'LIGHT':
+        export_light(context, obj, [list(row) for row in instance.matrix_world],
+                     instance_name(instance))
+    elif kind == 'POINTCLOUD':
+        export_point_cloud(context, obj, instance.matrix_world, instance_name(instance))
+    elif kind not in NON_RENDERING_TYPES and kind not in EVALUATED_AS_MESH:
+        context.skip(instance_name(instance), f"{kind.lower().replace('_', ' ')} object")
+
+
 def _render_camera(depsgraph, camera_override):
     """The scene's render camera as a core camera, or None when it has none (or one Glint
     cannot render through)."""
@@ -155,22 +185,18 @@ def export_scene(depsgraph, camera_override=None, *, view_camera=None
     meshes = MeshExporter(context)
     bulk = InstanceExporter(context, meshes, visible)
 
-    for instance in depsgraph.object_instances:
-        if instance.is_instance and bulk.handles(instance):
-            continue
-        if not instance.show_self or not visible(instance):
-            continue
-        obj = instance.object
-        kind = obj.type
-        if kind == 'MESH':
-            meshes.add(instance)
-        elif kind == 'LIGHT':
-            export_light(context, obj, [list(row) for row in instance.matrix_world],
-                         instance_name(instance))
-        elif kind == 'POINTCLOUD':
-            export_point_cloud(context, obj, instance.matrix_world, instance_name(instance))
-        elif kind not in NON_RENDERING_TYPES and kind not in EVALUATED_AS_MESH:
-            context.skip(instance_name(instance), f"{kind.lower().replace('_', ' ')} object")
+    objects = list(depsgraph.objects)
+    if bulk.covers(objects):
+        # Nothing but bulk-read instancers makes instances: the objects themselves suffice.
+        for obj in objects:
+            entry = _ObjectEntry(obj)
+            bulk.export_instancer(entry, obj)
+            _export_entry(context, meshes, entry, visible)
+    else:
+        for instance in depsgraph.object_instances:
+            if instance.is_instance and bulk.handles(instance):
+                continue
+            _export_entry(context, meshes, instance, visible)
     meshes.finish()
 
     world = depsgraph.scene_eval.world
