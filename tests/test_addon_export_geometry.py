@@ -487,6 +487,7 @@ def test_particles_instancing_a_sphere_become_a_sphere_set(scene):
     assert np.allclose(np.abs(grains.centers).max(axis=1), 1.0, atol=1e-4)
     np.testing.assert_allclose(grains.radii, 0.05, rtol=1e-4)
     assert [s.name for s in exported.spheres] == ["grain"]  # the object itself, far away
+    assert not exported.meshes  # the emitter is not rendered (show_instancer_for_render)
 
 
 def test_instances_of_a_hidden_instancer_are_not_exported(scene):

@@ -82,8 +82,12 @@ class _RenderVisibility:
     def __call__(self, instance) -> bool:
         if not self.filter:
             return True
-        if self._hidden(instance.object.original):
+        original = instance.object.original
+        if self._hidden(original):
             return False
+        if not instance.is_instance and original.is_instancer and \
+                not original.show_instancer_for_render:
+            return False  # an emitter or instancer Blender does not render itself
         parent = instance.parent if instance.is_instance else None
         return parent is None or not self._hidden(parent.original)
 
