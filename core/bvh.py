@@ -113,13 +113,15 @@ class BVH:
         """
         n = inverse.shape[1]
         found = np.zeros(n, bool)
+        rows = (np.concatenate([origins, origins]).T.copy(),
+                np.concatenate([inverse, inverse]).T.copy())
         for first in range(0, n, RAY_CHUNK):
             self._traverse(np.arange(first, min(first + RAY_CHUNK, n)), origins, inverse,
-                           t_min, t_max, visit, accept, found, any_hit, stats)
+                           rows, t_min, t_max, visit, accept, found, any_hit, stats)
         return found
 
-    def _traverse(self, rays, origins, inverse, t_min, t_max, visit, accept, found, any_hit,
-                  stats):
+    def _traverse(self, rays, origins, inverse, rows, t_min, t_max, visit, accept, found,
+                  any_hit, stats):
         top = len(self.levels) - 1
         treelet = min(TREELET_DEPTH, top)
         while self.levels[treelet][0].shape[1] > MAX_TREELETS and treelet < top:
@@ -128,8 +130,7 @@ class BVH:
         keep, near = self._boxes(top, nodes, rays, origins, inverse, t_min, t_max, stats)
         rays, nodes, near = rays[keep], nodes[keep], near[keep]
         for level in range(top - 1, treelet - 1, -1):
-            rays, nodes, near = self._expand(level, rays, nodes, origins, inverse, t_min, t_max,
-                                             stats)
+            rays, nodes, near = self._expand(level, rays, nodes, *rows, t_min, t_max, stats)
         if len(rays) == 0:
             return
         order = np.lexsort((near, rays))
@@ -149,7 +150,7 @@ class BVH:
                 live &= ~found[r]
             r, node = r[live], node[live]
             for level in range(treelet - 1, -1, -1):
-                r, node, _ = self._expand(level, r, node, origins, inverse, t_min, t_max, stats)
+                r, node, _ = self._expand(level, r, node, *rows, t_min, t_max, stats)
             if len(r):
                 leaf_rays = np.repeat(r, LEAF_SIZE)
                 prims = self.primitives[(node[:, None] * LEAF_SIZE
@@ -196,24 +197,27 @@ class BVH:
 
     def _expand(self, level, rays, nodes, origins, inverse, t_min, t_max, stats):
         """The children at ``level`` of pairs (ray, node one level up) that the rays'
-        segments reach: (rays, children, entry distances), still grouped by ray."""
+        segments reach: (rays, children, entry distances), still grouped by ray.
+
+        origins, inverse: per ray (n, 6) rows (x, y, z, x, y, z), origins possibly (1, 6):
+        a pair gathers one row of each and its node's WIDTH child boxes as one block, and the
+        slab distances of all six planes come out of one subtraction and one product."""
         count = self.levels[level][0].shape[1]
-        boxes = self.blocks[level][nodes]                                    # (m, W, 6)
-        children = nodes[:, None] * WIDTH + np.arange(WIDTH)
-        o = origins if origins.shape[1] == 1 else origins[:, rays]
-        inv = inverse[:, rays]
-        near = far = None
+        t = self.blocks[level][nodes]                                        # (m, W, 6)
+        t -= (origins if len(origins) == 1 else origins[rays])[:, None, :]
         with np.errstate(invalid="ignore"):
-            for axis in range(3):
-                a = (boxes[:, :, axis] - o[axis][:, None]) * inv[axis][:, None]
-                b = (boxes[:, :, axis + 3] - o[axis][:, None]) * inv[axis][:, None]
-                low, high = np.fmin(a, b), np.fmax(a, b)
-                near = low if near is None else np.fmax(near, low)
-                far = high if far is None else np.fmin(far, high)
-        near = np.maximum(near, t_min[rays][:, None] if np.ndim(t_min) else t_min)
-        far = np.minimum(far, t_max[rays][:, None])
-        hit = (near <= far) & (children < count)
+            t *= inverse[rays][:, None, :]
+            # fmin / fmax: a 0 * inf (a ray in a box's plane) is NaN and is ignored.
+            low = np.fmin(t[..., :3], t[..., 3:])
+            high = np.fmax(t[..., :3], t[..., 3:])
+            near = np.fmax(np.fmax(low[..., 0], low[..., 1]), low[..., 2])
+            far = np.fmin(np.fmin(high[..., 0], high[..., 1]), high[..., 2])
+        np.maximum(near, t_min[rays][:, None] if np.ndim(t_min) else t_min, out=near)
+        np.minimum(far, t_max[rays][:, None], out=far)
+        children = nodes[:, None] * WIDTH + np.arange(WIDTH)
+        exists = children < count
+        hit = (near <= far) & exists
         if stats is not None:
-            stats.node_tests += int((children < count).sum())
+            stats.node_tests += int(exists.sum())
         rows, slots = np.nonzero(hit)
         return rays[rows], children[rows, slots], near[rows, slots]
