@@ -2,13 +2,16 @@
 
 ``export_scene`` walks ``depsgraph.object_instances``, so what Blender renders is what Glint
 gets: modifiers, parenting, constraints, drivers and collection or geometry-node instances
-are already applied, and each instance comes with its own world matrix.  It only reads
-Blender data; nothing in the .blend changes.
+are already applied, and each instance comes with its own world matrix.  When the only
+instancers are Geometry Nodes objects read in bulk (``instances.InstanceExporter.covers``),
+``depsgraph.objects`` is visited instead, so a million instances cost no Python step each.
+It only reads Blender data; nothing in the .blend changes.
 
 Visibility: a depsgraph evaluated for rendering (the render engine's) holds exactly the
 objects Blender renders.  A viewport depsgraph (``context.evaluated_depsgraph_get()``, which
 the panel's Render button uses) holds the viewport's objects, so objects and collections
-hidden for render (the camera icon, ``hide_render``) are dropped here; objects disabled in
+hidden for render (the camera icon, ``hide_render``) and instancers not shown in renders
+(``show_instancer_for_render``, e.g. a particle emitter) are dropped here; objects disabled in
 viewports are absent from it and modifiers run at their viewport settings, as Blender's own
 viewport exporters see them.
 
