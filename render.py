@@ -6,10 +6,10 @@
 Both do the same job.  Without a .blend, the article's scene is built in Blender
 (``addon.utils.article_scene``).  Options override the scene's settings; everything else
 (camera, objects, materials, world, Film > Transparent, ...) comes from the .blend.  The
-frame is rendered by Glint's render engine, exactly as F12 would render it, and the PNG holds
-the core's own values (independent of Blender's view transform; with view transform
-Standard, Blender's saved render matches it within 1/255).  With Film > Transparent, alpha is
-the spheres' coverage and the background is transparent.
+frame is rendered by Glint's render engine, exactly as F12 would render it, and the PNG is
+Blender's render result saved through the scene's colour management (view transform, look,
+exposure), the pixels F12 saves.  With Film > Transparent, alpha is the spheres' coverage and
+the background is transparent.
 
 How the add-on is loaded: this file sits in the repository root, which is the extension
 package itself (``__init__.py``, ``addon/``, ``core/``).  ``import_glint`` loads that directory
@@ -249,13 +249,51 @@ def render_scene(scene):
 
 
 def write_output(path: str, image) -> None:
-    from glint.addon.utils.colour import unpremultiply
-    from glint.core.png import write_png
+    """Write the frame just rendered as Blender writes its render result (F12, then Save):
+    the Render Result through the scene's colour management (view transform, look, exposure,
+    gamma, dither), so ``render.py``, F12 and the Render button's image give the same pixels.
+    Always an 8-bit RGBA PNG (the scene's output format is left untouched), written to a
+    temporary file in the output folder and renamed.  image: the job's image of that frame
+    (row 0 = top), whose size the render result must have."""
+    import tempfile
 
+    import bpy
+
+    from glint.core.png import write_atomically
+
+    result = bpy.data.images.get("Render Result")
+    if result is None or tuple(result.size) not in ((0, 0), (image.shape[1], image.shape[0])):
+        raise RenderScriptError("render failed: Blender holds no render result of this frame")
+    scene = bpy.context.scene
+    settings = scene.render.image_settings
+    names = [name for name in ("media_type", "file_format", "color_mode", "color_depth")
+             if hasattr(settings, name)]
+    previous = {name: getattr(settings, name) for name in names}
+    folder = os.path.dirname(os.path.abspath(path))
     try:
-        write_png(path, unpremultiply(image))  # PNG stores straight alpha
+        handle, temporary = tempfile.mkstemp(prefix=".glint-", suffix=".png", dir=folder)
     except OSError as error:
         raise RenderScriptError(f"cannot write {path}: {error.strerror or error}") from None
+    os.close(handle)
+    try:
+        if "media_type" in previous:
+            settings.media_type = 'IMAGE'
+        settings.file_format, settings.color_mode, settings.color_depth = 'PNG', 'RGBA', '8'
+        try:
+            result.save_render(temporary, scene=scene)
+        except RuntimeError as error:
+            reason = str(error).strip().splitlines()[-1].removeprefix("Error: ")
+            raise RenderScriptError(f"cannot write {path}: {reason}") from None
+        with open(temporary, "rb") as stream:
+            data = stream.read()
+        write_atomically(path, data)
+    except OSError as error:
+        raise RenderScriptError(f"cannot write {path}: {error.strerror or error}") from None
+    finally:
+        for name, value in previous.items():
+            setattr(settings, name, value)
+        if os.path.exists(temporary):
+            os.unlink(temporary)
 
 
 def main(argv: list[str] | None = None) -> int:

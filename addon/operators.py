@@ -59,7 +59,7 @@ class GLINT_OT_render(bpy.types.Operator):
 
     def _store(self, job, image, image_name: str, seconds: float):
         try:
-            write_image(image_name, image)
+            write_image(image_name, job.scene_linear(image))
         except ImageError as error:
             self.report({'ERROR'}, str(error))
             return {'CANCELLED'}

@@ -54,7 +54,7 @@ def main(argv=None) -> int:
             np.save(buffer, result.image)
             write_atomically(args.output, buffer.getvalue())
         else:
-            write_png(args.output, result.image)
+            write_png(args.output, result.display())
     except (SceneError, OSError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene import Scene
+from .scene import PointLight, Scene
 
 
 @dataclass(frozen=True)
@@ -59,7 +59,8 @@ def _rows(values, width: int) -> np.ndarray:
 def scene_arrays(scene: Scene) -> SceneArrays:
     spheres = scene.spheres
     materials = [s.material for s in spheres]
-    lights = scene.lights
+    # The article's point lights; Blender's light types are prepared by ``core.lights``.
+    lights = [light for light in scene.lights if isinstance(light, PointLight)]
     return SceneArrays(
         spheres=SphereArrays(
             centers=_rows([s.center for s in spheres], 3),

@@ -9,10 +9,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .arrays import SceneArrays, scene_arrays
+from .bsdf import SurfaceArrays, surface_arrays
 from .camera import eye_position
 from .cull import SphereClusters, cluster_spheres
 from .intersect import OriginTerms
-from .scene import BlenderCamera, RenderSettings, Scene
+from .lights import PreparedLight, fibonacci_sphere, prepare_light
+from .scene import BlenderCamera, PointLight, RenderSettings, Scene
 
 #: The article's fixed shadow/reflection offset along the normal.
 ARTICLE_OFFSET = 1e-5
@@ -61,6 +63,17 @@ class Materials:
 
 
 @dataclass(frozen=True)
+class LookContext:
+    """What the default semantics' Blender look needs (``core.bsdf``, ``core.lights``):
+    per-sphere lobes, Blender's lights prepared for sampling, and whether anything in the
+    scene is physically based (else the article's model runs alone, unchanged)."""
+
+    surfaces: SurfaceArrays
+    lights: tuple[PreparedLight, ...]
+    active: bool
+
+
+@dataclass(frozen=True)
 class TraceContext:
     arrays: SceneArrays
     settings: RenderSettings
@@ -75,6 +88,7 @@ class TraceContext:
     clusters: SphereClusters             # the spheres grouped for culling
     path_gain_bound: float               # max colour one bounce can add per unit weight
     spheres_can_reflect: bool
+    look: LookContext | None = None      # default semantics only
 
     @property
     def centers(self):
@@ -83,15 +97,6 @@ class TraceContext:
     @property
     def radii(self):
         return self.arrays.spheres.radii
-
-
-def _fibonacci_sphere(count: int) -> np.ndarray:
-    """count well-spread unit vectors (count, 3), deterministic."""
-    i = np.arange(count) + 0.5
-    z = 1.0 - 2.0 * i / count
-    phi = np.pi * (1.0 + 5 ** 0.5) * i
-    rho = np.sqrt(1.0 - z * z)
-    return np.stack([rho * np.cos(phi), rho * np.sin(phi), z], axis=1)
 
 
 def make_context(scene: Scene, settings: RenderSettings, dtype) -> TraceContext:
@@ -104,7 +109,7 @@ def make_context(scene: Scene, settings: RenderSettings, dtype) -> TraceContext:
     samples = []
     for position, radius in zip(lights.positions, lights.radii):
         if radius > 0 and not article:
-            samples.append(position + radius * _fibonacci_sphere(settings.light_samples))
+            samples.append(position + radius * fibonacci_sphere(settings.light_samples))
         else:
             samples.append(position[None, :])
     light_terms = tuple(tuple(OriginTerms.at(p, spheres.centers, spheres.radii) for p in s)
@@ -116,6 +121,18 @@ def make_context(scene: Scene, settings: RenderSettings, dtype) -> TraceContext:
         gain = float(max(per_sphere.max(), arrays.background.max()))
     else:
         gain = float(arrays.background.max())
+    look = None
+    if not article:
+        surfaces = surface_arrays([s.material for s in scene.spheres], dtype)
+        blender_lights = tuple(prepare_light(light, settings.light_samples, spheres.centers,
+                                             spheres.radii)
+                               for light in scene.lights if not isinstance(light, PointLight))
+        look = LookContext(surfaces, blender_lights,
+                           active=bool(blender_lights) or surfaces.any_physical)
+        if look.active:
+            # Blender's lights have no bound on what a bounce adds (watts, not the article's
+            # unit intensities): paths then stop only where their weight is zero.
+            gain = np.inf
     cast = lambda a: np.ascontiguousarray(a, dtype)  # noqa: E731
     return TraceContext(
         arrays=arrays, settings=settings, dtype=np.dtype(dtype), article=article, eye=eye,
@@ -127,4 +144,5 @@ def make_context(scene: Scene, settings: RenderSettings, dtype) -> TraceContext:
         clusters=cluster_spheres(spheres.centers, spheres.radii),
         path_gain_bound=gain,
         spheres_can_reflect=bool(len(spheres) and spheres.reflection.max() > 0),
+        look=look,
     )

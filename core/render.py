@@ -21,6 +21,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from .camera import camera_rays, image_size
+from .colour import linear_to_srgb
 from .context import RayStats, TraceContext, make_context
 from .cull import PACKET_SIZE
 from .precision import choose_precision
@@ -38,13 +39,26 @@ class RenderCancelled(Exception):
 
 @dataclass
 class RenderResult:
-    """image: (H, W, 4) in the render's precision, row 0 = top, RGB clipped to [0, 1], alpha =
-    fraction of the pixel's samples whose camera ray hit a sphere.  stats: RayStats.
-    precision: 'float64' or 'float32'."""
+    """image: (H, W, 4) in the render's precision, row 0 = top; RGB: article semantics the
+    article's display values clipped to [0, 1], default semantics unclipped scene-linear
+    radiance (Cycles' units; Blender's colour management turns it into display values);
+    alpha = fraction of the pixel's samples whose camera ray hit a sphere.  stats: RayStats.
+    precision: 'float64' or 'float32'.  semantics: the semantics rendered."""
 
     image: np.ndarray
     stats: RayStats
     precision: str
+    semantics: str = "article"
+
+    def display(self) -> np.ndarray:
+        """(H, W, 4) display values in [0, 1] for an 8-bit file: the image itself in article
+        semantics; default semantics' radiance through view transform Standard (clipped,
+        sRGB-encoded), as Blender would show it with that view transform."""
+        if self.semantics == "article":
+            return self.image
+        shown = np.array(self.image, np.float64, copy=True)
+        shown[..., :3] = linear_to_srgb(np.clip(shown[..., :3], 0, 1))
+        return shown
 
 
 def sample_offsets(count: int) -> np.ndarray:
@@ -61,10 +75,12 @@ def _tiles(width: int, height: int, size: int):
 
 
 def _trace_positions(ctx: TraceContext, camera, xs, ys, stats):
-    """(rgb clipped (n, 3), coverage (n,), signature (n,)) for sample positions xs, ys (n,)."""
+    """(rgb (n, 3), coverage (n,), signature (n,)) for sample positions xs, ys (n,); rgb
+    clipped to [0, 1] per sample in article semantics, unclipped radiance otherwise."""
     rays = camera_rays(camera, xs, ys, ctx.dtype)
     result = trace_bundle(ctx, rays, stats)
-    return np.clip(result.colour.T, 0, 1), result.coverage, result.signature
+    rgb = result.colour.T
+    return (np.clip(rgb, 0, 1) if ctx.article else rgb), result.coverage, result.signature
 
 
 def _pixel_grid(y0, y1, x0, x1):
@@ -189,7 +205,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
             if cancelled():
                 raise RenderCancelled("render cancelled")
             finish(tile, *render_tile(ctx, scene.camera, tile), done)
-        return RenderResult(image, stats, dtype.name)
+        return RenderResult(image, stats, dtype.name, settings.semantics)
 
     with ThreadPoolExecutor(max_workers=threads) as pool:
         pending = {}
@@ -215,4 +231,4 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
                 stop = True
                 wait(pending)
                 raise RenderCancelled("render cancelled")
-    return RenderResult(image, stats, dtype.name)
+    return RenderResult(image, stats, dtype.name, settings.semantics)

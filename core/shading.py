@@ -31,7 +31,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .bsdf import environment, light_response
 from .context import ARTICLE_OFFSET, RayStats, TraceContext, ray_offsets
+from .lights import area_sample_irradiance, centre_irradiance
 from .cull import DENSE_CANDIDATES, SHADOW_CELLS, candidate_roots, direction_cells
 from .vectors import dot, length, normalize, take
 
@@ -113,8 +115,13 @@ def shade(ctx: TraceContext, points, normals, directions, spheres, front, stats:
     exponent = mat.exponent.take(spheres)
     if ctx.article:
         return _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats)
-    return _shade_default(ctx, points, normals, directions, spheres, front, ka, kd, ks,
-                          exponent, stats)
+    colour, goes_on, shadow_code = _shade_default(ctx, points, normals, directions, spheres,
+                                                  front, ka, kd, ks, exponent, stats)
+    if ctx.look is not None and ctx.look.active:
+        blender_colour, shadow_code = _shade_blender_lights(ctx, points, normals, directions,
+                                                            spheres, front, shadow_code, stats)
+        colour += blender_colour
+    return colour, goes_on, shadow_code
 
 
 def _column(values, dtype):
@@ -196,3 +203,73 @@ def _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats):
         goes_on |= unblocked
         shadow_code = shadow_code * np.uint64(_CODE_BASE) + unblocked.astype(np.uint64)
     return colour, goes_on, shadow_code
+
+
+def _sun_blocked(ctx, points, towards, offset, exclude, stats):
+    """(m,) whether rays from the points towards a sun (unit (3, m)) hit any sphere."""
+    from .trace import nearest_sphere  # the bounce loop's query; trace imports this module
+
+    stats.shadow_rays += points.shape[1]
+    _, sphere = nearest_sphere(ctx, points, towards, offset, np.inf, exclude, stats)
+    return sphere >= 0
+
+
+def _shade_blender_lights(ctx, points, normals, directions, spheres, front, shadow_code, stats):
+    """(radiance (3, m), shadow_code) from Blender's lights (``core.lights``) and the world's
+    glossy and emitted terms (``core.bsdf``) at m points, default semantics.
+
+    Each light appends a digit to ``shadow_code`` (its visibility in quarters, as the
+    article's lights do) for adaptive anti-aliasing."""
+    look = ctx.look
+    surfaces = look.surfaces
+    dtype = points.dtype
+    m = points.shape[1]
+    to_view = -directions
+    world = _column(ctx.arrays.ambient, dtype)
+    colour = np.zeros((3, m), dtype)
+    colour += environment(surfaces, spheres, normals, to_view, world)
+    exclude = np.where(front, spheres, -1)
+    offset = ray_offsets(points)
+    for light in look.lights:
+        scale = _column(light.scale, dtype)
+        shadow_code = shadow_code * np.uint64(_CODE_BASE)
+        visibility = np.zeros(m, dtype)
+        if light.kind == "area":
+            for sample, terms in enumerate(light.terms):
+                towards, distance, e = area_sample_irradiance(light, sample, points, normals)
+                lit = np.flatnonzero(e > 0)
+                if len(lit) == 0:
+                    continue
+                blocked = light_blocked(ctx, terms, light.samples[sample], -take(towards, lit),
+                                        distance[lit], exclude[lit], stats, end=offset[lit])
+                seen = lit[~blocked]
+                visibility[seen] += 1 / len(light.terms)
+                colour[:, seen] += scale * light_response(
+                    surfaces, spheres[seen], take(normals, seen), take(to_view, seen),
+                    take(towards, seen), e[seen])
+        else:
+            towards, distance, e = centre_irradiance(light, points, normals)
+            lit = np.flatnonzero(e > 0)
+            if len(lit) == 0:
+                continue
+            lit_points, lit_towards = take(points, lit), take(towards, lit)
+            for sample, position in enumerate(light.samples):
+                if light.kind == "sun":
+                    blocked = _sun_blocked(ctx, lit_points, lit_towards if len(light.samples) == 1
+                                           else np.repeat(position.astype(dtype)[:, None],
+                                                          len(lit), axis=1),
+                                           offset[lit], exclude[lit], stats)
+                else:
+                    if len(light.samples) == 1:
+                        from_sample, reach = -lit_towards, distance[lit]
+                    else:
+                        from_sample, reach = normalize(lit_points - _column(position, dtype))
+                    blocked = light_blocked(ctx, light.terms[sample], position, from_sample,
+                                            reach, exclude[lit], stats, end=offset[lit])
+                visibility[lit] += (~blocked) / len(light.samples)
+            seen = lit[visibility[lit] > 0]
+            colour[:, seen] += scale * visibility[seen] * light_response(
+                surfaces, spheres[seen], take(normals, seen), take(to_view, seen),
+                take(towards, seen), e[seen])
+        shadow_code += (1 + np.round(visibility * 4)).astype(np.uint64)
+    return colour, shadow_code

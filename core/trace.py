@@ -17,6 +17,7 @@ from .camera import CameraRays
 from .context import ARTICLE_OFFSET, RayStats, TraceContext, ray_offsets
 from .cull import DENSE_CANDIDATES, REFLECTION_CELLS, candidate_roots, direction_cells
 from .intersect import first_hit_distance
+from .bsdf import scatter
 from .shading import shade
 from .vectors import dot, take
 
@@ -60,7 +61,22 @@ def nearest_sphere(ctx: TraceContext, origins, directions, t_min, t_max, exclude
     return best_t, best
 
 
+def _accumulate(colour, path, values, unique: bool, whole: bool):
+    """colour[:, path] += values (3, k); paths repeat once rays split (refraction), and then
+    every repeat must add (``np.add.at``)."""
+    if whole:
+        colour += values
+    elif unique:
+        colour[:, path] += values
+    else:
+        for row in range(3):
+            colour[row] += np.bincount(path, values[row], colour.shape[1])
+
+
 def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> BundleResult:
+    """Follow the bundle: article semantics as the article does (one mirror ray per hit, a
+    scalar weight); default semantics with colour weights and, where ``core.bsdf`` says so,
+    several secondary rays per hit (mirror, refraction, straight through)."""
     dtype = ctx.dtype
     n = rays.directions.shape[1]
     colour = np.zeros((3, n), dtype)
@@ -70,11 +86,15 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
     background = ctx.arrays.background.astype(dtype)[:, None]
     add_background = not ctx.article and background.any()
     reflection = ctx.materials.reflection
+    look = None if ctx.article or ctx.look is None or not ctx.look.active else ctx.look
     max_depth = ctx.settings.max_depth
     cutoff = ctx.settings.contribution_cutoff
 
     path = np.arange(n)
-    weight = np.ones(n, dtype)
+    unique = True   # every path index appears once (until rays split)
+    # (n,) in article semantics and for the article's materials alone; (3, n) colour weights
+    # for Blender's look.
+    weight = np.ones((3, n) if look is not None else n, dtype)
     origins, directions = rays.origins, rays.directions
     t_min, t_max = rays.t_min, rays.t_max
     terms = ctx.camera_terms if rays.shared_origin else None
@@ -90,12 +110,12 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
             coverage = hit.copy()
         if add_background and not hit.all():
             missed = np.flatnonzero(~hit)
-            colour[:, path[missed]] += weight[missed] * background
+            _accumulate(colour, path[missed], weight[..., missed] * background, unique, False)
         keep = np.flatnonzero(hit)
         if len(keep) == 0:
             break
         if len(keep) < len(hit):
-            path, weight, t, sphere = path[keep], weight[keep], t[keep], sphere[keep]
+            path, weight, t, sphere = path[keep], weight[..., keep], t[keep], sphere[keep]
             directions = take(directions, keep)
             origins = origins if origins.shape[1] == 1 else take(origins, keep)
 
@@ -111,32 +131,39 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
         illumination, goes_on, shadow_code = shade(ctx, points, normals, directions, sphere,
                                                    front, stats)
         illumination *= weight
-        if depth == 0 and len(path) == n:
-            colour += illumination
-        else:
-            colour[:, path] += illumination
+        _accumulate(colour, path, illumination, unique, depth == 0 and len(path) == n)
         if signature is not None:
             signature[path] = signature[path] * _SIGNATURE_PRIME + shadow_code
 
-        weight = weight * reflection.take(sphere)
         bounces_left = max_depth - depth - 1
-        if bounces_left == 0:
-            break
-        goes_on &= weight * (ctx.path_gain_bound * bounces_left) > cutoff
-        keep = np.flatnonzero(goes_on)
-        if len(keep) == 0:
-            break
-        if len(keep) < len(goes_on):
-            path, weight, sphere, front = path[keep], weight[keep], sphere[keep], front[keep]
-            points, normals = take(points, keep), take(normals, keep)
-            directions, cos_in = take(directions, keep), cos_in[keep]
-        directions = directions - (2 * cos_in) * normals
-        if ctx.article:
-            origins = points + ARTICLE_OFFSET * normals
-            exclude = None
+        if look is not None:
+            if bounces_left == 0:
+                break
+            rays_out = _secondary_rays(ctx, look, points, normals, directions, cos_in, sphere,
+                                       front, path, weight, bounces_left, cutoff)
+            if rays_out is None:
+                break
+            path, weight, origins, directions, exclude, sphere, split = rays_out
+            unique = unique and not split
         else:
-            origins = points + ray_offsets(points) * normals
-            exclude = np.where(front, sphere, -1)
+            weight = weight * reflection.take(sphere)
+            if bounces_left == 0:
+                break
+            goes_on &= weight * (ctx.path_gain_bound * bounces_left) > cutoff
+            keep = np.flatnonzero(goes_on)
+            if len(keep) == 0:
+                break
+            if len(keep) < len(goes_on):
+                path, weight, sphere, front = path[keep], weight[keep], sphere[keep], front[keep]
+                points, normals = take(points, keep), take(normals, keep)
+                directions, cos_in = take(directions, keep), cos_in[keep]
+            directions = directions - (2 * cos_in) * normals
+            if ctx.article:
+                origins = points + ARTICLE_OFFSET * normals
+                exclude = None
+            else:
+                origins = points + ray_offsets(points) * normals
+                exclude = np.where(front, sphere, -1)
         t_min, t_max, terms = 0.0, np.inf, None
         if len(ctx.radii) > DENSE_CANDIDATES:
             # Reflection rays leaving one sphere in one direction cell cull well together.
@@ -144,3 +171,32 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
                    + direction_cells(directions, REFLECTION_CELLS))
         stats.reflection_rays += len(path)
     return BundleResult(colour, coverage, signature)
+
+
+def _secondary_rays(ctx, look, points, normals, directions, cos_in, sphere, front, path, weight,
+                    bounces_left, cutoff):
+    """The next bounce's rays for Blender's look (``core.bsdf.scatter``), or None:
+    (path, weight (3, k), origins, directions, exclude, sphere left, whether rays split).
+
+    Rays leaving the outside of a sphere ignore it (it is convex); rays going through the
+    surface start on its far side and may hit it again from inside."""
+    branches = scatter(look.surfaces, normals, directions, cos_in, sphere, front)
+    parts = []
+    offsets = ray_offsets(points)
+    for branch in branches:
+        w = weight[:, branch.index] * branch.weights
+        alive = np.flatnonzero(w.max(axis=0) * (ctx.path_gain_bound * bounces_left) > cutoff)
+        if len(alive) == 0:
+            continue
+        index = branch.index[alive]
+        side = -1 if branch.through else 1
+        leaving_outside = front[index] if not branch.through else ~front[index]
+        parts.append((path[index], w[:, alive],
+                      take(points, index) + (side * offsets[index]) * take(normals, index),
+                      take(branch.directions, alive),
+                      np.where(leaving_outside, sphere[index], -1), sphere[index]))
+    if not parts:
+        return None
+    joined = [np.concatenate([part[i] for part in parts], axis=-1) for i in range(6)]
+    split = len(joined[0]) > len(np.unique(joined[0]))
+    return (*joined, split)

@@ -3,9 +3,10 @@
 A thin layer over ``RenderJob``: progress through update_progress, cancel through test_break,
 warnings through report, errors through report + error_set (so F12 shows the message and a
 command-line render fails instead of writing an empty image).  Blender expects scene-linear
-render results; the core's values are display values, so they are handed over through the
-inverse sRGB transfer function, and with view transform Standard Blender shows and saves the
-core's own numbers.  Render results have row 0 at the bottom.
+render results: the default semantics' radiance is handed over unchanged (so the user's view
+transform, look, exposure and gamma apply to it), the article semantics' display values
+through the inverse sRGB transfer function (``RenderJob.scene_linear``).  Render results have
+row 0 at the bottom.
 """
 
 from __future__ import annotations
@@ -17,13 +18,11 @@ import numpy as np
 
 from ...core import RenderCancelled, SceneError
 from ..export import ExportError
-from ..utils.colour import premultiplied_to_scene_linear
 from .job import prepare_job
 
 
-#: Callables given (job, finished image) for every frame rendered (the image holds the job's
-#: display values, row 0 = top), for scripts that want the core's numbers rather than
-#: Blender's colour-managed render result.
+#: Callables given (job, finished image) for every frame rendered (the job's image, row 0 =
+#: top, see ``RenderJob.run``), for scripts that want the frame's numbers.
 _image_listeners = []
 
 
@@ -51,6 +50,9 @@ class GlintRenderEngine(bpy.types.RenderEngine):
     # The viewport's Material Preview and Rendered modes fall back to EEVEE: Glint has no
     # interactive renderer.
     bl_use_eevee_viewport = True
+    # Glint reads the materials' shader nodes (``addon.export.materials``): the Shader Editor
+    # must be available to edit them.
+    bl_use_shading_nodes_custom = False
 
     def render(self, depsgraph):
         try:
@@ -83,7 +85,7 @@ class GlintRenderEngine(bpy.types.RenderEngine):
         for listener in _image_listeners:
             listener(job, image)
         x0, y0, x1, y1 = region
-        pixels = premultiplied_to_scene_linear(image[::-1][y0:y1, x0:x1])
+        pixels = job.scene_linear(image)[::-1][y0:y1, x0:x1]
         # begin_result counts from the region's corner, not the frame's.
         result = self.begin_result(0, 0, x1 - x0, y1 - y0)
         result.layers[0].passes["Combined"].rect.foreach_set(np.ascontiguousarray(pixels).ravel())

@@ -4,13 +4,15 @@
 settings, so the job holds plain data only.  ``RenderJob.run`` touches no Blender data and may
 run on any thread; it returns the finished image:
 
-* (H, W, 4) float32, row 0 = top, the core's display values (what its PNG stores);
+* (H, W, 4) float32, row 0 = top, the core's values: default semantics scene-linear radiance
+  (unclipped), article semantics the article's display values; ``scene_linear`` turns
+  either into what Blender's render result holds;
 * Film > Transparent off: alpha 1, the background is the world colour;
 * Film > Transparent on: alpha = sphere coverage, and the background the camera rays saw is
-  removed, leaving premultiplied colour (Blender's convention for render results).  The core
-  clips each sample to [0, 1] and a camera ray that misses contributes exactly the clipped
-  background, so subtracting (1 - coverage) * clip(background) removes those samples exactly;
-  reflections of the world stay.
+  removed, leaving premultiplied colour (Blender's convention for render results).  A camera
+  ray that misses contributes exactly the background (default semantics: unclipped; the
+  article's never adds one), so subtracting (1 - coverage) * background removes those samples
+  exactly; reflections of the world stay.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import numpy as np
 
 from ...core import RenderCancelled, RenderSettings, Scene, render
 from ..export import export_scene
+from ..utils.colour import premultiplied_to_scene_linear
 
 
 def render_settings(settings) -> RenderSettings:
@@ -58,6 +61,14 @@ class RenderJob:
         self.precision = result.precision
         return finish_image(result.image, self.scene, self.settings, self.transparent)
 
+    def scene_linear(self, image: np.ndarray) -> np.ndarray:
+        """The job's image (``run``) as Blender's scene-linear, premultiplied render result:
+        unchanged in default semantics, the inverse sRGB transfer of the article's display
+        values in article semantics (so view transform Standard shows the article's numbers)."""
+        if self.settings.semantics == "article":
+            return premultiplied_to_scene_linear(image)
+        return np.asarray(image, np.float32)
+
 
 def finish_image(image: np.ndarray, scene: Scene, settings: RenderSettings,
                  transparent: bool) -> np.ndarray:
@@ -67,7 +78,7 @@ def finish_image(image: np.ndarray, scene: Scene, settings: RenderSettings,
         finished[..., 3] = 1.0
         return finished
     if settings.semantics == "default":  # the article's semantics never add a background
-        background = np.clip(np.asarray(scene.background, np.float32), 0.0, 1.0)
+        background = np.asarray(scene.background, np.float32)
         finished[..., :3] -= (1.0 - finished[..., 3:4]) * background
         np.maximum(finished[..., :3], 0.0, out=finished[..., :3])
     return finished

@@ -26,8 +26,9 @@ from ..utils.colour import colour_from_blender
 from .camera import export_camera
 from .errors import ExportError
 from .geometry import mesh_sphere, world_sphere
-from .lights import export_point_light
-from .materials import export_material
+from .lights import export_article_light, export_light
+from .materials import export_article_material, export_material
+from .world import world_colour
 
 #: The scene-linear space Glint's sRGB conversions assume (Blender's default; Blender 5.0
 #: lets a file choose another).
@@ -88,30 +89,6 @@ def _main_material(obj, mesh):
     return slots[min(index, len(slots) - 1)].material
 
 
-def world_colour(world) -> tuple[tuple[float, float, float], str | None]:
-    """(scene-linear RGB the world shows, note or None): the Background node's Color times
-    Strength, or the world's Viewport Display colour when it has no node tree."""
-    if world is None:
-        return (0.0, 0.0, 0.0), None
-    tree = world.node_tree
-    uses_nodes = tree is not None and (bpy.app.version >= (5, 0, 0) or world.use_nodes)
-    if not uses_nodes:
-        return tuple(world.color), None
-    output = tree.get_output_node('CYCLES') or tree.get_output_node('ALL')
-    surface = output.inputs.get("Surface") if output is not None else None
-    if surface is None or not surface.is_linked:
-        return (0.0, 0.0, 0.0), None  # Blender renders an unconnected world black too
-    node = surface.links[0].from_node
-    if node.bl_idname != "ShaderNodeBackground":
-        return tuple(world.color), (f"world '{world.name}': its Surface is not a Background "
-                                    f"node, its Viewport Display colour is used")
-    colour, strength = node.inputs["Color"], node.inputs["Strength"]
-    note = None
-    if colour.is_linked or strength.is_linked:
-        note = f"world '{world.name}': linked Background inputs count as their unlinked values"
-    return tuple(c * strength.default_value for c in colour.default_value[:3]), note
-
-
 class _Skipped:
     """Names of what was not exported, by reason, for one warning per kind."""
 
@@ -136,6 +113,11 @@ def export_scene(depsgraph, camera_override=None) -> tuple[Scene, list[str]]:
     scene cannot be rendered at all (no camera, a panoramic camera, invalid values).
     """
     camera = export_camera(depsgraph, camera_override)
+    # Article semantics keeps the article's model (its Material and PointLight); the default
+    # semantics exports Blender's look in Cycles' units.
+    article = depsgraph.scene_eval.glint.semantics == 'ARTICLE'
+    light_exporter = export_article_light if article else export_light
+    material_exporter = export_article_material if article else export_material
     visible = _RenderVisibility(depsgraph)
     spheres, lights, notes = [], [], []
     skipped_objects, skipped_lights = _Skipped(), _Skipped()
@@ -148,13 +130,14 @@ def export_scene(depsgraph, camera_override=None) -> tuple[Scene, list[str]]:
         name = instance_name(instance)
         matrix = [list(row) for row in instance.matrix_world]
         if obj.type == 'LIGHT':
-            if obj.data.type != 'POINT':
-                skipped_lights.add(name, f"{obj.data.type.lower()} light")
-                continue
             try:
-                lights.append(export_point_light(obj.data, matrix, name))
+                light = light_exporter(obj.data, matrix, name)
             except SceneError as error:
                 raise ExportError(f"light '{name}': {error}") from None
+            if light is None:
+                skipped_lights.add(name, f"{obj.data.type.lower()} light")
+                continue
+            lights.append(light)
         elif obj.type == 'MESH':
             mesh = obj.data
             key = mesh.as_pointer()
@@ -170,7 +153,7 @@ def export_scene(depsgraph, camera_override=None) -> tuple[Scene, list[str]]:
             material = _main_material(obj, mesh)
             material_key = material.name_full if material is not None else None
             if material_key not in materials:
-                core_material, note = export_material(material)
+                core_material, note = material_exporter(material)
                 materials[material_key] = core_material
                 if note:
                     notes.append(note)
@@ -183,14 +166,14 @@ def export_scene(depsgraph, camera_override=None) -> tuple[Scene, list[str]]:
 
     world = depsgraph.scene_eval.world
     colour, world_note = world_colour(world)
-    background = colour_from_blender(colour)
+    background = colour_from_blender(colour) if article else tuple(colour)
 
     warnings = skipped_objects.warning("Glint renders spheres only;")
-    warnings += skipped_lights.warning("Glint renders point lights only;")
+    warnings += skipped_lights.warning("the article semantics renders point lights only;")
     if not spheres:
         warnings.append("no sphere to render: the image shows only the background")
     if not lights:
-        warnings.append("no point light: only the world's ambient light shows")
+        warnings.append("no light: only the world's light shows")
     warnings += notes + ([world_note] if world_note else [])
     working_space = getattr(getattr(bpy.data, "colorspace", None), "working_space", None)
     if working_space not in (None, WORKING_SPACE):
