@@ -33,7 +33,7 @@ import numpy as np
 
 from .bsdf import environment, light_response
 from .context import ARTICLE_OFFSET, RayStats, TraceContext, ray_offsets
-from .lights import area_sample_irradiance, centre_irradiance
+from .lights import area_sample_irradiance, centre_irradiance, disk_samples
 from .cull import DENSE_CANDIDATES, SHADOW_CELLS, candidate_roots, direction_cells
 from .vectors import dot, length, normalize, take
 
@@ -205,12 +205,13 @@ def _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats):
     return colour, goes_on, shadow_code
 
 
-def _sun_blocked(ctx, points, towards, offset, exclude, stats):
-    """(m,) whether rays from the points towards a sun (unit (3, m)) hit any sphere."""
+def _rays_blocked(ctx, points, towards, offset, reach, exclude, stats):
+    """(m,) whether rays from the points along unit ``towards`` (3, m) hit a sphere between
+    ``offset`` and ``reach`` (m,) (np.inf: a sun)."""
     from .trace import nearest_sphere  # the bounce loop's query; trace imports this module
 
     stats.shadow_rays += points.shape[1]
-    _, sphere = nearest_sphere(ctx, points, towards, offset, np.inf, exclude, stats)
+    _, sphere = nearest_sphere(ctx, points, towards, offset, reach, exclude, stats)
     return sphere >= 0
 
 
@@ -253,12 +254,20 @@ def _shade_blender_lights(ctx, points, normals, directions, spheres, front, shad
             if len(lit) == 0:
                 continue
             lit_points, lit_towards = take(points, lit), take(towards, lit)
-            for sample, position in enumerate(light.samples):
+            if light.disk is not None:
+                # A sphere light's disc faces each point: the rays leave the points.
+                for sample in range(len(light.disk)):
+                    on_light = disk_samples(light, sample, lit_points, lit_towards)
+                    to_sample, reach = normalize(on_light - lit_points)
+                    blocked = _rays_blocked(ctx, lit_points, to_sample, offset[lit], reach,
+                                            exclude[lit], stats)
+                    visibility[lit] += (~blocked) / len(light.disk)
+            for sample, position in enumerate(light.samples if light.disk is None else ()):
                 if light.kind == "sun":
-                    blocked = _sun_blocked(ctx, lit_points, lit_towards if len(light.samples) == 1
-                                           else np.repeat(position.astype(dtype)[:, None],
-                                                          len(lit), axis=1),
-                                           offset[lit], exclude[lit], stats)
+                    along = (lit_towards if len(light.samples) == 1 else
+                             np.repeat(position.astype(dtype)[:, None], len(lit), axis=1))
+                    blocked = _rays_blocked(ctx, lit_points, along, offset[lit], np.inf,
+                                            exclude[lit], stats)
                 else:
                     if len(light.samples) == 1:
                         from_sample, reach = -lit_towards, distance[lit]
