@@ -24,8 +24,9 @@ Secondary rays (``scatter``): a mirror ray (F(N.V) for smooth physical surfaces,
 article's ``reflection`` for its Material, plus what total internal reflection returns), a
 refracted ray (Snell's law with eta = 1 / ior entering and ior leaving, weight
 transmission * (1 - transmission_fresnel * F), F Schlick's with f0 = ((ior - 1) / (ior + 1))^2
-evaluated at the cosine on the less dense side; none under total internal reflection, whose
-share goes to the mirror ray), and a straight-through ray weighted by ``transparency``.  Rough
+evaluated at the cosine on the less dense side; none under total internal reflection, where
+the mirror ray gets transmission * (1 - transmission_fresnel * F(N.V)) more, so a clear glass
+reflects everything), and a straight-through ray weighted by ``transparency``.  Rough
 transmission is traced as sharp refraction (the blur is not modelled).
 """
 
@@ -189,9 +190,12 @@ def scatter(surfaces: SurfaceArrays, normals, directions, cos_in, spheres, front
             # Schlick on the less dense side: the incident cosine entering, the transmitted
             # one leaving (so that F reaches 1 at the critical angle).
             f = f0 + (1 - f0) * (1 - np.where(eta <= 1, c, cos_t)) ** 5
-            kept = 1 - surfaces.transmission_fresnel[spheres[index]] * f
-            weights = transmission[:, index] * np.where(total, 0, kept)
-            reflect_weight[:, index] += transmission[:, index] * total
+            k = surfaces.transmission_fresnel[spheres[index]]
+            weights = transmission[:, index] * np.where(total, 0, 1 - k * f)
+            # Under total internal reflection the refracted share is reflected: for glass
+            # (f0 = c f0(ior), f90 = c on the mirror lobe) the two then sum to c.
+            f_incident = f0 + (1 - f0) * (1 - c) ** 5
+            reflect_weight[:, index] += transmission[:, index] * (total * (1 - k * f_incident))
             d, n = directions[:, index], normals[:, index]
             refracted = eta * d + (eta * c - cos_t) * n
             go = np.flatnonzero(~total & (weights.max(axis=0) > 0))
