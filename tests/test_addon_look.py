@@ -235,3 +235,39 @@ def test_the_world_is_its_background_colour_times_strength_in_scene_linear(scene
     exported, _ = export_scene(depsgraph())
     np.testing.assert_allclose(exported.background, (0.6, 0.3, 0.15), rtol=1e-6)
     np.testing.assert_allclose(exported.ambient, (0.6, 0.3, 0.15), rtol=1e-6)
+
+
+def test_group_inputs_take_the_group_nodes_values_and_simple_math_is_evaluated(scene):
+    """As in CLEVR's rubber material: a group's Diffuse and Glossy read the group node's
+    unlinked Color and a Math node of its Roughness."""
+    group = bpy.data.node_groups.new("rubber", "ShaderNodeTree")
+    group.interface.new_socket("Color", in_out='INPUT', socket_type='NodeSocketColor')
+    group.interface.new_socket("Roughness", in_out='INPUT', socket_type='NodeSocketFloat')
+    group.interface.new_socket("Shader", in_out='OUTPUT', socket_type='NodeSocketShader')
+    inputs, outputs = group.nodes.new("NodeGroupInput"), group.nodes.new("NodeGroupOutput")
+    diffuse = group.nodes.new("ShaderNodeBsdfDiffuse")
+    glossy = group.nodes.new("ShaderNodeBsdfGlossy")
+    power = group.nodes.new("ShaderNodeMath")
+    power.operation = 'POWER'
+    power.inputs[1].default_value = 0.5
+    add = group.nodes.new("ShaderNodeAddShader")
+    group.links.new(inputs.outputs["Color"], diffuse.inputs["Color"])
+    group.links.new(inputs.outputs["Roughness"], power.inputs[0])
+    group.links.new(power.outputs[0], glossy.inputs["Roughness"])
+    group.links.new(diffuse.outputs[0], add.inputs[0])
+    group.links.new(glossy.outputs[0], add.inputs[1])
+    group.links.new(add.outputs[0], outputs.inputs["Shader"])
+    material = bpy.data.materials.new("rubber")
+    tree = material.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    node = tree.nodes.new("ShaderNodeGroup")
+    node.node_tree = group
+    node.inputs["Color"].default_value = (0.04, 0.27, 0.007, 1.0)
+    node.inputs["Roughness"].default_value = 0.25
+    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+
+    surface, warnings = exported_material(material)
+
+    np.testing.assert_allclose(surface.diffuse, (0.04, 0.27, 0.007), rtol=1e-6)
+    assert surface.roughness == pytest.approx(0.5)
+    assert not [w for w in warnings if "rubber" in w]

@@ -38,6 +38,7 @@ reflection 0.5: the article's look in grey.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Optional
 
@@ -277,14 +278,15 @@ class NodeEvaluator:
     # --- following links ------------------------------------------------------------------
 
     def source(self, socket, groups):
-        """(output socket, group stack) feeding an input socket, through reroutes and groups;
-        None if unlinked (or linked to nothing that resolves)."""
-        seen = 0
-        while socket.is_linked and seen < 256:
-            seen += 1
+        """What feeds an input socket, through reroutes, muted nodes and node groups:
+        (output socket, group stack) of the node that computes it, or (None, the unlinked
+        input socket whose own value it takes; inside a group that is the group node's)."""
+        for _ in range(256):
+            if not socket.is_linked:
+                return None, socket
             link = socket.links[0]
             if not link.is_valid or link.is_muted:
-                return None
+                return None, socket
             node, output = link.from_node, link.from_socket
             if node.bl_idname in _PASS_THROUGH or (node.mute and node.inputs):
                 inputs = [i for i in node.inputs if i.type == output.type] or list(node.inputs)
@@ -293,35 +295,46 @@ class NodeEvaluator:
             if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None:
                 outputs = [n for n in node.node_tree.nodes if n.bl_idname == "NodeGroupOutput"]
                 active = [n for n in outputs if n.is_active_output] or outputs
-                if not active:
-                    return None
-                inner = active[0].inputs.get(output.name)
+                inner = active[0].inputs.get(output.name) if active else None
                 if inner is None:
-                    return None
+                    return None, socket
                 groups = groups + (node,)
                 socket = inner
                 continue
             if node.bl_idname == "NodeGroupInput" and groups:
                 outer = groups[-1].inputs.get(output.name)
                 if outer is None:
-                    return None
+                    return None, socket
                 groups = groups[:-1]
                 socket = outer
                 continue
             return output, groups
-        return None
+        return None, socket
 
-    def _unlinked(self, socket, groups):
-        """The value an input shows when unlinked: its default (inside a group, the group
-        node's socket for a Group Input link is already followed by ``source``)."""
-        return socket.default_value
+    def _math(self, node, groups):
+        """A Math node of constant inputs, or None for operations not evaluated."""
+        a, b = (self.value(node.inputs[i], groups) for i in (0, 1))
+        operations = {
+            "ADD": lambda: a + b, "SUBTRACT": lambda: a - b, "MULTIPLY": lambda: a * b,
+            "DIVIDE": lambda: a / b if b else 0.0, "MINIMUM": lambda: min(a, b),
+            "MAXIMUM": lambda: max(a, b), "ABSOLUTE": lambda: abs(a),
+            "POWER": lambda: a ** b if a > 0 or float(b).is_integer() else 0.0,
+            "SQRT": lambda: math.sqrt(a) if a > 0 else 0.0,
+        }
+        if node.operation not in operations:
+            return None
+        result = float(operations[node.operation]())
+        return min(max(result, 0.0), 1.0) if node.use_clamp else result
 
     def value(self, socket, groups=()) -> float:
-        found = self.source(socket, groups)
-        if found is None:
-            return float(self._unlinked(socket, groups))
-        output, groups = found
+        output, groups = self.source(socket, groups)
+        if output is None:
+            return float(groups.default_value)
         node = output.node
+        if node.bl_idname == "ShaderNodeMath":
+            result = self._math(node, groups)
+            if result is not None:
+                return result
         if node.bl_idname == "ShaderNodeValue":
             return float(output.default_value)
         if node.bl_idname == "ShaderNodeFresnel":
@@ -337,19 +350,19 @@ class NodeEvaluator:
             return float(np.dot(colour, (0.2126, 0.7152, 0.0722)))
         self.note(f"{self.owner}: node '{node.name}' ({node.bl_label}) is not evaluated; "
                   f"'{socket.name}' uses its own value")
-        return float(self._unlinked(socket, groups))
+        return float(socket.default_value)
 
     def colour(self, socket, groups=()) -> np.ndarray:
-        found = self.source(socket, groups)
-        if found is None:
-            return np.asarray(socket.default_value[:3], float)
-        output, groups = found
+        outer = groups
+        output, groups = self.source(socket, groups)
+        if output is None:
+            return np.asarray(groups.default_value[:3], float)
         colour = self._node_colour(output, groups)
         if colour is not None:
             return colour
         node = output.node
         if output.type == 'VALUE':
-            return np.full(3, self.value(socket, ()))
+            return np.full(3, self.value(socket, outer))
         self.note(f"{self.owner}: node '{node.name}' ({node.bl_label}) is not evaluated; "
                   f"'{socket.name}' uses its own value")
         return np.asarray(socket.default_value[:3], float)
@@ -372,10 +385,9 @@ class NodeEvaluator:
     # --- shaders --------------------------------------------------------------------------
 
     def shader(self, socket, groups=()) -> Lobes:
-        found = self.source(socket, groups)
-        if found is None:
+        output, groups = self.source(socket, groups)
+        if output is None:
             return Lobes.none()
-        output, groups = found
         node = output.node
         kind = node.bl_idname
         colour = lambda name: self.colour(node.inputs[name], groups)  # noqa: E731
@@ -392,7 +404,8 @@ class NodeEvaluator:
                 transmission=value("Transmission Weight"),
                 emission=colour("Emission Color") * value("Emission Strength")))
         if kind in ("ShaderNodeBsdfDiffuse", "ShaderNodeBsdfTranslucent",
-                    "ShaderNodeSubsurfaceScattering", "ShaderNodeBsdfToon"):
+                    "ShaderNodeSubsurfaceScattering", "ShaderNodeBsdfToon",
+                    "ShaderNodeBsdfSheen", "ShaderNodeBsdfVelvet"):
             if kind != "ShaderNodeBsdfDiffuse":
                 self.note(f"{self.owner}: {node.bl_label} '{node.name}' is approximated by a "
                           f"Diffuse BSDF of its colour")
