@@ -16,8 +16,11 @@ cos(theta_i) = N.w_j, so that a Lambertian albedo a reflects radiance ``scale a 
   makes the light a disc of radius r facing the point (Cycles' sampling of a sphere light):
   its solid angle pi r^2 / (d^2 + r^2) replaces pi r^2 / d^2, so E = I cos(theta) /
   (d^2 + r^2) (measured: r = 0.6 at d = 3.5 is 3 % dimmer in Cycles than the point formula,
-  and (r / d)^2 = 2.9 %), and shadows are soft: visibility is the fraction of S points of
-  that disc (concentric map of a stratified grid, turned to face each point) the point sees.
+  and (r / d)^2 = 2.9 %), and shadows are soft: visibility is the share of that disc the
+  point sees, estimated from 2 S fixed points spread over the sphere (so that their shadow
+  rays share origins): each point j of the hemisphere facing P counts with weight
+  n_j . w, w the unit direction from the light's centre to P, which turns the hemisphere's
+  uniform spread into a uniform spread over the disc it projects to.
 * Spot light: the sphere light times Cycles' ``spot_attenuation``,
   smoothstep(0, 1, (cos(phi) - cos(size / 2)) / ((1 - cos(size / 2)) blend)), phi the angle
   from the spot's axis (a hard edge for blend = 0).  The power is *not* concentrated into
@@ -62,10 +65,9 @@ class PreparedLight:
         directions towards the light).
     scale: (3,) colour x the light's constant factor (module docstring).
     centre: (3,) position, or the unit direction towards the sun.
-    samples: (S, 3) sample positions on the light, or unit directions towards the sun; a
-        sphere light with a radius has only its centre here and ``disk`` (S, 2), the unit
-        disc's points its samples face each shaded point with (``disk_samples``).
+    samples: (S, 3) sample positions on the light, or unit directions towards the sun.
     terms: OriginTerms per sample position (empty for a sun).
+    radius: a sphere light's radius; sample_normals (S, 3): its samples' outward normals.
     normal: (3,) an area light's emitting direction.  axis, cos_half, blend: a spot's cone.
     """
 
@@ -75,7 +77,7 @@ class PreparedLight:
     samples: np.ndarray
     terms: tuple
     radius: float = 0.0
-    disk: np.ndarray | None = None
+    sample_normals: np.ndarray | None = None
     normal: np.ndarray | None = None
     axis: np.ndarray | None = None
     cos_half: float = -1.0
@@ -143,12 +145,11 @@ def prepare_light(light, light_samples: int, centers, radii) -> PreparedLight:
                              terms_at(samples), normal=np.asarray(light.direction, np.float64))
     if isinstance(light, (SphereLight, SpotLight)):
         centre = np.asarray(light.position, np.float64)
-        samples = centre[None, :]
+        normals = fibonacci_sphere(2 * light_samples) if light.radius > 0 else None
+        samples = centre[None, :] if normals is None else centre + light.radius * normals
         prepared = dict(kind="sphere", scale=colour * light.power / (4 * math.pi),
                         centre=centre, samples=samples, terms=terms_at(samples),
-                        radius=light.radius)
-        if light.radius > 0:
-            prepared["disk"] = concentric_disk(_grid(light_samples))
+                        radius=light.radius, sample_normals=normals)
         if isinstance(light, SpotLight):
             prepared.update(axis=np.asarray(light.direction, np.float64),
                             cos_half=math.cos(light.spot_size / 2), blend=light.spot_blend)
@@ -190,19 +191,3 @@ def area_sample_irradiance(light: PreparedLight, sample: int, points, normals):
     e = cos_i * cos_l / (len(light.samples) * distance * distance)
     return towards, distance, e
 
-
-def disk_samples(light: PreparedLight, sample: int, points, towards):
-    """Sample ``sample`` of a sphere light's disc facing each point: positions (3, m), for
-    points (3, m) seeing the light's centre along unit ``towards`` (3, m)."""
-    dtype = points.dtype
-    # A tangent: towards x X, or towards x Y where towards is nearly along X.
-    use_x = np.abs(towards[0]) < 0.9
-    zero = np.zeros_like(towards[0])
-    first = np.where(use_x, np.stack([zero, towards[2], -towards[1]]),
-                     np.stack([-towards[2], zero, towards[0]]))
-    first, _ = normalize(first)
-    second = np.stack([towards[1] * first[2] - towards[2] * first[1],
-                       towards[2] * first[0] - towards[0] * first[2],
-                       towards[0] * first[1] - towards[1] * first[0]])
-    u, v = light.disk[sample] * light.radius
-    return light.centre.astype(dtype)[:, None] + dtype.type(u) * first + dtype.type(v) * second

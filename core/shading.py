@@ -33,7 +33,7 @@ import numpy as np
 
 from .bsdf import environment, light_response
 from .context import ARTICLE_OFFSET, RayStats, TraceContext, ray_offsets
-from .lights import area_sample_irradiance, centre_irradiance, disk_samples
+from .lights import area_sample_irradiance, centre_irradiance
 from .cull import DENSE_CANDIDATES, SHADOW_CELLS, candidate_roots, direction_cells
 from .vectors import dot, length, normalize, take
 
@@ -215,6 +215,16 @@ def _rays_blocked(ctx, points, towards, offset, reach, exclude, stats):
     return sphere >= 0
 
 
+def _sphere_sample_weights(light, towards):
+    """(S, m) weights of a sphere light's samples for points seeing its centre along unit
+    ``towards`` (3, m): n_j . w on the hemisphere facing each point, normalised to sum 1
+    (``core.lights``); None for lights without a radius."""
+    if light.sample_normals is None:
+        return None
+    weights = np.maximum(-(light.sample_normals.astype(towards.dtype) @ towards), 0)
+    return weights / weights.sum(axis=0)
+
+
 def _shade_blender_lights(ctx, points, normals, directions, spheres, front, shadow_code, stats):
     """(radiance (3, m), shadow_code) from Blender's lights (``core.lights``) and the world's
     glossy and emitted terms (``core.bsdf``) at m points, default semantics.
@@ -254,15 +264,17 @@ def _shade_blender_lights(ctx, points, normals, directions, spheres, front, shad
             if len(lit) == 0:
                 continue
             lit_points, lit_towards = take(points, lit), take(towards, lit)
-            if light.disk is not None:
-                # A sphere light's disc faces each point: the rays leave the points.
-                for sample in range(len(light.disk)):
-                    on_light = disk_samples(light, sample, lit_points, lit_towards)
-                    to_sample, reach = normalize(on_light - lit_points)
-                    blocked = _rays_blocked(ctx, lit_points, to_sample, offset[lit], reach,
-                                            exclude[lit], stats)
-                    visibility[lit] += (~blocked) / len(light.disk)
-            for sample, position in enumerate(light.samples if light.disk is None else ()):
+            weights = _sphere_sample_weights(light, lit_towards)
+            for sample, position in enumerate(light.samples):
+                if weights is not None:
+                    facing = np.flatnonzero(weights[sample] > 0)
+                    from_sample, reach = normalize(take(lit_points, facing)
+                                                   - _column(position, dtype))
+                    blocked = light_blocked(ctx, light.terms[sample], position, from_sample,
+                                            reach, exclude[lit[facing]], stats,
+                                            end=offset[lit[facing]])
+                    visibility[lit[facing]] += weights[sample, facing] * ~blocked
+                    continue
                 if light.kind == "sun":
                     along = (lit_towards if len(light.samples) == 1 else
                              np.repeat(position.astype(dtype)[:, None], len(lit), axis=1))

@@ -313,6 +313,20 @@ def test_the_render_result_is_unclipped_scene_linear_radiance():
     np.testing.assert_array_equal(image, core_image())
 
 
+def test_an_exr_render_keeps_values_above_one(tmp_path):
+    scene = lit_scene()
+    scene.render.engine = 'GLINT'
+    scene.render.image_settings.file_format = 'OPEN_EXR'
+    scene.render.image_settings.color_depth = '32'
+    scene.render.filepath = str(tmp_path / "frame.exr")
+    bpy.ops.render.render(write_still=True)
+    saved = bpy.data.images.load(str(tmp_path / "frame.exr"))
+    pixels = read_image(saved)
+    bpy.data.images.remove(saved)
+    np.testing.assert_allclose(pixels, core_image(), rtol=1e-6, atol=1e-7)
+    assert pixels[..., :3].max() > 1.2
+
+
 def test_under_standard_the_saved_image_is_the_srgb_encoding_of_the_radiance(tmp_path):
     lit_scene()
     render_button()
