@@ -160,8 +160,9 @@ class SurfaceMaterial:
     specular_f0, specular_f90: the glossy lobe's reflectance at normal and grazing incidence;
         Schlick's curve F(c) = f0 + (f90 - f0) (1 - c)^5 between them.  A Glossy BSDF of colour
         c is f0 = f90 = c; Principled's dielectric layer f0 = ((ior - 1) / (ior + 1))^2.
-    roughness: Blender's roughness (alpha = roughness^2).  Lights give a normalised Blinn-Phong
-        highlight; surfaces with roughness <= ``MIRROR_ROUGHNESS`` also trace a mirror ray.
+    roughness: Blender's roughness (alpha = roughness^2).  Lights give a GGX highlight
+        (``core.bsdf``); surfaces with roughness <= ``MIRROR_ROUGHNESS`` also trace a mirror
+        ray.
     transmission: colour of the light refracted through the surface (Snell's law, ``ior``);
         ``transmission_fresnel`` in [0, 1]: how much of it Fresnel takes away (1: glass, whose
         reflected part is the specular lobe; 0: Cycles' Refraction BSDF, all refracted).
@@ -234,8 +235,9 @@ class SurfaceMaterial:
 
     # The article's Blinn-Phong terms of this surface, for code that shades every material
     # with them (``core.arrays``, the article's point lights in default semantics): ambient
-    # light is reflected with the albedo, the highlight is the normalised lobe at normal
-    # incidence, and reflection rays are spawned by ``core.bsdf`` (so 0 here).
+    # light is reflected with the albedo, the highlight is a normalised Blinn-Phong lobe of
+    # the matching exponent at normal incidence, and reflection rays are spawned by
+    # ``core.bsdf`` (so 0 here).
     @property
     def ambient(self) -> Vec3:
         return self.diffuse

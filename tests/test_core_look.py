@@ -105,8 +105,10 @@ def test_refraction_follows_snells_law_and_total_internal_reflection_returns_eve
 
 
 def test_the_glossy_lobe_conserves_energy_at_every_roughness():
-    """The directional albedo of the normalised Blinn-Phong lobe with f0 = f90 = 1, seen at
-    normal incidence, integrated over the hemisphere: about 1, never above 1.1."""
+    """The directional albedo of the GGX lobe with f0 = f90 = 1 (a white metal), seen at
+    normal incidence, integrated over the hemisphere: 1 within 3 % at every roughness (the
+    multiple-scattering compensation restores what single-scattering GGX loses: 31 % at
+    roughness 1), never above."""
     theta = (np.arange(400) + 0.5) / 400 * (math.pi / 2)
     phi = (np.arange(64) + 0.5) / 64 * 2 * math.pi
     t, p = np.meshgrid(theta, phi, indexing="ij")
@@ -121,7 +123,8 @@ def test_the_glossy_lobe_conserves_energy_at_every_roughness():
         radiance = light_response(surfaces, np.zeros(m, int), normals, normals, towards,
                                   towards[2])
         albedo = float((radiance[0] * d_omega).sum())
-        assert 0.75 < albedo < 1.1, (roughness, albedo)
+        assert albedo <= 1.0 + 2e-3, (roughness, albedo)
+        assert albedo > 0.97, (roughness, albedo)
 
 
 def test_surface_material_errors_name_the_field():
