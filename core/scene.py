@@ -293,7 +293,8 @@ class PointLight:
         (1, 1, 1) for all three.
     radius: 0 for a point (hard shadows); > 0 makes a spherical light whose shadows are soft
         (visibility averaged over ``RenderSettings.light_samples`` points on it).
-    Use ``PointLight.from_power`` for a Blender light given in watts.
+    ``PointLight.from_power`` maps a Blender light's watts onto this model (what the
+    article semantics exports); ``SphereLight`` is Blender's point light in Cycles' units.
     """
 
     position: Vec3

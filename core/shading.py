@@ -25,6 +25,10 @@ Default semantics, each quirk fixed:
 
 Shadow rays are traced from the light towards the points: every shadow ray of a light then
 shares one origin, so the sphere terms are computed once per light, not once per ray.
+
+Default semantics also shades Blender's lights in Cycles' units (``_shade_blender_lights``:
+samples and irradiance from ``core.lights``, the surface's answer from ``core.bsdf``), for
+SurfaceMaterials and the article's Materials alike; a sun's shadow rays leave the points.
 """
 
 from __future__ import annotations

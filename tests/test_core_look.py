@@ -136,3 +136,13 @@ def test_surface_material_errors_name_the_field():
         core.AreaLight((0, 0, 0), (0, 0, -1), (1, 0, 0), (0, 1, 0), shape="TRIANGLE")
     with pytest.raises(core.SceneError, match="direction"):
         core.SunLight((0, 0, 0))
+
+
+def test_the_articles_material_under_blenders_lights_reads_its_intensities_as_e_over_pi():
+    """Default semantics, an article Material (kd) lit by a SphereLight: kd E cos / pi, i.e.
+    the article's kd Id cos with Id = E / pi, and no highlight where N.H is small."""
+    material = core.Material(ambient=(0, 0, 0), diffuse=(0.5, 0.25, 0.1), specular=(0, 0, 0),
+                             reflection=0.0)
+    scene = core.Scene(camera(), grey_ball(material), (core.SphereLight((0, -5, 0), power=1000),))
+    expected = np.array([0.5, 0.25, 0.1]) * 1000 / (4 * math.pi ** 2 * 16)
+    np.testing.assert_allclose(centre(scene), expected, rtol=6e-3)
