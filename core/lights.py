@@ -191,3 +191,12 @@ def area_sample_irradiance(light: PreparedLight, sample: int, points, normals):
     e = cos_i * cos_l / (len(light.samples) * distance * distance)
     return towards, distance, e
 
+
+
+def cosine_directions(count: int) -> np.ndarray:
+    """(k^2, 3) directions over the hemisphere around +Z, k = ceil(sqrt(count)), spread with
+    density cos(theta) / pi (Malley's method: a stratified disc lifted onto the hemisphere),
+    so that their plain mean of visibility is the cosine-weighted share of the sky seen."""
+    disk = concentric_disk(_grid(count))
+    z = np.sqrt(np.maximum(1 - (disk ** 2).sum(axis=1), 0))
+    return np.concatenate([disk, z[:, None]], axis=1)

@@ -620,6 +620,10 @@ class RenderSettings:
         whose neighbours hit a different sphere or differ in colour).
     samples: rays per supersampled pixel.
     light_samples: shadow rays per light with radius > 0 (soft shadows).
+    world_samples: shadow rays per point towards the world (at least this many: a k x k grid;
+        default semantics, scenes with
+        several spheres and a world that shines): the share of the sky a point sees scales
+        the world's diffuse light (contact shadows); 0 treats the world as unoccluded.
     contribution_cutoff: a path stops once nothing it could still add exceeds this (a fraction
         of full white); 1e-6 keeps results float64-accurate to the 8-bit output many times over.
     tile_size: tiles are tile_size x tile_size pixels; memory per tile is bounded by it.
@@ -632,6 +636,7 @@ class RenderSettings:
     anti_aliasing: Literal["off", "fixed", "adaptive"] = "off"
     samples: int = 16
     light_samples: int = 16
+    world_samples: int = 9
     contribution_cutoff: float = 1e-6
     tile_size: int = 128
     threads: int | None = None
@@ -643,6 +648,7 @@ class RenderSettings:
         _count("settings.max_depth", self.max_depth)
         _count("settings.samples", self.samples)
         _count("settings.light_samples", self.light_samples)
+        _count("settings.world_samples", self.world_samples, minimum=0)
         _count("settings.tile_size", self.tile_size, minimum=8)
         if self.threads is not None:
             _count("settings.threads", self.threads)

@@ -37,8 +37,9 @@ import numpy as np
 
 from .bsdf import environment, light_response
 from .context import ARTICLE_OFFSET, RayStats, TraceContext, ray_offsets
-from .lights import area_sample_irradiance, centre_irradiance
-from .cull import DENSE_CANDIDATES, SHADOW_CELLS, candidate_roots, direction_cells
+from .lights import area_sample_irradiance, centre_irradiance, cosine_directions
+from .cull import (DENSE_CANDIDATES, REFLECTION_CELLS, SHADOW_CELLS, candidate_roots,
+                   direction_cells)
 from .vectors import dot, length, normalize, take
 
 #: One digit of a shadow code per light: unlit (0) or visibility 0, 1/4, .., 1 (1 .. 5).
@@ -209,13 +210,19 @@ def _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats):
     return colour, goes_on, shadow_code
 
 
-def _rays_blocked(ctx, points, towards, offset, reach, exclude, stats):
+def _rays_blocked(ctx, points, towards, offset, reach, exclude, stats, leaving=None):
     """(m,) whether rays from the points along unit ``towards`` (3, m) hit a sphere between
-    ``offset`` and ``reach`` (m,) (np.inf: a sun)."""
+    ``offset`` and ``reach`` (m,) (np.inf: a sun).  leaving: (m,) the sphere each ray leaves;
+    with many spheres, rays leaving one sphere in one direction cell are culled together
+    (as the bounce loop's reflection rays are)."""
     from .trace import nearest_sphere  # the bounce loop's query; trace imports this module
 
     stats.shadow_rays += points.shape[1]
-    _, sphere = nearest_sphere(ctx, points, towards, offset, reach, exclude, stats)
+    key = None
+    if leaving is not None and len(ctx.radii) > DENSE_CANDIDATES:
+        key = (leaving * (6 * REFLECTION_CELLS ** 2)
+               + direction_cells(towards, REFLECTION_CELLS))
+    _, sphere = nearest_sphere(ctx, points, towards, offset, reach, exclude, stats, key=key)
     return sphere >= 0
 
 
@@ -227,6 +234,33 @@ def _sphere_sample_weights(light, towards):
         return None
     weights = np.maximum(-(light.sample_normals.astype(towards.dtype) @ towards), 0)
     return weights / weights.sum(axis=0)
+
+
+def _world_occlusion(ctx, points, normals, spheres, offset, exclude, stats):
+    """(m,) the cosine-weighted share of the world hidden from each point by spheres (0 for
+    the article's Materials), from ``world_samples`` fixed directions turned into each
+    point's normal frame.  The ambient term (``_shade_default``) adds diffuse x world
+    unoccluded; this share of it is taken back."""
+    physical = ctx.look.surfaces.physical[spheres]
+    hidden = np.zeros(points.shape[1], points.dtype)
+    chosen = np.flatnonzero(physical)
+    if len(chosen) == 0:
+        return hidden
+    n = take(normals, chosen)
+    zero = np.zeros_like(n[0])
+    first = np.where(np.abs(n[0]) < 0.9, np.stack([zero, n[2], -n[1]]),
+                     np.stack([-n[2], zero, n[0]]))
+    first, _ = normalize(first)
+    second = np.stack([n[1] * first[2] - n[2] * first[1], n[2] * first[0] - n[0] * first[2],
+                       n[0] * first[1] - n[1] * first[0]])
+    directions = cosine_directions(ctx.settings.world_samples).astype(points.dtype)
+    origins = take(points, chosen)
+    for x, y, z in directions:
+        along = x * first + y * second + z * n
+        blocked = _rays_blocked(ctx, origins, along, offset[chosen], np.inf, exclude[chosen],
+                                stats, leaving=spheres[chosen])
+        hidden[chosen] += blocked / len(directions)
+    return hidden
 
 
 def _shade_blender_lights(ctx, points, normals, directions, spheres, front, shadow_code, stats):
@@ -245,6 +279,9 @@ def _shade_blender_lights(ctx, points, normals, directions, spheres, front, shad
     colour += environment(surfaces, spheres, normals, to_view, world)
     exclude = np.where(front, spheres, -1)
     offset = ray_offsets(points)
+    if ctx.settings.world_samples and world.any() and len(ctx.radii) > 1:
+        colour -= _world_occlusion(ctx, points, normals, spheres, offset, exclude, stats) * (
+            take(surfaces.diffuse, spheres) * world)
     for light in look.lights:
         scale = _column(light.scale, dtype)
         shadow_code = shadow_code * np.uint64(_CODE_BASE)
@@ -283,7 +320,7 @@ def _shade_blender_lights(ctx, points, normals, directions, spheres, front, shad
                     along = (lit_towards if len(light.samples) == 1 else
                              np.repeat(position.astype(dtype)[:, None], len(lit), axis=1))
                     blocked = _rays_blocked(ctx, lit_points, along, offset[lit], np.inf,
-                                            exclude[lit], stats)
+                                            exclude[lit], stats, leaving=spheres[lit])
                 else:
                     if len(light.samples) == 1:
                         from_sample, reach = -lit_towards, distance[lit]

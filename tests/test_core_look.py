@@ -146,3 +146,17 @@ def test_the_articles_material_under_blenders_lights_reads_its_intensities_as_e_
     scene = core.Scene(camera(), grey_ball(material), (core.SphereLight((0, -5, 0), power=1000),))
     expected = np.array([0.5, 0.25, 0.1]) * 1000 / (4 * math.pi ** 2 * 16)
     np.testing.assert_allclose(centre(scene), expected, rtol=6e-3)
+
+
+def test_world_light_is_occluded_by_other_spheres_unless_world_samples_is_0():
+    spheres = (core.Sphere((0, 0, 0), 1.0, core.SurfaceMaterial(diffuse=(0.5,) * 3)),
+               core.Sphere((0, -2.2, 0), 1.0, core.SurfaceMaterial(diffuse=(0.5,) * 3)))
+    side = core.BlenderCamera(((0, 0, 1, 10), (1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 0, 1)),
+                              resolution_x=32, resolution_y=32, lens=60)   # from +X
+    scene = core.Scene(side, spheres, background=(1, 1, 1), ambient=(1, 1, 1))
+    occluded = core.render(scene).image
+    open_sky = core.render(scene, core.RenderSettings(world_samples=0)).image
+    covered = open_sky[..., 3] == 1
+    np.testing.assert_allclose(open_sky[covered, :3], 0.5)   # albedo x world, unoccluded
+    assert (occluded[covered, :3] <= 0.5 + 1e-12).all()
+    assert occluded[covered, 0].min() < 0.4                   # where the balls face each other

@@ -121,6 +121,24 @@ def test_the_world_lights_diffuse_surfaces_and_shows_where_rays_escape():
     np.testing.assert_allclose(cycles[0, 0, :3], corner, rtol=1e-3)
 
 
+def test_spheres_hide_the_world_from_each_other_as_in_cycles():
+    """Two balls on a floor (a sphere of radius 100) under a blue world, no light: the world's
+    diffuse light is what each point sees of the sky.  Unoccluded, the balls would be 71 %
+    and 81 % too bright; Glint's 9 fixed cosine-weighted directions per point against
+    Cycles' 128 random ones agree on the mean within 1.8 % (measured), per pixel within
+    20 % at the 90th percentile (the fixed pattern's banding against Cycles' noise)."""
+    cycles_scene(samples=128)
+    set_world((0.3, 0.5, 0.9), 1.0)
+    balls = (add_ball("a", (-0.6, 0.0, 0.0), 0.8, diffuse("a", (0.8, 0.8, 0.8))),
+             add_ball("b", (0.75, 0.3, -0.2), 0.6, diffuse("b", (0.8, 0.5, 0.2))))
+    add_ball("floor", (0.0, 0.0, -101.0), 100.0, diffuse("floor", (0.5, 0.5, 0.5)))
+    glint, cycles = render_both()
+    for ball in balls:
+        mask = sphere_mask(ball)
+        np.testing.assert_allclose(surface_ratios(glint, cycles, mask, 0.0), 1.0, atol=0.03)
+        assert np.percentile(pixel_errors(glint, cycles, mask, 0.0), 90) < 0.25
+
+
 # --- shader nodes -----------------------------------------------------------------------------
 
 def lit_ball(make_material, bounces=0, world=None, light=True, samples=64):
