@@ -620,10 +620,10 @@ class RenderSettings:
         whose neighbours hit a different sphere or differ in colour).
     samples: rays per supersampled pixel.
     light_samples: shadow rays per light with radius > 0 (soft shadows).
-    world_samples: shadow rays per point towards the world (at least this many: a k x k grid;
-        default semantics, scenes with
-        several spheres and a world that shines): the share of the sky a point sees scales
-        the world's diffuse light (contact shadows); 0 treats the world as unoccluded.
+    world_samples: shadow rays per point towards the world (a k x k grid of at least this
+        many; default semantics, scenes with several spheres and a world that shines): the
+        share of the sky a point sees scales the world's diffuse light (contact shadows);
+        0 treats the world as unoccluded.
     contribution_cutoff: a path stops once nothing it could still add exceeds this (a fraction
         of full white); 1e-6 keeps results float64-accurate to the 8-bit output many times over.
     tile_size: tiles are tile_size x tile_size pixels; memory per tile is bounded by it.
