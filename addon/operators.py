@@ -18,9 +18,7 @@ import time
 
 import bpy
 
-from ..core import SceneError
-from .engine.job import ThreadedRender, prepare_job
-from .export import ExportError
+from .engine.job import ThreadedRender, failure_message, prepare_job
 from .utils.image import ImageError, check_image_name, write_image
 
 #: How often the modal handler looks at the worker, in seconds.
@@ -50,21 +48,28 @@ class GLINT_OT_render(bpy.types.Operator):
         try:
             check_image_name(image_name)
             job = prepare_job(context.evaluated_depsgraph_get())
-        except (ExportError, ImageError, SceneError) as error:
+        except ImageError as error:
             self.report({'ERROR'}, str(error))
+            return None
+        except Exception as error:  # anything, so the user sees one line, not a traceback
+            self.report({'ERROR'}, failure_message(error))
             return None
         for warning in job.warnings:
             self.report({'WARNING'}, warning)
         return job, image_name
 
-    def _store(self, job, image, image_name: str, seconds: float):
+    def _store(self, job, result, image_name: str, seconds: float):
         try:
-            write_image(image_name, job.scene_linear(image))
+            write_image(image_name, job.scene_linear(result.image))
         except ImageError as error:
             self.report({'ERROR'}, str(error))
             return {'CANCELLED'}
+        except Exception as error:
+            self.report({'ERROR'}, f"Glint could not store the render in image "
+                                   f"'{image_name}': {failure_message(error)}")
+            return {'CANCELLED'}
         width, height = job.size
-        self.report({'INFO'}, f"Glint rendered {width}x{height} ({job.precision}) in "
+        self.report({'INFO'}, f"Glint rendered {width}x{height} ({result.precision}) in "
                               f"{seconds:.2f} s into image '{image_name}'")
         return {'FINISHED'}
 
@@ -77,15 +82,15 @@ class GLINT_OT_render(bpy.types.Operator):
         start = time.perf_counter()
         window_manager.progress_begin(0, 100)
         try:
-            image = job.run(progress=lambda fraction: window_manager.progress_update(
+            result = job.run(progress=lambda fraction: window_manager.progress_update(
                 round(100 * fraction)))
-        except SceneError as error:
+        except BaseException as error:  # any failure keeps the image and says so in one line
             self.report({'ERROR'}, f"Glint render failed, image '{image_name}' unchanged: "
-                                   f"{error}")
+                                   f"{failure_message(error)}")
             return {'CANCELLED'}
         finally:
             window_manager.progress_end()
-        return self._store(job, image, image_name, time.perf_counter() - start)
+        return self._store(job, result, image_name, time.perf_counter() - start)
 
     def invoke(self, context, event):
         if bpy.app.background or context.window is None:
@@ -121,9 +126,9 @@ class GLINT_OT_render(bpy.types.Operator):
             return {'CANCELLED'}
         if worker.error is not None:
             self.report({'ERROR'}, f"Glint render failed, image '{self._image_name}' "
-                                   f"unchanged: {worker.error}")
+                                   f"unchanged: {failure_message(worker.error)}")
             return {'CANCELLED'}
-        return self._store(self._job, worker.image, self._image_name,
+        return self._store(self._job, worker.result, self._image_name,
                            time.perf_counter() - self._start)
 
     def cancel(self, context):

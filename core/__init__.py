@@ -2,8 +2,9 @@
 
 Public API::
 
-    from core import (Scene, Sphere, Material, PointLight, ScreenCamera, BlenderCamera,
-                      RenderSettings, render, article_scene, SceneError, RenderCancelled)
+    from core import (Scene, Sphere, SphereSet, TriangleMesh, Material, PointLight,
+                      ScreenCamera, BlenderCamera, RenderSettings, render, article_scene,
+                      SceneError, RenderCancelled)
 
     result = render(scene, RenderSettings(...), progress=None, should_cancel=None)
     result.image      # (H, W, 4) float64 or float32, row 0 = TOP; RGB: article semantics
@@ -19,14 +20,15 @@ ValueError) naming the field, before any ray is traced.
 """
 
 from .scene import (AreaLight, BlenderCamera, Material, PointLight, RenderSettings, Scene,
-                    SceneError, ScreenCamera, Sphere, SphereLight, SpotLight, SunLight,
-                    SurfaceMaterial)
+                    SceneError, ScreenCamera, Sphere, SphereLight, SphereSet, SpotLight,
+                    SunLight, SurfaceMaterial, TriangleMesh)
 from .render import RayStats, RenderCancelled, RenderResult, render
 from .article import article_scene, article_settings
 
 __all__ = [
     "AreaLight", "SphereLight", "SpotLight", "SunLight", "SurfaceMaterial",
     "BlenderCamera", "Material", "PointLight", "RenderSettings", "Scene", "SceneError",
-    "ScreenCamera", "Sphere", "RayStats", "RenderCancelled", "RenderResult", "render",
+    "ScreenCamera", "Sphere", "SphereSet", "TriangleMesh", "RayStats", "RenderCancelled",
+    "RenderResult", "render",
     "article_scene", "article_settings",
 ]

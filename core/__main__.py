@@ -1,17 +1,23 @@
-"""``python -m core --scene article --width W --height H --output FILE`` (.png or .npy)."""
+"""``python -m core --scene article --width W --height H --output FILE`` (.png or .npy).
+
+Every failure is one line on stderr and a non-zero exit (2 for bad input, 1 for anything
+else); the output is written atomically (``core.png.atomic_file``), so the previous file
+survives any failure.  Ctrl-C or SIGTERM stop the render between tiles, write nothing and exit
+130 or 143 (128 + the signal's number).
+"""
 
 from __future__ import annotations
 
 import argparse
-import io
 import os
+import signal
 import sys
 import time
 
 import numpy as np
 
 from .article import article_scene, article_settings
-from .png import write_atomically, write_png
+from .png import atomic_file, write_png
 from .render import render
 from .scene import SceneError
 
@@ -39,8 +45,18 @@ def parse_args(argv):
     return args
 
 
+class Terminated(BaseException):
+    """SIGTERM arrived (raised from its handler, like KeyboardInterrupt for SIGINT)."""
+
+
+def _terminate(number, frame):
+    raise Terminated()
+
+
 def main(argv=None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
+    if signal.getsignal(signal.SIGTERM) is not signal.SIG_IGN:
+        signal.signal(signal.SIGTERM, _terminate)
     try:
         scene = SCENES[args.scene](args.width, args.height)
         settings = article_settings(
@@ -50,14 +66,27 @@ def main(argv=None) -> int:
         result = render(scene, settings)
         elapsed = time.perf_counter() - start
         if args.output.endswith(".npy"):
-            buffer = io.BytesIO()
-            np.save(buffer, result.image)
-            write_atomically(args.output, buffer.getvalue())
+            with atomic_file(args.output) as stream:
+                np.save(stream, result.image)  # streamed from the array, no copy
         else:
             write_png(args.output, result.display())
     except (SceneError, OSError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("error: cancelled by SIGINT (Ctrl-C); nothing written", file=sys.stderr)
+        return 128 + signal.SIGINT
+    except Terminated:
+        print("error: cancelled by SIGTERM; nothing written", file=sys.stderr)
+        return 128 + signal.SIGTERM
+    except MemoryError:
+        print("error: out of memory: lower --width, --height or --samples", file=sys.stderr)
+        return 1
+    except Exception as error:  # a bug: still one line, never a traceback
+        detail = str(error).strip().splitlines()
+        print(f"error: internal error ({type(error).__name__}"
+              f"{': ' + detail[0] if detail else ''})", file=sys.stderr)
+        return 1
     print(f"wrote {args.output} ({args.width}x{args.height}, {result.precision}, "
           f"{args.semantics} semantics) in {elapsed:.3f} s")
     return 0

@@ -119,11 +119,6 @@ def camera_rays(camera: Camera, xs: np.ndarray, ys: np.ndarray, dtype=np.float64
     return _blender_rays(camera, xs, ys, dtype)
 
 
-def image_size(camera: Camera) -> tuple[int, int]:
-    """(width, height) in pixels."""
-    return camera.width, camera.height
-
-
 def eye_position(camera: Camera) -> np.ndarray:
     """The camera's position (3,) in world space (the ortho camera's centre)."""
     if isinstance(camera, ScreenCamera):

@@ -40,7 +40,7 @@ cos(theta_i) = N.w_j, so that a Lambertian albedo a reflects radiance ``scale a 
   direction, distance and visibility: e_j = cos(theta_l) cos(theta_i) / (S d_j^2), scale =
   P c / pi.
 
-Shadow rays from a light's samples share an origin (``OriginTerms`` per sample, as for the
+Shadow rays from a light's samples share an origin (a ``SharedOrigin`` per sample, as for the
 article's lights); a sun's rays leave the points instead.
 """
 
@@ -51,7 +51,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .intersect import OriginTerms
 from .scene import AreaLight, SphereLight, SpotLight, SunLight
 from .vectors import dot, normalize
 
@@ -66,7 +65,7 @@ class PreparedLight:
     scale: (3,) colour x the light's constant factor (module docstring).
     centre: (3,) position, or the unit direction towards the sun.
     samples: (S, 3) sample positions on the light, or unit directions towards the sun.
-    terms: OriginTerms per sample position (empty for a sun).
+    terms: the geometry's ``SharedOrigin`` per sample position (empty for a sun).
     radius: a sphere light's radius; sample_normals (S, 3): its samples' outward normals.
     normal: (3,) an area light's emitting direction.  axis, cos_half, blend: a spot's cone.
     """
@@ -119,11 +118,12 @@ def _tangents(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return first, np.cross(direction, first)
 
 
-def prepare_light(light, light_samples: int, centers, radii) -> PreparedLight:
+def prepare_light(light, light_samples: int, geometry) -> PreparedLight:
     """A SphereLight, SpotLight, SunLight or AreaLight as a PreparedLight; ``light_samples``
-    samples for lights with an extent (radius, angle, area), one otherwise."""
+    samples for lights with an extent (radius, angle, area), one otherwise.  geometry: the
+    scene's ``Aggregate``, which makes the shadow rays' shared-origin terms."""
     colour = np.asarray(light.colour, np.float64)
-    terms_at = lambda points: tuple(OriginTerms.at(p, centers, radii) for p in points)  # noqa: E731
+    terms_at = lambda points: tuple(geometry.shared_origin(p) for p in points)  # noqa: E731
     if isinstance(light, SunLight):
         towards = -np.asarray(light.direction, np.float64)
         if light.angle > 0:

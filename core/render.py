@@ -14,16 +14,18 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Callable, Optional
 
 import numpy as np
 
-from .camera import camera_rays, image_size
+from .camera import camera_rays
 from .colour import linear_to_srgb
 from .context import RayStats, TraceContext, make_context
 from .cull import PACKET_SIZE
+from .frame import canonical_scene
 from .precision import choose_precision
 from .scene import RenderSettings, Scene, SceneError
 from .trace import trace_bundle
@@ -31,23 +33,35 @@ from .trace import trace_bundle
 
 #: Tiles are traced in BLOCK x BLOCK pixel blocks: one culling packet each.
 BLOCK = math.isqrt(PACKET_SIZE)
+#: How often the thread loop polls should_cancel while tiles are running.
+CANCEL_POLL_SECONDS = 0.1
 
 
 class RenderCancelled(Exception):
     """``should_cancel()`` answered True; the render stopped between tiles."""
 
 
+class RenderError(RuntimeError):
+    """The tracer produced something no accepted scene should (a bug); the message is one
+    line saying where."""
+
+
 @dataclass
 class RenderResult:
-    """image: (H, W, 4) in the render's precision, row 0 = top; RGB: article semantics the
-    article's display values clipped to [0, 1], default semantics unclipped scene-linear
-    radiance (Cycles' units; Blender's colour management turns it into display values);
-    alpha = fraction of the pixel's samples whose camera ray hit a sphere.  stats: RayStats.
-    precision: 'float64' or 'float32'.  semantics: the semantics rendered."""
+    """image: (H, W, 4) in the render's precision (or the ``image_dtype`` asked for), row 0 =
+    top; RGB: article semantics the article's display values clipped to [0, 1], default
+    semantics unclipped scene-linear radiance (Cycles' units; Blender's colour management
+    turns it into display values); alpha = fraction of the pixel's samples whose camera ray
+    hit a sphere.  stats: RayStats.  precision: 'float64' or 'float32'.
+    missed_colour: (3,) float64, what a camera sample that hits nothing adds to its pixel's RGB
+    (the background in default semantics, black in the article's), so a caller can take the
+    background out of a pixel exactly: ``rgb - (1 - alpha) * missed_colour``.
+    semantics: the semantics rendered."""
 
     image: np.ndarray
     stats: RayStats
     precision: str
+    missed_colour: np.ndarray
     semantics: str = "article"
 
     def display(self) -> np.ndarray:
@@ -105,7 +119,7 @@ def _scatter(values, cols, rows, x0, y0, shape):
     return grid
 
 
-def _supersample(ctx, camera, cols, rows, count, stats):
+def _supersample(ctx, camera, cols, rows, count, stats, stop=None):
     """Mean (rgb (n, 3), coverage (n,)) over ``count`` samples in each pixel (cols, rows).
 
     All samples are traced together, a pixel's samples side by side (so packets stay
@@ -115,6 +129,8 @@ def _supersample(ctx, camera, cols, rows, count, stats):
     coverage = np.empty(len(cols), ctx.dtype)
     pixels_per_bundle = max(1, ctx.settings.tile_size ** 2 // count)
     for first in range(0, len(cols), pixels_per_bundle):
+        if stop is not None and stop.is_set():
+            raise RenderCancelled("render cancelled")
         part = slice(first, first + pixels_per_bundle)
         xs = (cols[part, None] + offsets[None, :, 0]).ravel()
         ys = (rows[part, None] + offsets[None, :, 1]).ravel()
@@ -137,8 +153,11 @@ def _edges(signature: np.ndarray) -> np.ndarray:
     return edge
 
 
-def render_tile(ctx: TraceContext, camera, tile) -> tuple[np.ndarray, RayStats]:
-    """(rgba (h, w, 4), stats) for tile (y0, y1, x0, x1) of the image."""
+def render_tile(ctx: TraceContext, camera, tile, stop: Optional[threading.Event] = None
+                ) -> tuple[np.ndarray, RayStats]:
+    """(rgba (h, w, 4), stats) for tile (y0, y1, x0, x1) of the image.  stop: once set, the
+    tile raises RenderCancelled at its next bundle of rays (a cancel need not wait for whole
+    supersampled tiles)."""
     y0, y1, x0, x1 = tile
     h, w = y1 - y0, x1 - x0
     stats = RayStats(tiles=1)
@@ -146,13 +165,14 @@ def render_tile(ctx: TraceContext, camera, tile) -> tuple[np.ndarray, RayStats]:
     rgba = np.empty((h, w, 4), ctx.dtype)
     cols, rows = _pixel_grid(y0, y1, x0, x1)
     if mode == "fixed":
-        rgb, coverage = _supersample(ctx, camera, cols, rows, ctx.settings.samples, stats)
+        rgb, coverage = _supersample(ctx, camera, cols, rows, ctx.settings.samples, stats,
+                                     stop)
     elif mode == "off":
         rgb, coverage, _ = _trace_positions(ctx, camera, cols + 0.5, rows + 0.5, stats)
     else:
         # Trace the tile and a one-pixel apron at pixel centres, then supersample the pixels
         # whose path signature differs from a 4-neighbour's.
-        width, height = image_size(camera)
+        width, height = camera.width, camera.height
         ay0, ax0 = max(y0 - 1, 0), max(x0 - 1, 0)
         apron = (min(y1 + 1, height) - ay0, min(x1 + 1, width) - ax0)
         apron_cols, apron_rows = _pixel_grid(ay0, ay0 + apron[0], ax0, ax0 + apron[1])
@@ -167,33 +187,56 @@ def render_tile(ctx: TraceContext, camera, tile) -> tuple[np.ndarray, RayStats]:
         chosen = np.flatnonzero(edge)
         if len(chosen):
             rgb[chosen], coverage[chosen] = _supersample(
-                ctx, camera, cols[chosen], rows[chosen], ctx.settings.samples, stats)
+                ctx, camera, cols[chosen], rows[chosen], ctx.settings.samples, stats, stop)
     rgba[rows - y0, cols - x0, :3] = rgb
     rgba[rows - y0, cols - x0, 3] = coverage
     return rgba, stats
 
 
+def missed_colour(scene: Scene, settings: RenderSettings) -> np.ndarray:
+    """(3,) what a camera sample that escapes adds to its pixel (see RenderResult): the
+    tracer adds the background only in default semantics, unclipped (only the article's
+    samples are clipped, and it adds none)."""
+    if settings.semantics != "default":
+        return np.zeros(3)
+    return np.asarray(scene.background, np.float64)
+
+
 def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
            progress: Optional[Callable[[float], None]] = None,
-           should_cancel: Optional[Callable[[], bool]] = None) -> RenderResult:
-    """Render ``scene``; see ``core`` for the result's layout."""
+           should_cancel: Optional[Callable[[], bool]] = None,
+           image_dtype=None,
+           on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None) -> RenderResult:
+    """Render ``scene``; see ``core`` for the result's layout.  image_dtype: the image's
+    dtype (default: the render's precision); float32 halves a float64 render's largest array
+    for callers that keep no more than float32 anyway (Blender's render results).
+    on_tile(tile, rgba): called on the calling thread as each tile lands (before
+    ``progress``), with tile = (y0, y1, x0, x1) (rows from the top) and its (h, w, 4) pixels,
+    a view of the image: copy what must outlive the call.  Tiles land in any order; a
+    cancelled render has passed on exactly the tiles that finished."""
     if not isinstance(scene, Scene):
         raise SceneError(f"scene must be a core.Scene, got {type(scene).__name__}")
     settings = RenderSettings() if settings is None else settings
     if not isinstance(settings, RenderSettings):
         raise SceneError(f"settings must be a core.RenderSettings, got {type(settings).__name__}")
+    scene = canonical_scene(scene, settings)  # positions and units stop mattering
     dtype = choose_precision(scene, settings.precision)
     ctx = make_context(scene, settings, dtype)
-    width, height = image_size(scene.camera)
-    image = np.zeros((height, width, 4), dtype)
+    width, height = scene.camera.width, scene.camera.height
+    image = np.zeros((height, width, 4), dtype if image_dtype is None else image_dtype)
     tiles = _tiles(width, height, settings.tile_size)
     stats = RayStats()
     threads = settings.threads or os.cpu_count() or 1
 
     def finish(tile, rgba, tile_stats, done):
         y0, y1, x0, x1 = tile
+        if not np.isfinite(rgba).all():  # never a silently wrong picture, even from a bug
+            raise RenderError(f"pixels {x0}-{x1 - 1} x {y0}-{y1 - 1} came out NaN or "
+                              f"infinite; please report this scene")
         image[y0:y1, x0:x1] = rgba
         stats.add(tile_stats)
+        if on_tile is not None:
+            on_tile(tile, image[y0:y1, x0:x1])
         if progress is not None:
             progress(done / len(tiles))
 
@@ -205,30 +248,40 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
             if cancelled():
                 raise RenderCancelled("render cancelled")
             finish(tile, *render_tile(ctx, scene.camera, tile), done)
-        return RenderResult(image, stats, dtype.name, settings.semantics)
+        return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
+                            settings.semantics)
 
+    stop = threading.Event()
     with ThreadPoolExecutor(max_workers=threads) as pool:
         pending = {}
         queue = iter(tiles)
         done = 0
-        stop = False
-        while True:
-            # Keep only a few tiles in flight so a cancel is honoured promptly.
-            while not stop and len(pending) < 2 * threads:
-                tile = next(queue, None)
-                if tile is None:
+        try:
+            while True:
+                # Keep only a few tiles in flight so a cancel is honoured promptly.
+                while len(pending) < 2 * threads:
+                    tile = next(queue, None)
+                    if tile is None:
+                        break
+                    pending[pool.submit(render_tile, ctx, scene.camera, tile, stop)] = tile
+                if not pending:
                     break
-                pending[pool.submit(render_tile, ctx, scene.camera, tile)] = tile
-            if not pending:
-                break
-            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for future in finished:
-                tile = pending.pop(future)
-                rgba, tile_stats = future.result()
-                done += 1
-                finish(tile, rgba, tile_stats, done)
-            if cancelled():
-                stop = True
-                wait(pending)
-                raise RenderCancelled("render cancelled")
-    return RenderResult(image, stats, dtype.name, settings.semantics)
+                # Wake up regularly to poll should_cancel while long tiles run.
+                finished, _ = wait(pending, timeout=CANCEL_POLL_SECONDS,
+                                   return_when=FIRST_COMPLETED)
+                for future in finished:
+                    tile = pending.pop(future)
+                    rgba, tile_stats = future.result()
+                    done += 1
+                    finish(tile, rgba, tile_stats, done)
+                if cancelled():
+                    raise RenderCancelled("render cancelled")
+        except BaseException:
+            # Cancelled, a tile failed, or an exception (KeyboardInterrupt) arrived: stop
+            # the other tiles at their next bundle instead of finishing them.
+            stop.set()
+            for future in pending:
+                future.cancel()
+            raise
+    return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
+                        settings.semantics)

@@ -191,7 +191,7 @@ def test_a_cancelled_render_stops_and_produces_no_image():
     worker = CancelAfterFirstTile(job)
     assert worker.wait(timeout=60)
 
-    assert worker.cancelled and worker.image is None and worker.error is None
+    assert worker.cancelled and worker.result is None and worker.error is None
     assert len(fractions) == 1 and fractions[0] < 1.0
 
 
@@ -200,7 +200,7 @@ def test_the_threaded_render_gives_the_same_image_as_a_direct_one():
     worker = ThreadedRender(prepare_job(depsgraph()))
     assert worker.wait(timeout=60)
     assert worker.error is None and not worker.cancelled and worker.fraction == 1.0
-    np.testing.assert_array_equal(worker.image, core_image())
+    np.testing.assert_array_equal(worker.result.image, core_image())
 
 
 def test_undo_after_a_render():
@@ -257,16 +257,20 @@ def test_a_scene_without_light_renders_ambient_only_with_a_warning():
     np.testing.assert_allclose(centre, expected, rtol=2e-3)
 
 
-def test_a_non_sphere_mesh_is_warned_about_and_left_out_of_the_render():
+def test_a_non_sphere_mesh_is_rendered_as_its_triangles():
     simple_scene()
     without = core_image()
     box = link(bpy.data.objects.new("box", cube_mesh("box", 0.5)))
     box.location = (-1.5, 0.0, 0.0)
 
     job = prepare_job(depsgraph())
-    assert any("box (not a sphere)" in w for w in job.warnings)
+    assert not any("box" in w for w in job.warnings)
+    assert [mesh.name for mesh in job.scene.meshes] == ["box"]
     assert render_button() == {'FINISHED'}
-    np.testing.assert_array_equal(glint_image(), without)
+    changed = np.flatnonzero((glint_image() != without).any(axis=2).any(axis=0))
+    # The box sits left of the spheres, at x = -1.5, where only the background was.  (Its
+    # reflection and shadow change pixels elsewhere too.)
+    assert len(changed) and changed.min() < glint_image().shape[1] // 4
 
 
 # --- the render engine ------------------------------------------------------------------------
@@ -578,3 +582,39 @@ def test_the_image_is_shown_in_an_open_image_editor():
     render_button()
 
     assert area.spaces.active.image == bpy.data.images[IMAGE]
+
+
+# --- view layers ------------------------------------------------------------------------------
+
+def test_each_view_layer_renders_its_own_visibility_into_its_own_layer(tmp_path):
+    from exr import read_exr
+
+    scene = simple_scene()
+    extra = bpy.data.collections.new("extra")
+    scene.collection.children.link(extra)
+    small = bpy.data.objects["small"]
+    scene.collection.objects.unlink(small)
+    extra.objects.link(small)
+    scene.view_layers[0].name = "Everything"
+    without = scene.view_layers.new("Without small")
+    without.layer_collection.children["extra"].exclude = True
+    scene.render.use_single_layer = False
+    scene.render.engine = 'GLINT'
+    settings = scene.render.image_settings
+    settings.media_type = 'MULTI_LAYER_IMAGE'
+    settings.exr_codec, settings.color_depth = 'NONE', '32'
+    scene.render.filepath = str(tmp_path / "layers.exr")
+
+    bpy.ops.render.render(write_still=True)
+
+    planes = read_exr(tmp_path / "layers.exr")
+    layers = {layer: np.stack([planes[f"{layer}.Combined.{c}"] for c in "RGBA"], axis=-1)
+              for layer in ("Everything", "Without small")}
+    # Each layer is what the core renders of that layer's objects (scene-linear in the EXR).
+    everything = core_image()
+    scene.collection.children.unlink(extra)
+    alone = core_image()
+    linear = prepare_job(depsgraph()).scene_linear
+    np.testing.assert_allclose(layers["Everything"], linear(everything), atol=1e-6)
+    np.testing.assert_allclose(layers["Without small"], linear(alone), atol=1e-6)
+    assert not np.allclose(layers["Everything"], layers["Without small"], atol=1e-3)

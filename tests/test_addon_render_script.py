@@ -210,3 +210,46 @@ def test_bad_arguments_fail_with_one_line_and_write_nothing(tmp_path, case):
     (line,) = result.stderr.strip().splitlines()
     assert line.startswith("render.py: error:") and mentioned in line
     assert os.listdir(tmp_path) == ["folder.png"]
+
+
+def test_a_write_protected_output_is_refused_with_one_line(tmp_path):
+    output = tmp_path / "kept.png"
+    output.write_bytes(b"previous render")
+    output.chmod(0o444)  # no write bit for anyone (root included, by Glint's rule)
+
+    result = run_script("--output", output, "--width", 30, "--height", 20)
+
+    assert result.returncode == 2
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith("render.py: error:") and "write-protected" in line
+    assert output.read_bytes() == b"previous render"
+    assert os.listdir(tmp_path) == ["kept.png"]
+
+
+def test_a_symlinked_output_is_written_through_and_stays_a_link(tmp_path):
+    renders = tmp_path / "renders"
+    renders.mkdir()
+    target = renders / "real.png"
+    target.write_bytes(b"previous render")
+    target.chmod(0o640)
+    link = tmp_path / "latest.png"
+    link.symlink_to(target)
+
+    result = run_script("--output", link, "--width", 30, "--height", 20)
+
+    assert result.returncode == 0, result.stderr
+    assert link.is_symlink() and os.readlink(link) == str(target)
+    assert read_script_png(target).shape == (20, 30, 4)
+    assert (target.stat().st_mode & 0o777) == 0o640  # the file keeps its permissions
+    assert sorted(os.listdir(renders)) == ["real.png"]
+
+
+@pytest.mark.parametrize("frame", [2_000_000, -2_000_000])
+def test_a_frame_outside_blenders_range_fails_with_one_line(tmp_path, frame):
+    result = run_script("--output", tmp_path / "o.png", "--frame", frame)
+
+    assert result.returncode == 1
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith("render.py: error:") and f"--frame {frame}" in line
+    assert "1048574" in line
+    assert os.listdir(tmp_path) == []

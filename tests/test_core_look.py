@@ -160,3 +160,11 @@ def test_world_light_is_occluded_by_other_spheres_unless_world_samples_is_0():
     np.testing.assert_allclose(open_sky[covered, :3], 0.5)   # albedo x world, unoccluded
     assert (occluded[covered, :3] <= 0.5 + 1e-12).all()
     assert occluded[covered, 0].min() < 0.4                   # where the balls face each other
+
+
+def test_the_tabulated_ggx_albedo_is_its_quadrature():
+    from core.bsdf import _ALBEDO_TABLE, directional_albedo_quadrature
+
+    np.testing.assert_allclose(_ALBEDO_TABLE, directional_albedo_quadrature(), atol=6e-6)
+    # alpha = 1 at normal incidence: 1 - ln 2, the closed form of the single-scattering lobe.
+    assert _ALBEDO_TABLE[-1, -1] == pytest.approx(1 - math.log(2), abs=2e-3)

@@ -1,99 +1,217 @@
 """Glint in Blender's engine list: F12, animation renders and ``blender -b file -f/-a``.
 
 A thin layer over ``RenderJob``: progress through update_progress, cancel through test_break,
-warnings through report, errors through report + error_set (so F12 shows the message and a
-command-line render fails instead of writing an empty image).  Blender expects scene-linear
-render results: the default semantics' radiance is handed over unchanged (so the user's view
-transform, look, exposure and gamma apply to it), the article semantics' display values
-through the inverse sRGB transfer function (``RenderJob.scene_linear``).  Render results have
-row 0 at the bottom.
+warnings through report.  Whatever goes wrong (an export error, an invalid value, a
+MemoryError in a tile, a bug) ends in one ERROR report naming it (``job.failure_message``) and
+no render result: an ERROR report is what makes Blender treat the frame as failed, so
+``render(write_still=True)``, F12 + save and ``blender -b -f/-a`` keep the previous file
+instead of saving a blank frame, and an animation stops.  (Measured with bpy 5.0.1:
+``error_set`` alone lets Blender save the empty frame, and with an ERROR report Blender repeats
+its message as a second report; so ``error_set`` is used only with a window, where it shows
+the message on the render view.)
+
+Blender calls ``render`` once per view layer with that layer's depsgraph, so each layer is
+exported with its own visibility and written to its own layer of the result
+(``begin_result(layer=...)``); a multilayer EXR holds them all.
+
+Blender expects scene-linear render results: the default semantics' radiance is handed over
+unchanged (so the user's view transform, look, exposure and gamma apply to it), the article
+semantics' display values through the inverse sRGB transfer function
+(``RenderJob.scene_linear``), so that view transform Standard shows the article's numbers.
+Render results have row 0 at the bottom.  The hand-over is done a tile at a time, so a frame
+costs one float32 image besides Blender's own buffer.
+
+Scripts that want the core's numbers rather than Blender's colour-managed result (render.py)
+ask for them explicitly with ``FrameRequest`` (below).
 """
 
 from __future__ import annotations
 
 from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Callable, Optional
 
 import bpy
 import numpy as np
 
-from ...core import RenderCancelled, SceneError
+from ...core import RenderCancelled
+from ..utils.colour import render_result_pixels
 from ..export import ExportError
-from .job import prepare_job
+from .job import failure_message, prepare_job
+from .preview import prepare_preview_job
+from .viewport import ViewportEngine
 
 
-#: Callables given (job, finished image) for every frame rendered (the job's image, row 0 =
-#: top, see ``RenderJob.run``), for scripts that want the frame's numbers.
-_image_listeners = []
+@dataclass
+class FrameRequest:
+    """A script's request for the frames the engine renders during one
+    ``bpy.ops.render.render`` call (the only way to pass it anything: the operator takes no
+    Python objects).  Made active with ``requesting_frames``; main thread only.
+
+    frames: (RenderJob, JobResult) appended for each frame rendered (JobResult.image: the
+        job's values, row 0 = top; ``RenderJob.scene_linear`` gives the render result's).
+    should_cancel: polled with Blender's own test_break; True cancels the render (render.py
+        sets it from SIGINT/SIGTERM).
+    fill_render_result: False when the script writes the frame itself: the engine then
+        leaves Blender's render result empty, which spares a frame-sized copy.
+    progress: called as (RenderJob, fraction done) as tiles land (render.py's progress line).
+    """
+
+    should_cancel: Callable[[], bool] = lambda: False
+    fill_render_result: bool = True
+    frames: list = field(default_factory=list)
+    progress: Optional[Callable] = None
+
+
+_active_request: Optional[FrameRequest] = None
 
 
 @contextmanager
-def captured_images():
-    """``with captured_images() as images: bpy.ops.render.render(...)`` collects a
-    (RenderJob, image) pair for each frame the Glint engine renders meanwhile (render.py
-    writes its PNG from it)."""
-    images = []
-
-    def listener(job, image):
-        images.append((job, image))
-
-    _image_listeners.append(listener)
+def requesting_frames(request: FrameRequest):
+    """``with requesting_frames(request): bpy.ops.render.render(...)``; not re-entrant."""
+    global _active_request
+    if _active_request is not None:
+        raise RuntimeError("a Glint frame request is already active")
+    _active_request = request
     try:
-        yield images
+        yield request
     finally:
-        _image_listeners.remove(listener)
+        _active_request = None
 
 
 class GlintRenderEngine(bpy.types.RenderEngine):
     bl_idname = "GLINT"
     bl_label = "Glint"
-    bl_use_preview = False
-    # The viewport's Material Preview and Rendered modes fall back to EEVEE: Glint has no
-    # interactive renderer.
-    bl_use_eevee_viewport = True
+    # Material, light and world previews: addon.engine.preview.
+    bl_use_preview = True
+    # The viewport's Rendered (and Material Preview) shading is Glint's own, through
+    # view_update / view_draw (addon.engine.viewport), not EEVEE's.
+    bl_use_eevee_viewport = False
     # Glint reads the materials' shader nodes (``addon.export.materials``): the Shader Editor
     # must be available to edit them.
     bl_use_shading_nodes_custom = False
 
-    def render(self, depsgraph):
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._viewport = None
+
+    def __del__(self):
+        # Blender frees a viewport's engine when Rendered shading ends: stop its worker.  An
+        # engine whose Blender data is already gone (a finished F12) raises ReferenceError on
+        # any attribute, and has no viewport to stop.
         try:
-            job = prepare_job(depsgraph, camera_override=self.camera_override)
-        except (ExportError, SceneError) as error:
-            self._fail(str(error))
+            viewport = self._viewport
+        except (AttributeError, ReferenceError):
             return
+        if viewport is not None:
+            viewport.free()
+
+    def _viewport_engine(self):
+        if self._viewport is None:
+            self._viewport = ViewportEngine()
+        return self._viewport
+
+    def view_update(self, context, depsgraph):
+        self._viewport_engine().view_update(self, context, depsgraph)
+
+    def view_draw(self, context, depsgraph):
+        self._viewport_engine().view_draw(self, context, depsgraph)
+
+    def render(self, depsgraph):
+        request = _active_request
+        try:
+            self._render(depsgraph, request)
+        except RenderCancelled:
+            # The tiles that finished stay in the render result, as with Blender's own
+            # engines; Blender writes no file for a cancelled frame.
+            return
+        except BaseException as error:  # noqa: B036 - every failure must reach the user
+            self._fail(failure_message(error))
+
+    def _render(self, depsgraph, request: Optional[FrameRequest]) -> None:
+        prepare = prepare_preview_job if self.is_preview else prepare_job
+        job = prepare(depsgraph, camera_override=self.camera_override)
         for warning in job.warnings:
             self.report({'WARNING'}, warning)
         width, height = job.size
         if (width, height) != (self.resolution_x, self.resolution_y):
-            self._fail(f"Glint exported a {width}x{height} frame but Blender renders "
-                       f"{self.resolution_x}x{self.resolution_y}")
-            return
+            raise RenderSetupError(f"Glint exported a {width}x{height} frame but Blender "
+                                   f"renders {self.resolution_x}x{self.resolution_y}")
         region = render_region(depsgraph.scene_eval.render, width, height)
         if region is None:
-            self._fail("the render region (border) covers no whole pixel")
-            return
-        spheres, lights = len(job.scene.spheres), len(job.scene.lights)
-        self.update_stats("Glint", f"{spheres} spheres, {lights} lights, {width}x{height}")
-        try:
-            image = job.run(progress=self.update_progress, should_cancel=self.test_break)
-        except RenderCancelled:
-            return
-        except SceneError as error:
-            self._fail(str(error))
-            return
-        self.update_stats("Glint", f"{spheres} spheres, {lights} lights, {width}x{height}, "
-                                   f"{job.precision}")
-        for listener in _image_listeners:
-            listener(job, image)
-        x0, y0, x1, y1 = region
-        pixels = job.scene_linear(image)[::-1][y0:y1, x0:x1]
-        # begin_result counts from the region's corner, not the frame's.
-        result = self.begin_result(0, 0, x1 - x0, y1 - y0)
-        result.layers[0].passes["Combined"].rect.foreach_set(np.ascontiguousarray(pixels).ravel())
-        self.end_result(result)
+            raise RenderSetupError("the render region (border) covers no whole pixel")
+        summary = f"{len(job.scene.spheres)} spheres, {len(job.scene.lights)} lights, " \
+                  f"{width}x{height}"
+        self.update_stats("Glint", summary)
+
+        def should_cancel():
+            return self.test_break() or (request is not None and request.should_cancel())
+
+        # Tiles go to Blender as they land (F12 fills in tile by tile, and a cancel keeps
+        # them), unless the script asking for the frames writes it itself.
+        tiles = None
+        if request is None or request.fill_render_result:
+            tiles = TileHandOver(self, region, height, depsgraph.view_layer.name,
+                                 job.settings.semantics)
+        def progress(fraction):
+            self.update_progress(fraction)
+            if request is not None and request.progress is not None:
+                request.progress(job, fraction)
+
+        result = job.run(progress=progress, should_cancel=should_cancel,
+                         on_tile=tiles.hand_over if tiles is not None else None)
+        self.update_stats("Glint", f"{summary}, {result.precision}")
+        if request is not None:
+            request.frames.append((job, result))
 
     def _fail(self, message: str) -> None:
         self.report({'ERROR'}, message)
-        self.error_set(message)
+        if not bpy.app.background:
+            self.error_set(message)
+
+
+class TileHandOver:
+    """Each tile, as it lands, into Blender's render result (``begin_result`` for the tile's
+    part of the render region, ``end_result`` merges it and F12 shows it), the way Cycles hands
+    over tiles.  Tiles arrive from ``RenderJob.run(on_tile=...)``: rows from the top of the
+    frame, finished job values of ``semantics``; Blender wants premultiplied scene-linear rows
+    from the bottom, counted from the render region's corner."""
+
+    def __init__(self, engine, region, frame_height: int, layer: str,
+                 semantics: str = "article"):
+        self.engine, self.region, self.frame_height, self.layer = engine, region, frame_height, layer
+        self.semantics = semantics
+
+    def hand_over(self, tile, rgba: np.ndarray) -> None:
+        y0, y1, x0, x1 = tile
+        # Rows from the bottom of the frame, intersected with the region.
+        bottom, top = self.frame_height - y1, self.frame_height - y0
+        rx0, ry0, rx1, ry1 = self.region
+        left, right = max(x0, rx0), min(x1, rx1)
+        low, high = max(bottom, ry0), min(top, ry1)
+        if left >= right or low >= high:
+            return
+        pixels = blender_pixels(rgba[top - high:top - low, left - x0:right - x0],
+                                self.semantics)
+        result = self.engine.begin_result(left - rx0, low - ry0, right - left, high - low,
+                                          layer=self.layer)
+        try:
+            result.layers[0].passes["Combined"].rect.foreach_set(pixels.reshape(-1))
+        except BaseException:
+            self.engine.end_result(result, cancel=True)
+            raise
+        self.engine.end_result(result)
+
+
+class RenderSetupError(ExportError):
+    """Blender and the exported scene disagree about the frame; the message says how."""
+
+
+def blender_pixels(rows: np.ndarray, semantics: str = "article") -> np.ndarray:
+    """(h, w, 4) finished job values of ``semantics``, row 0 = top -> what Blender's render
+    result holds: a C-contiguous float32 (h, w, 4) copy, row 0 = bottom, premultiplied
+    scene-linear (``render_result_pixels``)."""
+    return np.ascontiguousarray(render_result_pixels(rows[::-1], semantics), np.float32)
 
 
 def render_region(render, width: int, height: int):

@@ -2,30 +2,40 @@
 
 ``prepare_job`` runs on Blender's main thread: it exports the evaluated scene and reads the
 settings, so the job holds plain data only.  ``RenderJob.run`` touches no Blender data and may
-run on any thread; it returns the finished image:
+run on any thread; it returns a ``JobResult`` whose image is
 
-* (H, W, 4) float32, row 0 = top, the core's values: default semantics scene-linear radiance
-  (unclipped), article semantics the article's display values; ``scene_linear`` turns
-  either into what Blender's render result holds;
+* (H, W, 4) float32, row 0 = top, the core's values: default semantics unclipped
+  scene-linear radiance, article semantics the article's display values (what its PNG
+  stores); ``RenderJob.scene_linear`` turns either into what Blender's render result holds;
 * Film > Transparent off: alpha 1, the background is the world colour;
 * Film > Transparent on: alpha = sphere coverage, and the background the camera rays saw is
-  removed, leaving premultiplied colour (Blender's convention for render results).  A camera
-  ray that misses contributes exactly the background (default semantics: unclipped; the
-  article's never adds one), so subtracting (1 - coverage) * background removes those samples
-  exactly; reflections of the world stay.
+  removed, leaving premultiplied colour (Blender's convention for render results): the core
+  reports what a camera sample that misses added (``RenderResult.missed_colour``), so
+  subtracting (1 - coverage) times that removes those samples exactly; reflections of the
+  world stay.
+
+The core renders straight into a float32 image and ``finish_image`` works on it in place, so
+a job holds one frame-sized array whatever the resolution.  ``failure_message`` turns any
+exception a render can raise into the one line every entry point reports.
 """
 
 from __future__ import annotations
 
+import os
 import threading
+import traceback
 from dataclasses import dataclass, field
 from typing import Callable, Optional
 
 import numpy as np
 
-from ...core import RenderCancelled, RenderSettings, Scene, render
-from ..export import export_scene
-from ..utils.colour import premultiplied_to_scene_linear
+from ...core import RenderCancelled, RenderSettings, Scene, SceneError, render
+from ...core.render import RayStats, missed_colour
+from ..export import ExportError, export_scene
+from ..utils.colour import render_result_pixels
+
+#: Set (to anything) to have unexpected errors print their traceback to stderr as well.
+DEBUG_VARIABLE = "GLINT_DEBUG"
 
 
 def render_settings(settings) -> RenderSettings:
@@ -41,47 +51,90 @@ def render_settings(settings) -> RenderSettings:
 
 
 @dataclass
+class JobResult:
+    """What ``RenderJob.run`` returns: image (module docstring), the precision the core
+    rendered in ('float64' or 'float32') and its ray counts."""
+
+    image: np.ndarray
+    precision: str
+    stats: RayStats
+
+
+@dataclass
 class RenderJob:
     scene: Scene
     settings: RenderSettings
     transparent: bool
     warnings: list[str] = field(default_factory=list)
-    precision: Optional[str] = None   # set by run: the precision the core chose
 
     @property
     def size(self) -> tuple[int, int]:
         return self.scene.camera.width, self.scene.camera.height
 
-    def run(self, progress: Optional[Callable[[float], None]] = None,
-            should_cancel: Optional[Callable[[], bool]] = None) -> np.ndarray:
-        """The finished image (module docstring).  Raises core.RenderCancelled if
-        should_cancel() answers True, core.SceneError for settings the core rejects."""
-        result = render(self.scene, self.settings, progress=progress,
-                        should_cancel=should_cancel)
-        self.precision = result.precision
-        return finish_image(result.image, self.scene, self.settings, self.transparent)
-
     def scene_linear(self, image: np.ndarray) -> np.ndarray:
-        """The job's image (``run``) as Blender's scene-linear, premultiplied render result:
-        unchanged in default semantics, the inverse sRGB transfer of the article's display
-        values in article semantics (so view transform Standard shows the article's numbers)."""
-        if self.settings.semantics == "article":
-            return premultiplied_to_scene_linear(image)
-        return np.asarray(image, np.float32)
+        """The job's image (or a part of it) as Blender's scene-linear, premultiplied render
+        result, float32 (a copy): unchanged in default semantics, the inverse sRGB of the
+        article's display values in article semantics (so view transform Standard shows the
+        article's numbers)."""
+        return render_result_pixels(image, self.settings.semantics)
+
+    def run(self, progress: Optional[Callable[[float], None]] = None,
+            should_cancel: Optional[Callable[[], bool]] = None,
+            on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None) -> JobResult:
+        """The finished frame (module docstring).  Raises core.RenderCancelled if
+        should_cancel() answers True, core.SceneError for settings the core rejects.
+        on_tile(tile, rgba): each tile as it lands (``core.render``'s tile, rows from the top),
+        its pixels finished as the frame's will be (a copy the callee may keep)."""
+        missed = missed_colour(self.scene, self.settings)
+
+        def finished_tile(tile, rgba):
+            pixels = np.array(rgba, np.float32, copy=True)
+            finish_image(pixels, missed, self.transparent)
+            on_tile(tile, pixels)
+
+        result = render(self.scene, self.settings, progress=progress,
+                        should_cancel=should_cancel, image_dtype=np.float32,
+                        on_tile=finished_tile if on_tile is not None else None)
+        finish_image(result.image, result.missed_colour, self.transparent)
+        return JobResult(result.image, result.precision, result.stats)
 
 
-def finish_image(image: np.ndarray, scene: Scene, settings: RenderSettings,
-                 transparent: bool) -> np.ndarray:
-    """The core's (H, W, 4) image -> the job's image (module docstring)."""
-    finished = np.array(image, np.float32, copy=True)
+#: Rows handled at a time by whole-frame steps, so their temporaries stay small.
+ROW_BLOCK = 64
+
+
+def finish_image(image: np.ndarray, missed_colour: np.ndarray, transparent: bool) -> None:
+    """The core's (H, W, 4) float32 image -> the job's image (module docstring), in place."""
     if not transparent:
-        finished[..., 3] = 1.0
-        return finished
-    if settings.semantics == "default":  # the article's semantics never add a background
-        background = np.asarray(scene.background, np.float32)
-        finished[..., :3] -= (1.0 - finished[..., 3:4]) * background
-        np.maximum(finished[..., :3], 0.0, out=finished[..., :3])
-    return finished
+        image[..., 3] = 1.0
+        return
+    if not np.any(missed_colour):
+        return
+    missed = np.asarray(missed_colour, np.float32)
+    for first in range(0, image.shape[0], ROW_BLOCK):
+        rows = image[first:first + ROW_BLOCK]
+        rows[..., :3] -= (1.0 - rows[..., 3:4]) * missed
+        np.maximum(rows[..., :3], 0.0, out=rows[..., :3])
+
+
+def failure_message(error: BaseException) -> str:
+    """One line for the user about an error that ended a render, whatever it is.
+
+    Glint's own errors (export, validation, memory planning) already are that line; running
+    out of memory says what to lower; anything else is a bug, named by its type and first
+    line (with ``GLINT_DEBUG`` set, its traceback goes to stderr too)."""
+    if isinstance(error, (ExportError, SceneError)):
+        return str(error)
+    if isinstance(error, MemoryError):
+        return ("Glint ran out of memory while rendering: lower the resolution, the samples "
+                "or the number of spheres")
+    if isinstance(error, KeyboardInterrupt):
+        return "Glint render interrupted"
+    if os.environ.get(DEBUG_VARIABLE):
+        traceback.print_exception(error)
+    detail = str(error).strip().splitlines()
+    detail = f": {detail[0]}" if detail else ""
+    return f"Glint failed with an internal error ({type(error).__name__}{detail})"
 
 
 def prepare_job(depsgraph, camera_override=None) -> RenderJob:
@@ -104,7 +157,7 @@ class ThreadedRender:
     def __init__(self, job: RenderJob):
         self.job = job
         self.fraction = 0.0
-        self.image: Optional[np.ndarray] = None
+        self.result: Optional[JobResult] = None
         self.error: Optional[BaseException] = None
         self.cancelled = False
         self._stop = threading.Event()
@@ -116,7 +169,7 @@ class ThreadedRender:
 
     def _run(self) -> None:
         try:
-            self.image = self.job.run(progress=self._progress, should_cancel=self._stop.is_set)
+            self.result = self.job.run(progress=self._progress, should_cancel=self._stop.is_set)
         except RenderCancelled:
             self.cancelled = True
         except BaseException as error:  # reported to the user by the operator

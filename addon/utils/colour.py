@@ -40,6 +40,15 @@ def premultiplied_to_scene_linear(rgba: np.ndarray) -> np.ndarray:
     return out
 
 
+def render_result_pixels(rgba: np.ndarray, semantics: str) -> np.ndarray:
+    """A job's (..., 4) premultiplied image as Blender's render results hold it, float32 (a
+    copy): the default semantics' scene-linear radiance unchanged, the article semantics'
+    display values through the inverse sRGB curve (``premultiplied_to_scene_linear``)."""
+    if semantics == "article":
+        return premultiplied_to_scene_linear(rgba)
+    return np.array(rgba, np.float32, copy=True)
+
+
 def unpremultiply(rgba: np.ndarray) -> np.ndarray:
     """(..., 4) premultiplied -> straight alpha (PNG's convention), a copy; alpha 0 gives 0."""
     out = np.array(rgba, np.float64, copy=True)

@@ -1,0 +1,88 @@
+"""Run render.py or ``python -m core`` with a fault injected at one stage (for
+tests/test_faults.py, in a child process):
+
+    python tests/fault_child.py STAGE render.py ARGS...
+    python tests/fault_child.py STAGE core ARGS...
+
+STAGE: export, tile, hand-over or write (see test_faults.py for what each one breaks).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, REPOSITORY)
+
+
+def fail(message, error=RuntimeError):
+    def broken(*args, **kwargs):
+        raise error(f"injected fault: {message}")
+    return broken
+
+
+def fail_on_second_call(function, message):
+    """The first call runs (so a partial file exists), the second raises."""
+    calls = []
+
+    def broken(*args, **kwargs):
+        calls.append(1)
+        if len(calls) > 1:
+            raise OSError(28, f"injected fault: {message}")  # ENOSPC, as a full disk
+        return function(*args, **kwargs)
+    return broken
+
+
+def inject(stage: str, core, job=None) -> None:
+    # The modules by name: ``core.render`` is also the function the package exports.
+    render_module = sys.modules[core.__name__ + ".render"]
+    png_module = sys.modules[core.__name__ + ".png"]
+    if stage == "export":
+        job.export_scene = fail("export")
+    elif stage == "tile":
+        render_module.render_tile = fail("a tile ran out of memory", MemoryError)
+    elif stage == "hand-over":
+        job.finish_image = fail("hand-over")
+    elif stage == "write":
+        png_module.ROW_BLOCK = 4  # several blocks even for a small image
+        png_module._filtered = fail_on_second_call(png_module._filtered, "disk full")
+
+        def half_then_full(path, data):
+            # render.py writes the PNG Blender's colour management encoded: the disk fills
+            # up half way through it.
+            with png_module.atomic_file(path) as stream:
+                stream.write(data[:len(data) // 2])
+                raise OSError(28, "injected fault: disk full")
+
+        png_module.write_atomically = half_then_full
+    else:
+        raise SystemExit(f"unknown stage {stage!r}")
+
+
+def main() -> int:
+    stage, entry, *arguments = sys.argv[1:]
+    if entry == "render.py":
+        import render as script
+
+        glint = script.import_glint()
+        import glint.addon.engine.job as job  # noqa: F401 (bpy is importable: pip bpy)
+        import glint.core.png  # noqa: F401
+        import glint.core.render  # noqa: F401
+
+        inject(stage, glint.core, job)
+        return script.main([script.__file__, *arguments])
+    import core
+    import core.__main__ as command
+    import core.png  # noqa: F401
+    import core.render  # noqa: F401
+
+    if stage == "export":
+        command.SCENES["article"] = fail("building the scene")
+    else:
+        inject(stage, core)
+    return command.main(arguments)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

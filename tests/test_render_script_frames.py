@@ -1,0 +1,216 @@
+"""render.py's animations (--frames, #-padded outputs, Blender's overwrite/placeholder frame
+claiming shared by several processes), its progress line, and EXR output."""
+
+from __future__ import annotations
+
+import os
+import pty
+import subprocess
+import sys
+
+import bpy
+import numpy as np
+import pytest
+
+from addon_support import (RENDER_SCRIPT, REPOSITORY, core_image, depsgraph, prepare_job,
+                           read_png, render_script, simple_scene)
+from exr import read_exr
+
+FrameClaim, frame_path = render_script.FrameClaim, render_script.frame_path
+
+
+def run_script(*arguments, **kwargs):
+    return subprocess.run([sys.executable, RENDER_SCRIPT, *map(str, arguments)],
+                          capture_output=True, text=True, timeout=300, cwd=REPOSITORY, **kwargs)
+
+
+def animated_blend(tmp_path, frames=4, size=(40, 30)):
+    """A .blend whose small sphere moves across frames 1..frames (scene range 1..frames)."""
+    scene = simple_scene()
+    scene.render.resolution_x, scene.render.resolution_y = size
+    small = bpy.data.objects["small"]
+    for frame in range(1, frames + 1):
+        small.location.x = -1.2 + 0.6 * frame
+        small.keyframe_insert("location", frame=frame)
+    scene.frame_start, scene.frame_end = 1, frames
+    path = tmp_path / "animated.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    return path
+
+
+def png(path) -> np.ndarray:
+    """(H, W, 4) uint8 of a PNG render.py wrote (Blender's encoder: read back by Blender)."""
+    return read_png(str(path))
+
+
+def test_frame_paths_follow_blenders_hash_padding():
+    assert frame_path("out/frame_####.png", 7) == "out/frame_0007.png"
+    assert frame_path("out/f_#.png", 123) == "out/f_123.png"
+    assert frame_path("out/a##_b###.exr", 5) == "out/a##_b005.exr"   # the last run counts
+    assert frame_path("out/f_####.png", -3) == "out/f_-003.png"
+    assert frame_path("out/still.png", 7) == "out/still.png"
+    assert frame_path("out/still.png", 7, animation=True) == "out/still0007.png"
+
+
+def test_frames_renders_each_frame_of_the_range_to_its_file(tmp_path):
+    blend = animated_blend(tmp_path)
+
+    (tmp_path / "out").mkdir()
+    result = run_script(blend, "--output", tmp_path / "out" / "frame_####.png", "--frames",
+                        "2-3")
+
+    assert result.returncode == 0, result.stderr
+    assert sorted(os.listdir(tmp_path / "out")) == ["frame_0002.png", "frame_0003.png"]
+    second, third = (png(tmp_path / "out" / name) for name in ("frame_0002.png",
+                                                                 "frame_0003.png"))
+    assert not np.array_equal(second, third)   # the sphere moved
+    assert "rendered 2 of 2 frames" in result.stdout
+    # Without a value, --frames is the scene's range (1-4 here).
+    result = run_script(blend, "--output", tmp_path / "out" / "all_##.png", "--frames")
+    assert result.returncode == 0, result.stderr
+    assert sorted(n for n in os.listdir(tmp_path / "out") if n.startswith("all_")) == [
+        "all_01.png", "all_02.png", "all_03.png", "all_04.png"]
+    np.testing.assert_array_equal(png(tmp_path / "out" / "all_02.png"), second)
+
+
+def test_no_overwrite_skips_existing_frames_and_placeholders_claim_them(tmp_path):
+    blend = animated_blend(tmp_path)
+    output = tmp_path / "f_#.png"
+    (tmp_path / "f_2.png").touch()                      # another process's claim
+    (tmp_path / "f_3.png").write_bytes(b"done before")  # a finished frame
+
+    result = run_script(blend, "--output", output, "--frames", "1-4", "--no-overwrite",
+                        "--placeholder")
+
+    assert result.returncode == 0, result.stderr
+    assert "skipped frame 2" in result.stdout and "skipped frame 3" in result.stdout
+    assert (tmp_path / "f_2.png").read_bytes() == b""
+    assert (tmp_path / "f_3.png").read_bytes() == b"done before"
+    assert png(tmp_path / "f_1.png").shape == (30, 40, 4)
+    assert png(tmp_path / "f_4.png").shape == (30, 40, 4)
+    # Overwrite on (Blender's default): every frame is rendered again.
+    result = run_script(blend, "--output", output, "--frames", "1-4", "--overwrite")
+    assert result.returncode == 0 and "rendered 4 of 4" in result.stdout
+    assert png(tmp_path / "f_3.png").shape == (30, 40, 4)
+
+
+def test_two_processes_split_one_range_without_rendering_a_frame_twice(tmp_path):
+    # Slow enough frames (16 anti-aliasing samples at 160 x 120) that both processes are at
+    # work at once.
+    blend = animated_blend(tmp_path, frames=12, size=(160, 120))
+    output = tmp_path / "shared" / "frame_####.png"
+    output.parent.mkdir()
+    command = [sys.executable, RENDER_SCRIPT, str(blend), "--output", str(output), "--frames",
+               "--no-overwrite", "--placeholder", "--samples", "16"]
+    workers = [subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True, cwd=REPOSITORY) for _ in range(2)]
+    outputs = [worker.communicate(timeout=300) for worker in workers]
+
+    assert [worker.returncode for worker in workers] == [0, 0], outputs
+    written = [{line.split("(frame ")[1].split(",")[0] for line in out.splitlines()
+                if "wrote" in line} for out, _ in outputs]
+    assert not written[0] & written[1]              # no frame rendered twice
+    assert written[0] | written[1] == {str(f) for f in range(1, 13)}
+    names = sorted(os.listdir(output.parent))
+    assert names == [f"frame_{f:04d}.png" for f in range(1, 13)]
+    assert all(png(output.parent / name).shape == (120, 160, 4) for name in names)
+    print("frames per process:", [len(w) for w in written])
+
+
+def test_a_placeholder_is_released_when_its_frame_was_not_written(tmp_path):
+    path = str(tmp_path / "f_0001.png")
+    claim = FrameClaim(path, overwrite=False, placeholder=True)
+    assert claim.claimed and os.path.getsize(path) == 0
+    assert not FrameClaim(path, overwrite=False, placeholder=True).claimed
+    claim.release()
+    assert not os.path.exists(path)
+
+    written = FrameClaim(path, overwrite=False, placeholder=True)
+    open(path, "wb").write(b"a finished frame")
+    written.release()                               # a written frame is never removed
+    assert open(path, "rb").read() == b"a finished frame"
+
+
+def run_with_terminal_stderr(*arguments):
+    """(exit status, what the child wrote to its stderr, a pseudo-terminal)."""
+    leader, follower = pty.openpty()
+    child = subprocess.Popen([sys.executable, RENDER_SCRIPT, *map(str, arguments)],
+                             stdout=subprocess.DEVNULL, stderr=follower, cwd=REPOSITORY)
+    os.close(follower)
+    chunks = []
+    while True:
+        try:
+            chunk = os.read(leader, 4096)
+        except OSError:       # the child closed the terminal
+            break
+        if not chunk:
+            break
+        chunks.append(chunk)
+    os.close(leader)
+    return child.wait(timeout=300), b"".join(chunks).decode(errors="replace")
+
+
+def test_a_progress_line_on_a_terminal_and_none_in_a_pipe_or_with_quiet(tmp_path):
+    arguments = ("--output", tmp_path / "p.png", "--width", 600, "--height", 400,
+                 "--samples", 4)
+
+    status, terminal = run_with_terminal_stderr(*arguments)
+
+    assert status == 0, terminal
+    lines = [part for part in terminal.split("\r") if "tiles" in part]
+    assert lines, terminal
+    assert "%" in lines[-1] and "/20 tiles" in lines[-1] and "s elapsed" in lines[-1]
+    assert any("s left" in line for line in lines)
+    piped = run_script(*arguments)
+    assert piped.returncode == 0 and "tiles" not in piped.stderr
+    status, quiet = run_with_terminal_stderr(*arguments, "--quiet")
+    assert status == 0 and "tiles" not in quiet
+
+
+def test_exr_output_holds_the_scene_linear_render(tmp_path):
+    scene = simple_scene()
+    scene.render.image_settings.exr_codec = 'NONE'
+    expected = prepare_job(depsgraph()).scene_linear(core_image())[..., :3]
+    blend = tmp_path / "scene.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+
+    result = run_script(blend, "--output", tmp_path / "out.exr")
+
+    assert result.returncode == 0, result.stderr
+    channels = read_exr(tmp_path / "out.exr")
+    assert set(channels) == {"R", "G", "B", "A"}
+    rgb = np.stack([channels[c] for c in "RGB"], axis=-1)
+    # Blender's float32 result of the job's scene-linear float32 values.
+    np.testing.assert_allclose(rgb, expected, atol=1e-5)
+    assert (channels["A"] == 1).all()
+
+
+def test_multilayer_exr_holds_every_view_layer(tmp_path):
+    scene = simple_scene()
+    scene.view_layers.new("Spheres only")
+    scene.render.image_settings.exr_codec = 'NONE'
+    blend = tmp_path / "layers.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+
+    result = run_script(blend, "--output", tmp_path / "layers.exr", "--format",
+                        "multilayer-exr")
+
+    assert result.returncode == 0, result.stderr
+    channels = read_exr(tmp_path / "layers.exr")
+    for layer in ("ViewLayer", "Spheres only"):
+        assert {f"{layer}.Combined.{c}" for c in "RGBA"} <= set(channels)
+    np.testing.assert_array_equal(channels["ViewLayer.Combined.R"],
+                                  channels["Spheres only.Combined.R"])
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (("--frames", "5-2"), "the end frame comes before the start"),
+    (("--frames", "x"), "--frames must be START-END or N"),
+    (("--frames", "1-2", "--frame", "3"), "--frame and --frames exclude each other"),
+    (("--format", "exr"), "--format exr writes .exr files"),
+])
+def test_bad_animation_arguments_fail_with_one_line(tmp_path, arguments, message):
+    result = run_script("--output", tmp_path / "o.png", *arguments)
+    assert result.returncode == 2
+    assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert not os.listdir(tmp_path)
