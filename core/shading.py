@@ -254,8 +254,10 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
     glossy, emitted and occluded terms (``core.bsdf``) at m points, default semantics.
 
     materials: (m,) material ids; exclude: (m,) the primitive each point's rays ignore.
-    Each light appends a digit to ``shadow_code`` (its visibility in quarters, as the
-    article's lights do) for adaptive anti-aliasing."""
+    Each light appends a digit to ``shadow_code`` for adaptive anti-aliasing: not reached,
+    blocked, partly visible or visible.  (Not quarters of visibility as for the article's
+    lights: an area light's penumbra changes smoothly from pixel to pixel, and every pixel of
+    it would count as an edge.)"""
     look = ctx.look
     surfaces = look.surfaces
     dtype = points.dtype
@@ -272,12 +274,14 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
         scale = _column(light.scale, dtype)
         shadow_code = shadow_code * np.uint64(_CODE_BASE)
         visibility = np.zeros(m, dtype)
+        reached = np.zeros(m, bool)
         if light.kind == "area":
             for sample, origin in enumerate(light.terms):
                 towards, distance, e = area_sample_irradiance(light, sample, points, normals)
                 lit = np.flatnonzero(e > 0)
                 if len(lit) == 0:
                     continue
+                reached[lit] = True
                 blocked = light_blocked(ctx, origin, -take(towards, lit), distance[lit],
                                         exclude[lit], stats, end=offset[lit])
                 seen = lit[~blocked]
@@ -290,6 +294,7 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
             lit = np.flatnonzero(e > 0)
             if len(lit) == 0:
                 continue
+            reached[lit] = True
             lit_points, lit_towards = take(points, lit), take(towards, lit)
             weights = _sphere_sample_weights(light, lit_towards)
             for sample, position in enumerate(light.samples):
@@ -316,5 +321,6 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
             colour[:, seen] += scale * visibility[seen] * light_response(
                 surfaces, materials[seen], take(normals, seen), take(to_view, seen),
                 take(towards, seen), e[seen])
-        shadow_code += (1 + np.round(visibility * 4)).astype(np.uint64)
+        shadow_code += np.select([~reached, visibility <= 0, visibility < 1 - 1e-6],
+                                 [0, 1, 2], 3).astype(np.uint64)
     return colour, shadow_code
