@@ -178,14 +178,14 @@ def test_an_unsupported_shader_renders_grey_and_is_named(scene):
     assert any(node.name in w and "not supported" in w for w in warnings)
 
 
-def test_without_a_linked_surface_the_viewport_display_colour_is_used(scene):
+def test_without_a_linked_surface_the_material_is_black_as_in_cycles(scene):
     material = bpy.data.materials.new("unplugged")
     tree = material.node_tree
     tree.links.remove(tree.nodes["Material Output"].inputs["Surface"].links[0])
     material.diffuse_color = (0.1, 0.6, 0.2, 1.0)
-    surface, _ = exported_material(material)
-    expected = core.SurfaceMaterial.principled(base_color=(0.1, 0.6, 0.2))
-    np.testing.assert_allclose(surface.diffuse, expected.diffuse, rtol=1e-6)
+    surface, warnings = exported_material(material)
+    assert surface == core.SurfaceMaterial(diffuse=(0, 0, 0), roughness=0.5)
+    assert any("'unplugged'" in w and "black" in w for w in warnings)
 
 
 def test_every_light_type_exports_in_cycles_units():

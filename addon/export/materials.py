@@ -449,6 +449,12 @@ class NodeEvaluator:
                     + self.shader(node.inputs[2], groups).scaled(factor))
         if kind == "ShaderNodeAddShader":
             return self.shader(node.inputs[0], groups) + self.shader(node.inputs[1], groups)
+        if kind == "NodeUndefined":
+            # A node of an add-on that is not installed (another engine's shader): Cycles
+            # renders the surface black, and so does Glint.
+            self.note(f"{self.owner}: node '{node.name}' is undefined (an add-on's that is "
+                      f"not installed); the surface renders black, as in Cycles")
+            return Lobes.none()
         self.note(f"{self.owner}: shader node '{node.name}' ({node.bl_label}) is not "
                   f"supported; it renders as Blender's default grey diffuse")
         lobes = Lobes.none()
@@ -494,16 +500,22 @@ def export_material(material) -> tuple[SurfaceMaterial | Material, Optional[str]
     """(core material, note or None) for a bpy Material or None, default semantics.
 
     None gets Blender's default surface (a default Principled BSDF).  The Glint section with
-    "Custom" on gives the article's Material as typed.  A material whose node tree has no
-    linked Surface uses its Viewport Display colour, metallic and roughness."""
+    "Custom" on gives the article's Material as typed.  A material without a node tree uses
+    its Viewport Display colour, metallic and roughness; one whose tree has no Material
+    Output for Cycles (another engine's, say) or nothing plugged into its Surface renders
+    black, as in Cycles, with a note."""
     if material is None:
         return SurfaceMaterial.principled(), None
     settings = getattr(material, "glint", None)
     if settings is not None and settings.use_custom:
         return custom_material(settings), None
+    if material.node_tree is None:
+        return _viewport_display(material), None
     surface = surface_socket(material.node_tree)
     if surface is None or not surface.is_linked:
-        return _viewport_display(material), None
+        return Lobes.none().material(), (f"material '{material.name}': no shader reaches a "
+                                         f"Cycles Material Output; it renders black, as in "
+                                         f"Cycles")
     evaluator = NodeEvaluator(f"material '{material.name}'")
     lobes = evaluator.shader(surface)
     return lobes.material(), ("; ".join(evaluator.notes) or None)
