@@ -421,7 +421,7 @@ def test_view_update_and_view_draw_draw_each_pass_and_warn_once():
     from addon_support import cube_mesh, link
 
     scene = simple_scene()
-    link(bpy.data.objects.new("box", cube_mesh("box", 0.5))).location = (-1.5, 0.0, 0.0)
+    link(bpy.data.objects.new("fog", bpy.data.volumes.new("fog")))  # named in a warning
     scene.glint.anti_aliasing = 'ADAPTIVE'
     graph = depsgraph()
     engine, drawer = RecordingEngine(), RecordingDrawer()
@@ -434,7 +434,7 @@ def test_view_update_and_view_draw_draw_each_pass_and_warn_once():
     draw_until_final(viewport_engine, engine, context, graph)
 
     warnings = [message for kinds, message in engine.reports if kinds == {'WARNING'}]
-    assert len(warnings) == 1 and "box (not a sphere)" in warnings[0]
+    assert len(warnings) == 1 and "fog (volume object)" in warnings[0]
     assert viewport_engine.session.restarts == 1
     assert drawer.frames[-1].final and drawer.frames[-1].rect == (0, 0, 400, 300)
     indices = [f.index for f in drawer.frames]

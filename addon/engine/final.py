@@ -18,8 +18,9 @@ Blender expects scene-linear render results: the default semantics' radiance is 
 unchanged (so the user's view transform, look, exposure and gamma apply to it), the article
 semantics' display values through the inverse sRGB transfer function
 (``RenderJob.scene_linear``), so that view transform Standard shows the article's numbers.
-Render results have row 0 at the bottom.  The hand-over is done a tile at a time, so a frame
-costs one float32 image besides Blender's own buffer.
+Render results have row 0 at the bottom.  Tiles are handed over as they land
+(``TileHandOver``), so a frame costs the job's float32 image and Blender's own buffer, plus a
+tile.
 
 Scripts that want the core's numbers rather than Blender's colour-managed result (render.py)
 ask for them explicitly with ``FrameRequest`` (below).
@@ -153,13 +154,16 @@ class GlintRenderEngine(bpy.types.RenderEngine):
         if request is None or request.fill_render_result:
             tiles = TileHandOver(self, region, height, depsgraph.view_layer.name,
                                  job.settings.semantics)
+
         def progress(fraction):
             self.update_progress(fraction)
             if request is not None and request.progress is not None:
                 request.progress(job, fraction)
 
+        # Blender's render result is a float32 frame of its own besides the job's.
         result = job.run(progress=progress, should_cancel=should_cancel,
-                         on_tile=tiles.hand_over if tiles is not None else None)
+                         on_tile=tiles.hand_over if tiles is not None else None,
+                         reserve_bytes=job.frame_bytes if tiles is not None else 0)
         self.update_stats("Glint", f"{summary}, {result.precision}")
         if request is not None:
             request.frames.append((job, result))

@@ -23,7 +23,12 @@ from __future__ import annotations
 
 import math
 
-from ...core import AreaLight, PointLight, SphereLight, SpotLight, SunLight
+from ...core import AreaLight, PointLight, SceneError, SphereLight, SpotLight, SunLight
+from ...core.scene import MAX_COLOUR
+
+#: The most power (W) or sun strength (W/m^2) a light may have: as for the article's lights
+#: (``PointLight.from_power``), colour x power stays within the core's colour range.
+MAX_POWER = MAX_COLOUR * PointLight.REFERENCE_POWER_W
 
 
 def light_colour(light) -> tuple[float, float, float]:
@@ -51,8 +56,24 @@ def export_article_light(light, matrix_world, name: str) -> PointLight | None:
                                  name=name)
 
 
+def check_light(light, name: str) -> None:
+    """Raise SceneError naming Blender's field (energy, color) when a light's power or colour
+    is not finite or too large, before the core would name its own."""
+    where = f"light {name!r}"
+    power = light_power(light)
+    if not math.isfinite(power):
+        raise SceneError(f"{where}.energy must be finite, got {power!r}")
+    if abs(power) > MAX_POWER:
+        raise SceneError(f"{where}.energy must be at most {MAX_POWER:g}, got {power!r}")
+    for i, channel in enumerate(light_colour(light)):
+        if not math.isfinite(channel) or abs(channel) > MAX_COLOUR:
+            raise SceneError(f"{where}.color[{i}] must be finite and at most "
+                             f"{MAX_COLOUR:g}, got {channel!r}")
+
+
 def export_light(light, matrix_world, name: str):
     """The core light (Cycles' units) for a bpy Light placed by ``matrix_world`` (4x4)."""
+    check_light(light, name)
     position = _column(matrix_world, 3)
     x_axis, y_axis, z_axis = (_column(matrix_world, c) for c in range(3))
     forward = tuple(-c for c in z_axis)

@@ -45,7 +45,7 @@ from typing import Optional
 import numpy as np
 
 from ...core import Material, SceneError, SurfaceMaterial
-from ...core.scene import dielectric_f0
+from ...core.scene import MAX_COLOUR, dielectric_f0
 from ..utils.colour import colour_from_blender, srgb_to_linear
 
 AMBIENT_FRACTION = 0.1
@@ -255,6 +255,12 @@ def _principled_lobes(values: dict) -> Lobes:
     return lobes
 
 
+#: Principled inputs checked to be finite, with the names errors give them (as the article
+#: semantics' mapping names them).
+PRINCIPLED_LABELS = {"Base Color": "base colour", "Metallic": "metallic",
+                     "Roughness": "roughness", "Specular IOR Level": "specular level",
+                     "IOR": "ior", "Alpha": "alpha"}
+
 #: Nodes whose value passes straight through (their first input of the socket's kind).
 _PASS_THROUGH = {"NodeReroute"}
 
@@ -403,6 +409,14 @@ class NodeEvaluator:
         colour = lambda name: self.colour(node.inputs[name], groups)  # noqa: E731
         value = lambda name: self.value(node.inputs[name], groups)  # noqa: E731
         if kind == "ShaderNodeBsdfPrincipled":
+            for name, label in PRINCIPLED_LABELS.items():
+                reading = colour(name) if name == "Base Color" else value(name)
+                # (A huge base colour is named by the material's own check, as its diffuse.)
+                too_large = name != "Base Color" and abs(float(reading)) > MAX_COLOUR
+                if not np.all(np.isfinite(reading)) or too_large:
+                    raise SceneError(f"{label} ('{name}' of '{node.name}') must be finite "
+                                     f"and at most {MAX_COLOUR:g}, got "
+                                     f"{tuple(float(v) for v in np.atleast_1d(reading))!r}")
             for name in ("Coat Weight", "Sheen Weight"):
                 if name in node.inputs and value(name) > 0:
                     self.note(f"{self.owner}: Principled '{node.name}': {name} is not "
