@@ -26,10 +26,13 @@ caches, the results, the skipped lists and the notes; ``context``):
 * Geometry Nodes instances -> ``instances.InstanceExporter``, read in bulk from the
   instancer's evaluated geometry instead of one Python step per instance;
 * LIGHT -> ``lights``; the camera -> ``camera``; materials -> ``materials`` through the
-  context's cache; the world colour here.
+  context's cache; the world -> ``world``.
 
-What is not rendered is never dropped silently: other object types, zero-scale instances and
-non-point lights are each named in one warning.
+The default semantics exports Blender's look in Cycles' units (shader nodes, every light
+type, the world's radiance, scene-linear); the article semantics keeps the article's model
+(its Material and PointLight, sRGB-encoded colours).  What is not rendered is never dropped
+silently: other object types, zero-scale instances and (article semantics) non-point lights
+are each named in one warning.
 """
 
 from __future__ import annotations
@@ -42,9 +45,11 @@ from .camera import export_camera
 from .context import ExportContext, instance_name
 from .errors import ExportError
 from .instances import InstanceExporter
-from .lights import export_point_light
+from .lights import export_article_light
+from .lights import export_light as export_cycles_light
 from .meshes import EVALUATED_AS_MESH, MeshExporter
 from .pointclouds import export_point_cloud
+from .world import world_colour
 
 #: The scene-linear space Glint's sRGB conversions assume (Blender's default; Blender 5.0
 #: lets a file choose another).
@@ -95,39 +100,20 @@ class _RenderVisibility:
         return parent is None or not self._hidden(parent.original)
 
 
-def world_colour(world) -> tuple[tuple[float, float, float], str | None]:
-    """(scene-linear RGB the world shows, note or None): the Background node's Color times
-    Strength, or the world's Viewport Display colour when it has no node tree."""
-    if world is None:
-        return (0.0, 0.0, 0.0), None
-    tree = world.node_tree
-    uses_nodes = tree is not None and (bpy.app.version >= (5, 0, 0) or world.use_nodes)
-    if not uses_nodes:
-        return tuple(world.color), None
-    output = tree.get_output_node('CYCLES') or tree.get_output_node('ALL')
-    surface = output.inputs.get("Surface") if output is not None else None
-    if surface is None or not surface.is_linked:
-        return (0.0, 0.0, 0.0), None  # Blender renders an unconnected world black too
-    node = surface.links[0].from_node
-    if node.bl_idname != "ShaderNodeBackground":
-        return tuple(world.color), (f"world '{world.name}': its Surface is not a Background "
-                                    f"node, its Viewport Display colour is used")
-    colour, strength = node.inputs["Color"], node.inputs["Strength"]
-    note = None
-    if colour.is_linked or strength.is_linked:
-        note = f"world '{world.name}': linked Background inputs count as their unlinked values"
-    return tuple(c * strength.default_value for c in colour.default_value[:3]), note
 
 
 def export_light(context, obj, matrix, name: str) -> None:
-    """A light instance -> a core light in the context, or a skipped entry."""
-    if obj.data.type != 'POINT':
-        context.skipped_lights.add(name, f"{obj.data.type.lower()} light")
-        return
+    """A light instance -> a core light in the context (``lights``: every type in Cycles'
+    units in default semantics, point lights only in the article's), or a skipped entry."""
+    exporter = export_article_light if context.article else export_cycles_light
     try:
-        context.lights.append(export_point_light(obj.data, matrix, name))
+        light = exporter(obj.data, matrix, name)
     except SceneError as error:
         raise ExportError(str(error)) from None  # the core's message names the light
+    if light is None:
+        context.skipped_lights.add(name, f"{obj.data.type.lower()} light")
+        return
+    context.lights.append(light)
 
 
 class _ObjectEntry:
@@ -182,12 +168,14 @@ def export_scene(depsgraph, camera_override=None, *, view_camera=None
     Raises ExportError, naming the culprit, when the scene cannot be rendered at all (no
     camera, a panoramic camera, invalid values).
     """
+    article = depsgraph.scene_eval.glint.semantics == 'ARTICLE'
     if view_camera is None:
         camera = export_camera(depsgraph, camera_override)
-        context = ExportContext.for_camera(camera)
+        context = ExportContext.for_camera(camera, article=article)
     else:
         context = ExportContext.for_camera(view_camera, _render_camera(depsgraph,
-                                                                       camera_override))
+                                                                       camera_override),
+                                           article=article)
     visible = _RenderVisibility(depsgraph)
     meshes = MeshExporter(context)
     bulk = InstanceExporter(context, meshes, visible)
@@ -208,7 +196,7 @@ def export_scene(depsgraph, camera_override=None, *, view_camera=None
 
     world = depsgraph.scene_eval.world
     colour, world_note = world_colour(world)
-    background = colour_from_blender(colour)
+    background = colour_from_blender(colour) if article else tuple(colour)
     try:
         Scene(camera=context.camera, background=background)  # checks the world's colour alone
     except SceneError as error:
@@ -218,12 +206,13 @@ def export_scene(depsgraph, camera_override=None, *, view_camera=None
 
     warnings = context.skipped_objects.warning("Glint renders meshes, spheres and point "
                                                "clouds;")
-    warnings += context.skipped_lights.warning("Glint renders point lights only;")
+    warnings += context.skipped_lights.warning("the article semantics renders point lights "
+                                               "only;")
     if not context.has_geometry:
         warnings.append("nothing to render: no sphere, mesh or point cloud; the image shows "
                         "only the background")
     if not context.lights:
-        warnings.append("no point light: only the world's ambient light shows")
+        warnings.append("no light: only the world's light shows")
     warnings += context.notes
     working_space = getattr(getattr(bpy.data, "colorspace", None), "working_space", None)
     if working_space not in (None, WORKING_SPACE):
