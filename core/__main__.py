@@ -89,7 +89,7 @@ def main(argv=None, own_process: bool = False) -> int:
             with atomic_file(args.output) as stream:
                 np.save(stream, result.image)  # streamed from the array, no copy
         else:
-            write_png(args.output, result.image)
+            write_png(args.output, result.display())
     except (SceneError, OSError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

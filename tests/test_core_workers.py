@@ -44,6 +44,7 @@ def test_processes_give_the_threads_image_bit_for_bit(small_renders_in_processes
         assert np.array_equal(result.image, reference.image)
         assert result.stats == reference.stats     # summed over the workers' tiles
         assert result.image.dtype == reference.image.dtype
+        assert result.semantics == reference.semantics == semantics
 
 
 def test_tiles_are_finished_in_the_parent(small_renders_in_processes):
