@@ -117,6 +117,9 @@ def main(argv=None) -> int:
         lines += ["Notes:", ""] + [f"- {note}" for note in bench.notes] + [""]
     lines += ["## Targets (ratios measured in this run)", ""]
     lines += [target.line() for target in report.targets(bench)] + [""]
+    phases = report.phase_table(bench)
+    if phases:
+        lines += ["## Where the time goes (per-phase timers, one thread)", ""] + phases + [""]
     for curve, title in (("cost-pixels", "Cost against pixel count (article scene)"),
                          ("cost-spheres", "Cost against sphere count"),
                          ("cost-sphere-sets", "Cost against sphere count, spheres as one "

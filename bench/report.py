@@ -245,3 +245,18 @@ def curve_table(bench: Bench, curve: str) -> list[str]:
                      f"{_seconds(p.seconds)} | {p.runs} | {p.seconds / p.pixels * 1e6:.3g} | "
                      f"{peak} | {p.image_bytes / MIB:,.1f} | {working} |")
     return lines
+
+
+def phase_table(bench: Bench) -> list[str]:
+    """Where the time goes: the per-phase timers of one single-thread render per row."""
+    if not bench.phases:
+        return []
+    names = list(bench.phases[0][2].phases())
+    lines = ["| Workload | Contender | Tiles (s) | " + " | ".join(names) + " |",
+             "|---|---|---:|" + "---:|" * len(names)]
+    for title, contender, stats in bench.phases:
+        total = stats.seconds_tiles
+        cells = [f"{seconds:.3f} ({100 * seconds / total:.0f} %)" if total else "—"
+                 for seconds in stats.phases().values()]
+        lines.append(f"| {title} | {contender} | {total:.3f} | " + " | ".join(cells) + " |")
+    return lines

@@ -21,6 +21,9 @@ Workloads (``--only NAME``):
   thread; the processes' start-up is paid in the warm-up, and once more, alone, in a
   "cold" row (workers ended first).
 
+For article-hd and spheres, Glint article/float64 and default/auto render once more on one
+thread for the per-phase timers (``RayStats.phases``) that the report prints.
+
 Contenders: Glint in each precision and semantics; the baseline (``bench.baseline``); the
 article's per-pixel program (``bench.per_pixel``), timed small and scaled per pixel; Cycles
 (CPU, 1 and 16 samples) and Workbench through bpy (``bench.blender``).
@@ -119,6 +122,8 @@ SCENE_WORKLOADS = ("article-small", "article-hd", "article-uhd", "spheres", "sph
 AA_WORKLOADS = ("aa-adaptive", "aa-fixed16")
 CURVES = ("cost-pixels", "cost-spheres", "cost-sphere-sets")
 WORKLOADS = SCENE_WORKLOADS + AA_WORKLOADS + CURVES + ("parallelism", "malloc")
+#: Workloads whose Glint rows (CURVE_GLINTS) also get a per-phase breakdown.
+PHASE_WORKLOADS = ("article-hd", "spheres")
 
 
 @dataclass(frozen=True)
@@ -232,6 +237,7 @@ class Bench:
         self._blender_results = {}   # BlenderJob -> (Timing, image)
         self._timings = {}           # (scene key, contender key) -> (Timing, image bytes)
         self._floor_bands = {}       # size -> bool mask
+        self.phases: list[tuple] = []  # (workload title, contender, RayStats) per-phase timers
 
     # ---------------------------------------------------------------------------------------
     # Measuring one contender
@@ -252,6 +258,11 @@ class Bench:
         settings = glint.settings()
         return self._measure((scene_key, glint), lambda: render(scene, settings),
                              lambda result: result.image.nbytes)
+
+    def measure_phases(self, title: str, scene: Scene, glint: Glint) -> None:
+        """One more render on one thread, outside tracemalloc: its per-phase timers."""
+        stats = render(scene, glint.settings(threads=1)).stats
+        self.phases.append((title, glint.label + ", 1 thread", stats))
 
     def measure_baseline(self, scene_key, scene: Scene):
         """(image or None if reused, Timing, image bytes)."""
@@ -476,6 +487,8 @@ class Bench:
         for glint in GLINT_PLAIN:
             log(f"{title}: {glint.label}")
             result, timing, _ = self.measure_glint(scene_key, scene, glint)
+            if name in PHASE_WORKLOADS and glint in CURVE_GLINTS:
+                self.measure_phases(title, scene, glint)
             if result is None:
                 result = render(scene, glint.settings())
             error_image = result.image if at_size else render(error_scene, glint.settings()).image

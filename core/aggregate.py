@@ -29,7 +29,7 @@ from .bvh import BVH
 from .cull import (DENSE_CANDIDATES, REFLECTION_CELLS, SHADOW_CELLS, candidate_roots, cones,
                    cluster_spheres, direction_cells, reachable)
 from .intersect import OriginTerms, first_hit_distance, offset_roots, origin_roots
-from .rays import ARTICLE_OFFSET, Hits, RayBatch, RayStats, SharedOrigin, ray_offsets
+from .rays import ARTICLE_OFFSET, Hits, RayBatch, RayStats, SharedOrigin, ray_offsets, timed
 from .triangles import Shear, watertight
 from .vectors import dot, take
 
@@ -156,6 +156,7 @@ class Aggregate:
                 store[better] = b[better]
         return t, primitive, barycentrics
 
+    @timed("seconds_nearest")
     def nearest(self, rays: RayBatch, stats: RayStats) -> Hits:
         """The nearest hit of each ray of the batch that hits something (``Hits``)."""
         t, primitive, barycentrics = self.intersect(rays, stats)
@@ -421,6 +422,7 @@ class Aggregate:
 
     # ---- occlusion ----------------------------------------------------------------------
 
+    @timed("seconds_shadows")
     def occluded(self, segments: RayBatch, stats: RayStats) -> np.ndarray:
         """(n,) whether a primitive other than ``segments.exclude`` is crossed within
         (t_min, t_max) of each segment.  Article rules: a sphere blocks when its far root

@@ -10,7 +10,9 @@ Vectors are (3, n) bundles (``core.vectors``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import functools
+import time
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -35,7 +37,14 @@ class RayStats:
     shadow_rays: light visibility rays; reflection_rays: mirror rays; sphere_tests: ray/sphere
     pairs intersected (after culling); triangle_tests: ray/triangle pairs intersected;
     node_tests: ray/BVH-node box tests; tiles: tiles rendered; supersampled_pixels: pixels
-    given more than one sample."""
+    given more than one sample.
+
+    seconds_*: per-phase timers (``time.perf_counter`` at a few calls per bundle of rays,
+    cheap enough to stay on), summed over tiles and so over threads or workers: tiles
+    (``render_tile``), camera (camera rays), bounces (``trace_bundle``), nearest
+    (``Aggregate.nearest``), shading (``shade``, its shadow rays included) and shadows
+    (``Aggregate.occluded``).  ``phases()`` splits them.  They are not compared: two renders
+    of the same image have equal stats whatever their timings."""
 
     camera_rays: int = 0
     shadow_rays: int = 0
@@ -45,10 +54,46 @@ class RayStats:
     node_tests: int = 0
     tiles: int = 0
     supersampled_pixels: int = 0
+    seconds_tiles: float = field(default=0.0, compare=False)
+    seconds_camera: float = field(default=0.0, compare=False)
+    seconds_bounces: float = field(default=0.0, compare=False)
+    seconds_nearest: float = field(default=0.0, compare=False)
+    seconds_shading: float = field(default=0.0, compare=False)
+    seconds_shadows: float = field(default=0.0, compare=False)
 
     def add(self, other: "RayStats") -> None:
         for name in self.__dataclass_fields__:
             setattr(self, name, getattr(self, name) + getattr(other, name))
+
+    def phases(self) -> dict:
+        """Seconds per phase, which add up to ``seconds_tiles``: camera rays, nearest hits,
+        shadow rays, the rest of shading, the rest of the bounce loop (hit points, normals,
+        compaction, reflection rays) and tile overhead (pixel grids, anti-aliasing,
+        assembly)."""
+        return {
+            "camera rays": self.seconds_camera,
+            "nearest hits": self.seconds_nearest,
+            "shadow rays": self.seconds_shadows,
+            "shading": self.seconds_shading - self.seconds_shadows,
+            "rest of bounces": self.seconds_bounces - self.seconds_nearest - self.seconds_shading,
+            "tile overhead": self.seconds_tiles - self.seconds_camera - self.seconds_bounces,
+        }
+
+
+def timed(counter: str):
+    """Decorator: add the call's wall time to ``stats.<counter>``, stats being the call's
+    last positional argument (a RayStats)."""
+    def decorate(function):
+        @functools.wraps(function)
+        def timed_call(*args):
+            start = time.perf_counter()
+            try:
+                return function(*args)
+            finally:
+                stats = args[-1]
+                setattr(stats, counter, getattr(stats, counter) + time.perf_counter() - start)
+        return timed_call
+    return decorate
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,7 @@ import dataclasses
 import math
 import os
 import threading
+import time
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Callable, Optional
@@ -98,8 +99,12 @@ def _tiles(width: int, height: int, size: int):
 def _trace_positions(ctx: TraceContext, camera, xs, ys, stats):
     """(rgb (n, 3), coverage (n,), signature (n,)) for sample positions xs, ys (n,); rgb
     clipped to [0, 1] per sample in article semantics, unclipped radiance otherwise."""
+    start = time.perf_counter()
     rays = camera_rays(camera, xs, ys, ctx.dtype)
+    traced = time.perf_counter()
     result = trace_bundle(ctx, rays, stats)
+    stats.seconds_camera += traced - start
+    stats.seconds_bounces += time.perf_counter() - traced
     rgb = result.colour.T
     return (np.clip(rgb, 0, 1) if ctx.article else rgb), result.coverage, result.signature
 
@@ -165,6 +170,7 @@ def render_tile(ctx: TraceContext, camera, tile, stop: Optional[threading.Event]
     """(rgba (h, w, 4), stats) for tile (y0, y1, x0, x1) of the image.  stop: once set, the
     tile raises RenderCancelled at its next bundle of rays (a cancel need not wait for whole
     supersampled tiles)."""
+    start = time.perf_counter()
     y0, y1, x0, x1 = tile
     h, w = y1 - y0, x1 - x0
     stats = RayStats(tiles=1)
@@ -197,6 +203,7 @@ def render_tile(ctx: TraceContext, camera, tile, stop: Optional[threading.Event]
                 ctx, camera, cols[chosen], rows[chosen], ctx.settings.samples, stats, stop)
     rgba[rows - y0, cols - x0, :3] = rgb
     rgba[rows - y0, cols - x0, 3] = coverage
+    stats.seconds_tiles += time.perf_counter() - start
     return rgba, stats
 
 

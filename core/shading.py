@@ -41,7 +41,7 @@ import numpy as np
 from .bsdf import environment, light_response
 from .context import TraceContext
 from .lights import area_sample_irradiance, centre_irradiance, cosine_directions
-from .rays import ARTICLE_OFFSET, RayBatch, RayStats, ray_offsets
+from .rays import ARTICLE_OFFSET, RayBatch, RayStats, ray_offsets, timed
 from .vectors import dot, length, normalize, take
 
 #: One digit of a shadow code per light: unlit (0) or visibility 0, 1/4, .., 1 (1 .. 5).
@@ -93,6 +93,7 @@ def light_blocked(ctx: TraceContext, origin, directions, distance, exclude, stat
     return ctx.geometry.occluded(segments, stats)
 
 
+@timed("seconds_shading")
 def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
           stats: RayStats):
     """(colour (3, m), goes_on (m,), shadow_code (m,) uint64) at m hit points.
@@ -200,6 +201,7 @@ def _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats):
     return colour, goes_on, shadow_code
 
 
+@timed("seconds_shadows")
 def _rays_blocked(ctx, points, towards, offset, reach, exclude, stats):
     """(m,) whether rays from the points along unit ``towards`` (3, m) hit anything between
     ``offset`` and ``reach`` (m,) (np.inf: a sun, the world).  Rays leaving one primitive
