@@ -22,6 +22,7 @@ import numpy as np
 
 from .camera import camera_rays
 from .context import RayStats, TraceContext, make_context
+from .passes import PrimaryPasses, fill_tile_passes
 from .cull import PACKET_SIZE
 from .precision import choose_precision
 from .scene import RenderSettings, Scene, SceneError
@@ -49,6 +50,7 @@ class RenderResult:
     stats: RayStats
     precision: str
     missed_colour: np.ndarray
+    passes: Optional[PrimaryPasses] = None   # render(passes=True): see core.passes
 
 
 def sample_offsets(count: int) -> np.ndarray:
@@ -173,14 +175,17 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
            progress: Optional[Callable[[float], None]] = None,
            should_cancel: Optional[Callable[[], bool]] = None,
            image_dtype=None,
-           on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None) -> RenderResult:
+           on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None,
+           passes: bool = False) -> RenderResult:
     """Render ``scene``; see ``core`` for the result's layout.  image_dtype: the image's
     dtype (default: the render's precision); float32 halves a float64 render's largest array
     for callers that keep no more than float32 anyway (Blender's render results).
     on_tile(tile, rgba): called on the calling thread as each tile lands (before
     ``progress``), with tile = (y0, y1, x0, x1) (rows from the top) and its (h, w, 4) pixels,
     a view of the image: copy what must outlive the call.  Tiles land in any order; a
-    cancelled render has passed on exactly the tiles that finished."""
+    cancelled render has passed on exactly the tiles that finished.
+    passes: also fill ``RenderResult.passes`` (``core.passes``: depth, position, normal and
+    sphere index of each pixel centre's first hit)."""
     if not isinstance(scene, Scene):
         raise SceneError(f"scene must be a core.Scene, got {type(scene).__name__}")
     settings = RenderSettings() if settings is None else settings
@@ -193,6 +198,13 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     tiles = _tiles(width, height, settings.tile_size)
     stats = RayStats()
     threads = settings.threads or os.cpu_count() or 1
+    primary = PrimaryPasses.empty(width, height) if passes else None
+
+    def work(ctx, camera, tile):
+        rgba, tile_stats = render_tile(ctx, camera, tile)
+        if primary is not None:
+            fill_tile_passes(primary, ctx, camera, tile, tile_stats)
+        return rgba, tile_stats
 
     def finish(tile, rgba, tile_stats, done):
         y0, y1, x0, x1 = tile
@@ -210,8 +222,9 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
         for done, tile in enumerate(tiles, 1):
             if cancelled():
                 raise RenderCancelled("render cancelled")
-            finish(tile, *render_tile(ctx, scene.camera, tile), done)
-        return RenderResult(image, stats, dtype.name, missed_colour(scene, settings))
+            finish(tile, *work(ctx, scene.camera, tile), done)
+        return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
+                            primary)
 
     with ThreadPoolExecutor(max_workers=threads) as pool:
         pending = {}
@@ -223,7 +236,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
                 tile = next(queue, None)
                 if tile is None:
                     break
-                pending[pool.submit(render_tile, ctx, scene.camera, tile)] = tile
+                pending[pool.submit(work, ctx, scene.camera, tile)] = tile
             if not pending:
                 break
             finished, _ = wait(pending, return_when=FIRST_COMPLETED)
@@ -235,4 +248,5 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
             if cancelled():
                 wait(pending)  # let the tiles in flight end before the image goes away
                 raise RenderCancelled("render cancelled")
-    return RenderResult(image, stats, dtype.name, missed_colour(scene, settings))
+    return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
+                        primary)

@@ -24,14 +24,31 @@ _SIGNATURE_PRIME = np.uint64(1_000_003)
 
 
 @dataclass
+class PrimaryHits:
+    """What each camera ray hit first (render passes), read at depth 0 of the bounce loop:
+    t (n,) distance along the ray (inf: missed), sphere (n,) scene sphere index (-1: none),
+    normal (3, n) unit shading normal facing the ray (0 where missed)."""
+
+    t: np.ndarray
+    sphere: np.ndarray
+    normal: np.ndarray
+
+    @classmethod
+    def missed(cls, n: int, dtype) -> "PrimaryHits":
+        return cls(np.full(n, np.inf, dtype), np.full(n, -1, np.intp), np.zeros((3, n), dtype))
+
+
+@dataclass
 class BundleResult:
     """colour (3, n) unclipped; coverage (n,) whether the camera ray hit a sphere;
     signature (n,) uint64 hash of what the path hit (spheres and shadowing at every bounce):
-    neighbours with different signatures straddle an edge; None unless adaptive AA asks."""
+    neighbours with different signatures straddle an edge; None unless adaptive AA asks.
+    primary: PrimaryHits when asked for (``trace_bundle(record_primary=True)``), else None."""
 
     colour: np.ndarray
     coverage: np.ndarray
     signature: np.ndarray | None
+    primary: PrimaryHits | None = None
 
 
 def nearest_sphere(ctx: TraceContext, origins, directions, t_min, t_max, exclude,
@@ -60,9 +77,11 @@ def nearest_sphere(ctx: TraceContext, origins, directions, t_min, t_max, exclude
     return best_t, best
 
 
-def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> BundleResult:
+def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
+                 record_primary: bool = False) -> BundleResult:
     dtype = ctx.dtype
     n = rays.directions.shape[1]
+    primary = PrimaryHits.missed(n, dtype) if record_primary else None
     colour = np.zeros((3, n), dtype)
     # Signatures feed adaptive anti-aliasing only: no work for them otherwise.
     signature = np.zeros(n, np.uint64) if ctx.settings.anti_aliasing == "adaptive" else None
@@ -108,6 +127,8 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
             # Shade the side the ray sees: inside a sphere the normal faces inwards.
             normals *= np.where(front, 1, -1).astype(dtype)
             cos_in = np.where(front, cos_in, -cos_in)
+        if primary is not None and depth == 0:
+            primary.t[path], primary.sphere[path], primary.normal[:, path] = t, sphere, normals
         illumination, goes_on, shadow_code = shade(ctx, points, normals, directions, sphere,
                                                    front, stats)
         illumination *= weight
@@ -143,4 +164,4 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
             key = (sphere * (6 * REFLECTION_CELLS ** 2)
                    + direction_cells(directions, REFLECTION_CELLS))
         stats.reflection_rays += len(path)
-    return BundleResult(colour, coverage, signature)
+    return BundleResult(colour, coverage, signature, primary)

@@ -37,6 +37,8 @@ from ...core import RenderCancelled
 from ..utils.colour import premultiplied_to_scene_linear
 from ..export import ExportError
 from .job import failure_message, prepare_job
+from .passes import (enabled_passes, pass_warning, register_passes, sphere_pass_indices,
+                     write_result_with_passes)
 from .preview import prepare_preview_job
 from .viewport import ViewportEngine
 
@@ -143,21 +145,34 @@ class GlintRenderEngine(bpy.types.RenderEngine):
         def should_cancel():
             return self.test_break() or (request is not None and request.should_cancel())
 
-        # Tiles go to Blender as they land (F12 fills in tile by tile, and a cancel keeps
-        # them), unless the script asking for the frames writes it itself.
-        tiles = None
-        if request is None or request.fill_render_result:
-            tiles = TileHandOver(self, region, height, depsgraph.view_layer.name)
         def progress(fraction):
             self.update_progress(fraction)
             if request is not None and request.progress is not None:
                 request.progress(job, fraction)
 
+        view_layer = depsgraph.view_layer
+        passes = [] if self.is_preview else enabled_passes(view_layer)
+        missing_passes = None if self.is_preview else pass_warning(view_layer)
+        if missing_passes:
+            self.report({'WARNING'}, missing_passes)
+        # Tiles go to Blender as they land (F12 fills in tile by tile, and a cancel keeps
+        # them), unless the script asking for the frames writes it itself.
+        fill = request is None or request.fill_render_result
+        tiles = TileHandOver(self, region, height, view_layer.name) if fill else None
         result = job.run(progress=progress, should_cancel=should_cancel,
-                         on_tile=tiles.hand_over if tiles is not None else None)
+                         on_tile=tiles.hand_over if tiles is not None else None,
+                         passes=bool(passes) and fill)
         self.update_stats("Glint", f"{summary}, {result.precision}")
         if request is not None:
             request.frames.append((job, result))
+        if passes and fill:
+            # The passes, with Combined again, over the whole region at once.
+            write_result_with_passes(self, result.image, result.passes, passes,
+                                     sphere_pass_indices(job.scene, depsgraph), region,
+                                     view_layer.name)
+
+    def update_render_passes(self, scene=None, renderlayer=None):
+        register_passes(self, scene, renderlayer)
 
     def _fail(self, message: str) -> None:
         self.report({'ERROR'}, message)

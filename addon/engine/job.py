@@ -55,6 +55,7 @@ class JobResult:
     image: np.ndarray
     precision: str
     stats: RayStats
+    passes: Optional[object] = None   # core.passes.PrimaryPasses when run(passes=True)
 
 
 @dataclass
@@ -70,11 +71,13 @@ class RenderJob:
 
     def run(self, progress: Optional[Callable[[float], None]] = None,
             should_cancel: Optional[Callable[[], bool]] = None,
-            on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None) -> JobResult:
+            on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None,
+            passes: bool = False) -> JobResult:
         """The finished frame (module docstring).  Raises core.RenderCancelled if
         should_cancel() answers True, core.SceneError for settings the core rejects.
         on_tile(tile, rgba): each tile as it lands (``core.render``'s tile, rows from the top),
-        its pixels finished as the frame's will be (a copy the callee may keep)."""
+        its pixels finished as the frame's will be (a copy the callee may keep).
+        passes: also compute the render passes (``core.passes``) into JobResult.passes."""
         missed = missed_colour(self.scene, self.settings)
 
         def finished_tile(tile, rgba):
@@ -84,9 +87,10 @@ class RenderJob:
 
         result = render(self.scene, self.settings, progress=progress,
                         should_cancel=should_cancel, image_dtype=np.float32,
-                        on_tile=finished_tile if on_tile is not None else None)
+                        on_tile=finished_tile if on_tile is not None else None,
+                        passes=passes)
         finish_image(result.image, result.missed_colour, self.transparent)
-        return JobResult(result.image, result.precision, result.stats)
+        return JobResult(result.image, result.precision, result.stats, result.passes)
 
 
 #: Rows handled at a time by whole-frame steps, so their temporaries stay small.
