@@ -2,8 +2,9 @@
 
 Public API::
 
-    from core import (Scene, Sphere, Material, PointLight, ScreenCamera, BlenderCamera,
-                      RenderSettings, render, article_scene, SceneError, RenderCancelled)
+    from core import (Scene, Sphere, SphereSet, TriangleMesh, Material, PointLight,
+                      ScreenCamera, BlenderCamera, RenderSettings, render, article_scene,
+                      SceneError, RenderCancelled)
 
     result = render(scene, RenderSettings(...), progress=None, should_cancel=None)
     result.image      # (H, W, 4) float64 or float32, row 0 = TOP; RGB clipped to [0, 1];
@@ -17,12 +18,13 @@ ValueError) naming the field, before any ray is traced.
 """
 
 from .scene import (BlenderCamera, Material, PointLight, RenderSettings, Scene, SceneError,
-                    ScreenCamera, Sphere)
+                    ScreenCamera, Sphere, SphereSet, TriangleMesh)
 from .render import RayStats, RenderCancelled, RenderResult, render
 from .article import article_scene, article_settings
 
 __all__ = [
     "BlenderCamera", "Material", "PointLight", "RenderSettings", "Scene", "SceneError",
-    "ScreenCamera", "Sphere", "RayStats", "RenderCancelled", "RenderResult", "render",
+    "ScreenCamera", "Sphere", "SphereSet", "TriangleMesh", "RayStats", "RenderCancelled",
+    "RenderResult", "render",
     "article_scene", "article_settings",
 ]

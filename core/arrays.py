@@ -1,7 +1,13 @@
 """The scene as structure-of-arrays, the form the tracer works on.
 
-Built once per render from a validated ``Scene``; every array is float64 (the render casts
-what it needs to its precision).  N spheres, L lights.
+Built once per render from a validated ``Scene``, in whole-array operations (no Python loop
+per primitive for sphere sets and meshes); every array is float64 (the render casts what it
+needs to its precision).
+
+Primitive ids are global: the N spheres first (``Scene.spheres`` in order, then each
+``SphereSet`` in order), then the T triangles (each mesh's triangles, instance by instance).
+Ties between equally near hits go to the lower id.  Materials form one table for the scene;
+every primitive carries an index into it.
 """
 
 from __future__ import annotations
@@ -15,11 +21,40 @@ from .scene import Scene
 
 @dataclass(frozen=True)
 class SphereArrays:
-    """centers (N, 3), radii (N,), ambient / diffuse / specular (N, 3) reflectances,
-    exponent (N,) = shininess / 4 (the article's Blinn-Phong exponent), reflection (N,)."""
+    """centers (N, 3), radii (N,), material (N,) indices into the scene's material table."""
 
     centers: np.ndarray
     radii: np.ndarray
+    material: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.radii)
+
+
+@dataclass(frozen=True)
+class TriangleArrays:
+    """T world-space triangles: corners v0, v1, v2 (3, T); normals (3, T) unit geometric
+    normals on the front side (counter-clockwise winding, kept outward for mirrored
+    instances); corner_normals (3 corners, 3, T) unit shading normals, or None when every
+    triangle is flat; material (T,) indices into the scene's material table."""
+
+    v0: np.ndarray
+    v1: np.ndarray
+    v2: np.ndarray
+    normals: np.ndarray
+    corner_normals: np.ndarray | None
+    material: np.ndarray
+
+    def __len__(self) -> int:
+        return self.v0.shape[1]
+
+
+@dataclass(frozen=True)
+class MaterialArrays:
+    """The scene's material table (M entries): ambient / diffuse / specular (M, 3)
+    reflectances, exponent (M,) = shininess / 4 (the article's Blinn-Phong exponent),
+    reflection (M,)."""
+
     ambient: np.ndarray
     diffuse: np.ndarray
     specular: np.ndarray
@@ -27,7 +62,7 @@ class SphereArrays:
     reflection: np.ndarray
 
     def __len__(self) -> int:
-        return len(self.radii)
+        return len(self.reflection)
 
 
 @dataclass(frozen=True)
@@ -47,6 +82,8 @@ class LightArrays:
 @dataclass(frozen=True)
 class SceneArrays:
     spheres: SphereArrays
+    triangles: TriangleArrays
+    materials: MaterialArrays
     lights: LightArrays
     background: np.ndarray   # (3,)
     ambient: np.ndarray      # (3,) scene ambient intensity (default semantics)
@@ -56,20 +93,102 @@ def _rows(values, width: int) -> np.ndarray:
     return np.asarray(values, np.float64).reshape(-1, width)
 
 
+class _MaterialTable:
+    """Collects materials once each (by identity), handing out their indices."""
+
+    def __init__(self):
+        self.entries, self._index = [], {}
+
+    def add(self, material) -> int:
+        key = id(material)
+        if key not in self._index:
+            self._index[key] = len(self.entries)
+            self.entries.append(material)
+        return self._index[key]
+
+    def arrays(self) -> MaterialArrays:
+        table = self.entries
+        return MaterialArrays(
+            ambient=_rows([m.ambient for m in table], 3),
+            diffuse=_rows([m.diffuse for m in table], 3),
+            specular=_rows([m.specular for m in table], 3),
+            exponent=np.asarray([m.shininess / 4 for m in table], np.float64),
+            reflection=np.asarray([m.reflection for m in table], np.float64))
+
+
+def _remap(table: _MaterialTable, materials, indices) -> np.ndarray:
+    """A set's local material indices (n,) as indices into the scene's table."""
+    mapping = np.asarray([table.add(m) for m in materials], np.intp)
+    return mapping[indices]
+
+
+def _unit(vectors: np.ndarray) -> np.ndarray:
+    """Rows of ``vectors`` (..., 3) scaled to unit length (zero rows stay zero)."""
+    size = np.sqrt((vectors * vectors).sum(axis=-1, keepdims=True))
+    return vectors / np.where(size > 0, size, 1.0)
+
+
+def _mesh_triangles(mesh, table: _MaterialTable):
+    """World-space corners (K*T, 3, 3), front normals (K*T, 3), corner normals
+    (K*T, 3, 3) or None, materials (K*T,) of one mesh, instance by instance.
+
+    Points map by each instance's matrix; normals by the inverse transpose of its 3 x 3.  A
+    mirroring instance (negative determinant) reverses the winding of its world-space
+    triangles; its normals are turned back so that the front stays the object's outside,
+    as Blender does."""
+    linear = mesh.transforms[:, :3, :3]                                       # (K, 3, 3)
+    world = (np.einsum("kij,vj->kvi", linear, mesh.vertices)
+             + mesh.transforms[:, None, :3, 3])                              # (K, V, 3)
+    corners = world[:, mesh.triangles].reshape(-1, 3, 3)                    # (K*T, 3, 3)
+    orientation = np.repeat(np.sign(np.linalg.det(linear)), len(mesh.triangles))
+    normals = _unit(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+                    * orientation[:, None])
+    smooth = None
+    if mesh.corner_normals is not None:
+        inverse_t = np.linalg.inv(linear).transpose(0, 2, 1)                  # (K, 3, 3)
+        smooth = _unit(np.einsum("kij,tcj->ktci", inverse_t, mesh.corner_normals)
+                       .reshape(-1, 3, 3))
+    materials = np.tile(_remap(table, mesh.materials, mesh.material_indices),
+                        len(mesh.transforms))
+    return corners, normals, smooth, materials
+
+
+def _triangle_arrays(meshes, table: _MaterialTable) -> TriangleArrays:
+    parts = [_mesh_triangles(mesh, table) for mesh in meshes]
+    if not parts:
+        empty = np.zeros((3, 0))
+        return TriangleArrays(empty, empty, empty, empty, None, np.zeros(0, np.intp))
+    corners = np.concatenate([p[0] for p in parts])
+    normals = np.concatenate([p[1] for p in parts])
+    corner_normals = None
+    if any(p[2] is not None for p in parts):
+        # Flat meshes beside smooth ones: their corners carry the geometric normal.
+        corner_normals = np.concatenate([
+            p[2] if p[2] is not None else np.repeat(p[1][:, None, :], 3, axis=1)
+            for p in parts]).transpose(1, 2, 0).copy()
+    vertices = corners.transpose(1, 2, 0)                                      # (3, 3, T)
+    return TriangleArrays(vertices[0].copy(), vertices[1].copy(), vertices[2].copy(),
+                          normals.T.copy(), corner_normals,
+                          np.concatenate([p[3] for p in parts]))
+
+
 def scene_arrays(scene: Scene) -> SceneArrays:
+    table = _MaterialTable()
     spheres = scene.spheres
-    materials = [s.material for s in spheres]
+    centers = [_rows([s.center for s in spheres], 3)]
+    radii = [np.asarray([s.radius for s in spheres], np.float64)]
+    materials = [np.asarray([table.add(s.material) for s in spheres], np.intp)]
+    for sphere_set in scene.sphere_sets:
+        centers.append(sphere_set.centers)
+        radii.append(sphere_set.radii)
+        materials.append(_remap(table, sphere_set.materials, sphere_set.material_indices))
+    triangles = _triangle_arrays(scene.meshes, table)
     lights = scene.lights
     return SceneArrays(
-        spheres=SphereArrays(
-            centers=_rows([s.center for s in spheres], 3),
-            radii=np.asarray([s.radius for s in spheres], np.float64),
-            ambient=_rows([m.ambient for m in materials], 3),
-            diffuse=_rows([m.diffuse for m in materials], 3),
-            specular=_rows([m.specular for m in materials], 3),
-            exponent=np.asarray([m.shininess / 4 for m in materials], np.float64),
-            reflection=np.asarray([m.reflection for m in materials], np.float64),
-        ),
+        spheres=SphereArrays(np.concatenate(centers), np.concatenate(radii),
+                             np.concatenate(materials)),
+        triangles=triangles,
+        materials=table.arrays(),
         lights=LightArrays(
             positions=_rows([l.position for l in lights], 3),
             ambient=_rows([l.ambient for l in lights], 3),

@@ -1,5 +1,7 @@
-"""Everything a render precomputes once and every tile reads: arrays in the render's precision,
-per-origin sphere terms for the camera and the lights, and the bounds that let paths stop early.
+"""Everything a render precomputes once and every tile reads, in three layouts: the scene's
+geometry (``core.aggregate.Aggregate``), its lights (``Lights``: positions, intensities,
+sample points of soft lights and the geometry's terms at each) and its material table
+(``Materials``), plus the settings and the bound that lets paths stop early.
 """
 
 from __future__ import annotations
@@ -8,50 +10,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .arrays import SceneArrays, scene_arrays
+from .aggregate import Aggregate
+from .arrays import scene_arrays
 from .camera import eye_position
-from .cull import SphereClusters, cluster_spheres
-from .intersect import OriginTerms
+from .rays import ARTICLE_OFFSET, RAY_EPSILON, RayStats, SharedOrigin, ray_offsets
 from .scene import BlenderCamera, RenderSettings, Scene
 
-#: The article's fixed shadow/reflection offset along the normal.
-ARTICLE_OFFSET = 1e-5
-#: Default semantics offset: (1 + max|P_i|) * RAY_EPSILON, Mitsuba 3's scaled ray epsilon
-#: (1500 eps of the precision), so offsets grow with the hit point's magnitude.
-RAY_EPSILON = {np.dtype(np.float64): 1500 * np.finfo(np.float64).eps,
-               np.dtype(np.float32): 1500 * np.finfo(np.float32).eps}
-
-
-def ray_offsets(points: np.ndarray) -> np.ndarray:
-    """(m,) how far rays leaving points (3, m) start from them, or shadow segments stop short
-    of them, in default semantics: (1 + max|P_i|) * RAY_EPSILON of the points' precision."""
-    dtype = points.dtype
-    return (1 + np.abs(points).max(axis=0)) * dtype.type(RAY_EPSILON[dtype])
-
-
-@dataclass
-class RayStats:
-    """What a render traced.  camera_rays: rays from the camera (every sample);
-    shadow_rays: light visibility rays; reflection_rays: mirror rays; sphere_tests: ray/sphere
-    pairs intersected (after culling); tiles: tiles rendered; supersampled_pixels: pixels given
-    more than one sample."""
-
-    camera_rays: int = 0
-    shadow_rays: int = 0
-    reflection_rays: int = 0
-    sphere_tests: int = 0
-    tiles: int = 0
-    supersampled_pixels: int = 0
-
-    def add(self, other: "RayStats") -> None:
-        for name in self.__dataclass_fields__:
-            setattr(self, name, getattr(self, name) + getattr(other, name))
+__all__ = ["ARTICLE_OFFSET", "RAY_EPSILON", "RayStats", "ray_offsets", "Lights", "Materials",
+           "TraceContext", "make_context"]
 
 
 @dataclass(frozen=True)
 class Materials:
-    """Per-sphere material arrays in the render precision: ambient, diffuse, specular as
-    (3, N) (one row per channel, ready for ``vectors.take``), exponent and reflection (N,)."""
+    """The scene's material table in the render precision, indexed by material id:
+    ambient, diffuse, specular as (3, M) (one row per channel, ready for ``vectors.take``),
+    exponent and reflection (M,)."""
 
     ambient: np.ndarray
     diffuse: np.ndarray
@@ -61,28 +34,47 @@ class Materials:
 
 
 @dataclass(frozen=True)
+class Lights:
+    """L point lights, float64: positions (L, 3), ambient / diffuse / specular (L, 3)
+    intensities, radii (L,); per light, its sample points ``samples[l]`` (S, 3) (one, the
+    centre, for a point light) and the geometry's shared-origin terms at each,
+    ``origins[l]`` (S SharedOrigin)."""
+
+    positions: np.ndarray
+    ambient: np.ndarray
+    diffuse: np.ndarray
+    specular: np.ndarray
+    radii: np.ndarray
+    samples: tuple
+    origins: tuple
+
+    def __len__(self) -> int:
+        return len(self.radii)
+
+
+@dataclass(frozen=True)
 class TraceContext:
-    arrays: SceneArrays
     settings: RenderSettings
     dtype: np.dtype
     article: bool
-    eye: np.ndarray                      # (3,) camera position, float64
-    camera_terms: OriginTerms | None     # shared-origin terms at the eye (perspective only)
-    light_terms: tuple                   # OriginTerms per light sample position
-    light_samples: tuple                 # per light: (samples, 3) float64 positions
+    geometry: Aggregate
+    lights: Lights
     materials: Materials
-    centers_t: np.ndarray                # (3, N) centres in the render precision
-    clusters: SphereClusters             # the spheres grouped for culling
+    eye: np.ndarray                      # (3,) camera position, float64
+    camera_origin: SharedOrigin | None   # the geometry's terms at the eye (perspective only)
+    background: np.ndarray               # (3,) float64, seen where rays escape
+    ambient: np.ndarray                  # (3,) float64 scene ambient (default semantics)
     path_gain_bound: float               # max colour one bounce can add per unit weight
-    spheres_can_reflect: bool
 
     @property
     def centers(self):
-        return self.arrays.spheres.centers
+        """(N, 3) sphere centres, float64."""
+        return self.geometry.spheres.centers
 
     @property
     def radii(self):
-        return self.arrays.spheres.radii
+        """(N,) sphere radii, float64."""
+        return self.geometry.spheres.radii
 
 
 def _fibonacci_sphere(count: int) -> np.ndarray:
@@ -94,37 +86,42 @@ def _fibonacci_sphere(count: int) -> np.ndarray:
     return np.stack([rho * np.cos(phi), rho * np.sin(phi), z], axis=1)
 
 
-def make_context(scene: Scene, settings: RenderSettings, dtype) -> TraceContext:
+def make_context(scene: Scene, settings: RenderSettings, dtype, *,
+                 root_formula: str | None = None) -> TraceContext:
+    """The context of a render of ``scene`` in precision ``dtype``.  root_formula:
+    'textbook' or 'stable' ray/sphere roots (``core.aggregate.ROOT_FORMULAS``); None picks
+    the article's textbook formula in article semantics and the stable one otherwise."""
     arrays = scene_arrays(scene)
-    spheres, lights = arrays.spheres, arrays.lights
+    lights, table = arrays.lights, arrays.materials
     article = settings.semantics == "article"
+    if root_formula is None:
+        root_formula = "textbook" if article else "stable"
+    geometry = Aggregate(arrays.spheres, arrays.triangles, dtype, article=article,
+                         root_formula=root_formula)
     eye = eye_position(scene.camera)
     perspective = not (isinstance(scene.camera, BlenderCamera) and scene.camera.projection == "ORTHO")
-    camera_terms = OriginTerms.at(eye, spheres.centers, spheres.radii) if perspective else None
     samples = []
     for position, radius in zip(lights.positions, lights.radii):
         if radius > 0 and not article:
             samples.append(position + radius * _fibonacci_sphere(settings.light_samples))
         else:
             samples.append(position[None, :])
-    light_terms = tuple(tuple(OriginTerms.at(p, spheres.centers, spheres.radii) for p in s)
-                        for s in samples)
+    origins = tuple(tuple(geometry.shared_origin(p) for p in s) for s in samples)
     total_light = (lights.ambient.sum(axis=0) + lights.diffuse.sum(axis=0)
                    + lights.specular.sum(axis=0) + arrays.ambient)
-    if len(spheres):
-        per_sphere = (spheres.ambient + spheres.diffuse + spheres.specular) * total_light
-        gain = float(max(per_sphere.max(), arrays.background.max()))
+    if len(table):
+        per_material = (table.ambient + table.diffuse + table.specular) * total_light
+        gain = float(max(per_material.max(), arrays.background.max()))
     else:
         gain = float(arrays.background.max())
     cast = lambda a: np.ascontiguousarray(a, dtype)  # noqa: E731
     return TraceContext(
-        arrays=arrays, settings=settings, dtype=np.dtype(dtype), article=article, eye=eye,
-        camera_terms=camera_terms, light_terms=light_terms, light_samples=tuple(samples),
-        materials=Materials(cast(spheres.ambient.T), cast(spheres.diffuse.T),
-                            cast(spheres.specular.T), cast(spheres.exponent),
-                            cast(spheres.reflection)),
-        centers_t=cast(spheres.centers.T),
-        clusters=cluster_spheres(spheres.centers, spheres.radii),
-        path_gain_bound=gain,
-        spheres_can_reflect=bool(len(spheres) and spheres.reflection.max() > 0),
+        settings=settings, dtype=np.dtype(dtype), article=article, geometry=geometry,
+        lights=Lights(lights.positions, lights.ambient, lights.diffuse, lights.specular,
+                      lights.radii, tuple(samples), origins),
+        materials=Materials(cast(table.ambient.T), cast(table.diffuse.T),
+                            cast(table.specular.T), cast(table.exponent),
+                            cast(table.reflection)),
+        eye=eye, camera_origin=geometry.shared_origin(eye) if perspective else None,
+        background=arrays.background, ambient=arrays.ambient, path_gain_bound=gain,
     )

@@ -167,7 +167,8 @@ def _packet_candidates(radii, clusters: SphereClusters, cone, reach):
         hit = reachable(clusters.member_centers[:, cluster], clusters.member_radii[cluster],
                         apex[:, packet, None], spread[packet, None], axis[:, packet, None],
                         half[packet, None], reach[packet, None])          # (E, M)
-        pair, member = np.nonzero(hit)
+        # Padding never counts (with an unbounded reach the test alone would let it pass).
+        pair, member = np.nonzero(hit & (clusters.members[cluster] >= 0))
         packets.append(packet[pair])
         spheres.append(clusters.members[cluster[pair], member])
     packet, sphere = np.concatenate(packets), np.concatenate(spheres)
@@ -265,14 +266,15 @@ class PairBlock:
 
 
 def candidate_roots(centers, radii, clusters: SphereClusters, origins, directions, max_distance,
-                    terms: OriginTerms = None, *, article=False, stats=None, key=None):
+                    terms: OriginTerms = None, *, textbook=False, stats=None, key=None):
     """Ray/sphere roots for every pair culling cannot rule out, in blocks.
 
     centers (N, 3), radii (N,) in float64, and their ``clusters``; origins (3, 1) with
     ``terms`` (OriginTerms at that origin) when all rays share it, else (3, n); directions
     (3, n) unit; max_distance: scalar or (n,), how far each ray reaches.  key: optional (n,)
     integers; rays with equal keys are packed together (secondary rays: the sphere they
-    leave and their direction cell).  Yields ``DenseBlock`` or ``PairBlock`` objects; every
+    leave and their direction cell).  textbook: the article's root formula
+    (``core.intersect``), else the stable one.  Yields ``DenseBlock`` or ``PairBlock`` objects; every
     pair culling keeps appears in exactly one block, candidates in scene order.
     """
     n = directions.shape[1]
@@ -296,12 +298,12 @@ def candidate_roots(centers, radii, clusters: SphereClusters, origins, direction
                 roots = origin_roots(terms.f[chunk].T[:, :, None],
                                      terms.c_prime[chunk][:, None],
                                      terms.article_c[chunk][:, None], radii[chunk][:, None],
-                                     directions[:, None, :], article=article)
+                                     directions[:, None, :], article=textbook)
             else:
                 roots = offset_roots(origins[:, None, :]
                                      - centers[chunk].T.astype(dtype)[:, :, None],
                                      directions[:, None, :],
-                                     radii[chunk].astype(dtype)[:, None], article=article)
+                                     radii[chunk].astype(dtype)[:, None], article=textbook)
             yield DenseBlock(chunk[:, None], *roots, slice(0, n))
         return
 
@@ -345,8 +347,8 @@ def candidate_roots(centers, radii, clusters: SphereClusters, origins, direction
         if shared:
             roots = origin_roots(terms.f[spheres].T, terms.c_prime[spheres],
                                  terms.article_c[spheres], radii[spheres], pair_dirs,
-                                 article=article)
+                                 article=textbook)
         else:
             roots = offset_roots(take(origins, pair_rays) - take(centers_t, spheres).astype(dtype),
-                                 pair_dirs, radii[spheres].astype(dtype), article=article)
+                                 pair_dirs, radii[spheres].astype(dtype), article=textbook)
         yield PairBlock(spheres, *roots, rays, pair_rays, np.cumsum(per_ray) - per_ray)

@@ -25,11 +25,14 @@ FLOAT32_MAX_SCALE_RATIO = 500.0
 
 
 def scale_ratio(scene: Scene) -> float:
-    """extent / smallest radius, as described in the module docstring (inf with no spheres)."""
-    if not scene.spheres:
+    """extent / smallest radius, as described in the module docstring (inf with no spheres,
+    and with triangle meshes, which have no radius to compare: they render in float64)."""
+    if scene.meshes or not (scene.spheres or any(len(s) for s in scene.sphere_sets)):
         return float("inf")
-    centers = np.array([s.center for s in scene.spheres], np.float64)
-    radii = np.array([s.radius for s in scene.spheres], np.float64)
+    centers = np.concatenate([np.array([s.center for s in scene.spheres], np.float64)
+                              .reshape(-1, 3)] + [s.centers for s in scene.sphere_sets])
+    radii = np.concatenate([np.array([s.radius for s in scene.spheres], np.float64)]
+                           + [s.radii for s in scene.sphere_sets])
     extent = float((np.abs(centers).max(axis=1) + radii).max())
     extent = max(extent, float(np.abs(eye_position(scene.camera)).max()))
     for light in scene.lights:

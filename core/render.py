@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Callable, Optional
@@ -22,8 +23,9 @@ import numpy as np
 
 from .camera import camera_rays
 from .context import RayStats, TraceContext, make_context
-from .passes import PrimaryPasses, fill_tile_passes
 from .cull import PACKET_SIZE
+from .frame import canonical_scene, scene_frame
+from .passes import PrimaryPasses, fill_tile_passes
 from .precision import choose_precision
 from .scene import RenderSettings, Scene, SceneError
 from .trace import trace_bundle
@@ -31,10 +33,17 @@ from .trace import trace_bundle
 
 #: Tiles are traced in BLOCK x BLOCK pixel blocks: one culling packet each.
 BLOCK = math.isqrt(PACKET_SIZE)
+#: How often the thread loop polls should_cancel while tiles are running.
+CANCEL_POLL_SECONDS = 0.1
 
 
 class RenderCancelled(Exception):
     """``should_cancel()`` answered True; the render stopped between tiles."""
+
+
+class RenderError(RuntimeError):
+    """The tracer produced something no accepted scene should (a bug); the message is one
+    line saying where."""
 
 
 @dataclass
@@ -95,7 +104,7 @@ def _scatter(values, cols, rows, x0, y0, shape):
     return grid
 
 
-def _supersample(ctx, camera, cols, rows, count, stats):
+def _supersample(ctx, camera, cols, rows, count, stats, stop=None):
     """Mean (rgb (n, 3), coverage (n,)) over ``count`` samples in each pixel (cols, rows).
 
     All samples are traced together, a pixel's samples side by side (so packets stay
@@ -105,6 +114,8 @@ def _supersample(ctx, camera, cols, rows, count, stats):
     coverage = np.empty(len(cols), ctx.dtype)
     pixels_per_bundle = max(1, ctx.settings.tile_size ** 2 // count)
     for first in range(0, len(cols), pixels_per_bundle):
+        if stop is not None and stop.is_set():
+            raise RenderCancelled("render cancelled")
         part = slice(first, first + pixels_per_bundle)
         xs = (cols[part, None] + offsets[None, :, 0]).ravel()
         ys = (rows[part, None] + offsets[None, :, 1]).ravel()
@@ -127,8 +138,11 @@ def _edges(signature: np.ndarray) -> np.ndarray:
     return edge
 
 
-def render_tile(ctx: TraceContext, camera, tile) -> tuple[np.ndarray, RayStats]:
-    """(rgba (h, w, 4), stats) for tile (y0, y1, x0, x1) of the image."""
+def render_tile(ctx: TraceContext, camera, tile, stop: Optional[threading.Event] = None
+                ) -> tuple[np.ndarray, RayStats]:
+    """(rgba (h, w, 4), stats) for tile (y0, y1, x0, x1) of the image.  stop: once set, the
+    tile raises RenderCancelled at its next bundle of rays (a cancel need not wait for whole
+    supersampled tiles)."""
     y0, y1, x0, x1 = tile
     h, w = y1 - y0, x1 - x0
     stats = RayStats(tiles=1)
@@ -136,7 +150,8 @@ def render_tile(ctx: TraceContext, camera, tile) -> tuple[np.ndarray, RayStats]:
     rgba = np.empty((h, w, 4), ctx.dtype)
     cols, rows = _pixel_grid(y0, y1, x0, x1)
     if mode == "fixed":
-        rgb, coverage = _supersample(ctx, camera, cols, rows, ctx.settings.samples, stats)
+        rgb, coverage = _supersample(ctx, camera, cols, rows, ctx.settings.samples, stats,
+                                     stop)
     elif mode == "off":
         rgb, coverage, _ = _trace_positions(ctx, camera, cols + 0.5, rows + 0.5, stats)
     else:
@@ -157,7 +172,7 @@ def render_tile(ctx: TraceContext, camera, tile) -> tuple[np.ndarray, RayStats]:
         chosen = np.flatnonzero(edge)
         if len(chosen):
             rgb[chosen], coverage[chosen] = _supersample(
-                ctx, camera, cols[chosen], rows[chosen], ctx.settings.samples, stats)
+                ctx, camera, cols[chosen], rows[chosen], ctx.settings.samples, stats, stop)
     rgba[rows - y0, cols - x0, :3] = rgb
     rgba[rows - y0, cols - x0, 3] = coverage
     return rgba, stats
@@ -184,13 +199,15 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     ``progress``), with tile = (y0, y1, x0, x1) (rows from the top) and its (h, w, 4) pixels,
     a view of the image: copy what must outlive the call.  Tiles land in any order; a
     cancelled render has passed on exactly the tiles that finished.
-    passes: also fill ``RenderResult.passes`` (``core.passes``: depth, position, normal and
-    sphere index of each pixel centre's first hit)."""
+    passes: also fill ``RenderResult.passes`` (``core.passes``: depth, position, normal,
+    primitive and material of each pixel centre's first hit, in world units)."""
     if not isinstance(scene, Scene):
         raise SceneError(f"scene must be a core.Scene, got {type(scene).__name__}")
     settings = RenderSettings() if settings is None else settings
     if not isinstance(settings, RenderSettings):
         raise SceneError(f"settings must be a core.RenderSettings, got {type(settings).__name__}")
+    world = None if settings.semantics == "article" else scene_frame(scene)  # for passes
+    scene = canonical_scene(scene, settings)  # positions and units stop mattering
     dtype = choose_precision(scene, settings.precision)
     ctx = make_context(scene, settings, dtype)
     width, height = scene.camera.width, scene.camera.height
@@ -200,14 +217,17 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     threads = settings.threads or os.cpu_count() or 1
     primary = PrimaryPasses.empty(width, height) if passes else None
 
-    def work(ctx, camera, tile):
-        rgba, tile_stats = render_tile(ctx, camera, tile)
+    def work(ctx, camera, tile, stop=None):
+        rgba, tile_stats = render_tile(ctx, camera, tile, stop)
         if primary is not None:
-            fill_tile_passes(primary, ctx, camera, tile, tile_stats)
+            fill_tile_passes(primary, ctx, camera, tile, tile_stats, world)
         return rgba, tile_stats
 
     def finish(tile, rgba, tile_stats, done):
         y0, y1, x0, x1 = tile
+        if not np.isfinite(rgba).all():  # never a silently wrong picture, even from a bug
+            raise RenderError(f"pixels {x0}-{x1 - 1} x {y0}-{y1 - 1} came out NaN or "
+                              f"infinite; please report this scene")
         image[y0:y1, x0:x1] = rgba
         stats.add(tile_stats)
         if on_tile is not None:
@@ -226,27 +246,36 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
         return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
                             primary)
 
+    stop = threading.Event()
     with ThreadPoolExecutor(max_workers=threads) as pool:
         pending = {}
         queue = iter(tiles)
         done = 0
-        while True:
-            # Keep only a few tiles in flight so a cancel is honoured promptly.
-            while len(pending) < 2 * threads:
-                tile = next(queue, None)
-                if tile is None:
+        try:
+            while True:
+                # Keep only a few tiles in flight so a cancel is honoured promptly.
+                while len(pending) < 2 * threads:
+                    tile = next(queue, None)
+                    if tile is None:
+                        break
+                    pending[pool.submit(work, ctx, scene.camera, tile, stop)] = tile
+                if not pending:
                     break
-                pending[pool.submit(work, ctx, scene.camera, tile)] = tile
-            if not pending:
-                break
-            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for future in finished:
-                tile = pending.pop(future)
-                rgba, tile_stats = future.result()
-                done += 1
-                finish(tile, rgba, tile_stats, done)
-            if cancelled():
-                wait(pending)  # let the tiles in flight end before the image goes away
-                raise RenderCancelled("render cancelled")
-    return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
-                        primary)
+                # Wake up regularly to poll should_cancel while long tiles run.
+                finished, _ = wait(pending, timeout=CANCEL_POLL_SECONDS,
+                                   return_when=FIRST_COMPLETED)
+                for future in finished:
+                    tile = pending.pop(future)
+                    rgba, tile_stats = future.result()
+                    done += 1
+                    finish(tile, rgba, tile_stats, done)
+                if cancelled():
+                    raise RenderCancelled("render cancelled")
+        except BaseException:
+            # Cancelled, a tile failed, or an exception (KeyboardInterrupt) arrived: stop
+            # the other tiles at their next bundle instead of finishing them.
+            stop.set()
+            for future in pending:
+                future.cancel()
+            raise
+    return RenderResult(image, stats, dtype.name, missed_colour(scene, settings), primary)

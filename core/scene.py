@@ -1,4 +1,4 @@
-"""What a scene is: spheres, materials, point lights, a camera, a background.
+"""What a scene is: spheres, triangle meshes, materials, point lights, a camera, a background.
 
 Everything here is plain, immutable data with units and conventions spelled out; the tracer
 turns it into arrays (``core.arrays``).  Construction validates every field, so a scene that
@@ -21,6 +21,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal, Sequence, Union
 
+import numpy as np
+
 Vec3 = tuple[float, float, float]
 
 SEMANTICS = ("default", "article")
@@ -35,15 +37,35 @@ class SceneError(ValueError):
 
 
 # --------------------------------------------------------------------------------------------
+# Limits.  Validation accepts only values whose every product and sum in the tracer stays
+# finite, so no NaN or inf can reach an image from an accepted scene: lengths and coordinates
+# up to 1e300 (``core.frame`` moves and scales every scene to about unit size before tracing,
+# so differences of them never overflow), colours and light intensities up to 1e12 (a path
+# adds a few products of two such factors, far below float32's 3.4e38), Blinn-Phong exponents
+# up to 1e7 (Blender's roughness 0 maps to 8e6), and counts that bound the work per pixel.
+
+MAX_MAGNITUDE = 1e300
+MAX_COLOUR = 1e12
+MAX_SHININESS = 1e7
+MAX_SAMPLES = 16384
+MAX_LIGHT_SAMPLES = 1024
+MAX_DEPTH = 256
+MAX_TILE_SIZE = 1024
+MAX_THREADS = 1024
+
+
+# --------------------------------------------------------------------------------------------
 # Validation helpers: each takes the field's full name so that errors point at the culprit.
 
-def _finite(name: str, value) -> float:
+def _finite(name: str, value, limit: float = MAX_MAGNITUDE) -> float:
     try:
         number = float(value)
     except (TypeError, ValueError):
         raise SceneError(f"{name} must be a number, got {value!r}") from None
     if not math.isfinite(number):
         raise SceneError(f"{name} must be finite, got {value!r}")
+    if abs(number) > limit:
+        raise SceneError(f"{name} must be at most {limit:g} in size, got {value!r}")
     return number
 
 
@@ -54,25 +76,25 @@ def _positive(name: str, value) -> float:
     return number
 
 
-def _non_negative(name: str, value) -> float:
-    number = _finite(name, value)
+def _non_negative(name: str, value, limit: float = MAX_MAGNITUDE) -> float:
+    number = _finite(name, value, limit)
     if number < 0.0:
         raise SceneError(f"{name} must be >= 0, got {value!r}")
     return number
 
 
-def _vec3(name: str, value) -> Vec3:
+def _vec3(name: str, value, limit: float = MAX_MAGNITUDE) -> Vec3:
     try:
         items = tuple(value)
     except TypeError:
         raise SceneError(f"{name} must be 3 numbers, got {value!r}") from None
     if len(items) != 3:
         raise SceneError(f"{name} must be 3 numbers, got {len(items)}: {value!r}")
-    return tuple(_finite(f"{name}[{i}]", v) for i, v in enumerate(items))
+    return tuple(_finite(f"{name}[{i}]", v, limit) for i, v in enumerate(items))
 
 
 def _colour(name: str, value) -> Vec3:
-    rgb = _vec3(name, value)
+    rgb = _vec3(name, value, MAX_COLOUR)
     for i, channel in enumerate(rgb):
         if channel < 0.0:
             raise SceneError(f"{name}[{i}] must be >= 0, got {channel!r}")
@@ -85,9 +107,11 @@ def _choice(name: str, value, allowed: Sequence[str]) -> str:
     return value
 
 
-def _count(name: str, value, minimum: int = 1) -> int:
+def _count(name: str, value, minimum: int = 1, maximum: int | None = None) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
         raise SceneError(f"{name} must be a whole number >= {minimum}, got {value!r}")
+    if maximum is not None and value > maximum:
+        raise SceneError(f"{name} must be at most {maximum}, got {value!r}")
     return value
 
 
@@ -116,7 +140,8 @@ class Material:
     def validate(self, where: str = "material") -> "Material":
         for name in ("ambient", "diffuse", "specular"):
             _set(self, name, _colour(f"{where}.{name}", getattr(self, name)))
-        _set(self, "shininess", _non_negative(f"{where}.shininess", self.shininess))
+        _set(self, "shininess",
+             _non_negative(f"{where}.shininess", self.shininess, MAX_SHININESS))
         reflection = _finite(f"{where}.reflection", self.reflection)
         if not 0.0 <= reflection <= 1.0:
             raise SceneError(f"{where}.reflection must be in [0, 1], got {self.reflection!r}")
@@ -142,6 +167,9 @@ class Sphere:
         _set(self, "radius", _positive(f"{where}.radius", self.radius))
         if not isinstance(self.material, Material):
             raise SceneError(f"{where}.material must be a Material, got {self.material!r}")
+        # Named here: a material shared by many spheres is checked again for each, so an
+        # invalid one (built past its own check) names the sphere that uses it.
+        self.material.validate(f"{where}.material")
 
 
 @dataclass(frozen=True)
@@ -184,7 +212,8 @@ class PointLight:
         """
         where = f"light {name!r}" if name else "light"
         rgb = _colour(f"{where}.color", colour)
-        scale = _non_negative(f"{where}.energy", power_w) / cls.REFERENCE_POWER_W
+        scale = _non_negative(f"{where}.energy", power_w,
+                              MAX_COLOUR * cls.REFERENCE_POWER_W) / cls.REFERENCE_POWER_W
         intensity = tuple(c * scale for c in rgb)
         return cls(position=position, ambient=intensity, diffuse=intensity,
                    specular=intensity, radius=radius, name=name)
@@ -304,11 +333,193 @@ class BlenderCamera:
 Camera = Union[ScreenCamera, BlenderCamera]
 
 
+# --------------------------------------------------------------------------------------------
+# Array sets: many primitives described as arrays, validated in whole-array operations (a
+# million spheres validate in milliseconds).  Errors name the set, the field and the first
+# offending index.  The arrays are copied and made read-only, so a set, once built, cannot
+# change under the tracer.  (eq=False: equality is identity; comparing arrays element-wise
+# is not what ``==`` on a scene should mean.)
+
+#: The material types the tracer shades; the geometry treats them as opaque table entries.
+MATERIAL_TYPES = (Material,)
+
+
+def _set_label(kind: str, name: str) -> str:
+    return f"{kind} {name!r}" if name else kind
+
+
+def _frozen_array(where: str, field_name: str, value, dtype, shape: tuple) -> np.ndarray:
+    """``value`` as a read-only C-contiguous copy of ``dtype`` whose shape matches ``shape``
+    (None: any length).  Integer fields accept only integer arrays (no silent truncation)."""
+    try:
+        array = np.array(value, copy=True)
+    except (TypeError, ValueError):
+        raise SceneError(f"{where}: {field_name} must be an array, got {value!r}") from None
+    if np.issubdtype(dtype, np.integer):
+        if array.size and not np.issubdtype(array.dtype, np.integer):
+            raise SceneError(f"{where}: {field_name} must hold integers, got {array.dtype}")
+    elif array.size and not np.issubdtype(array.dtype, np.number):
+        raise SceneError(f"{where}: {field_name} must hold numbers, got {array.dtype}")
+    if array.size == 0 and array.ndim < len(shape):
+        array = array.reshape(tuple(0 if s is None else s for s in shape))
+    wanted = " x ".join("N" if s is None else str(s) for s in shape)
+    if array.ndim != len(shape) or any(s is not None and a != s
+                                       for a, s in zip(array.shape, shape)):
+        raise SceneError(f"{where}: {field_name} must have shape ({wanted}), "
+                         f"got {array.shape}")
+    array = np.ascontiguousarray(array, dtype)
+    array.setflags(write=False)
+    return array
+
+
+def _first_bad(mask: np.ndarray):
+    """Index tuple of the first True element of ``mask``, or None."""
+    flat = np.flatnonzero(mask)
+    return None if len(flat) == 0 else np.unravel_index(flat[0], mask.shape)
+
+
+def _index_text(index) -> str:
+    return "".join(f"[{int(i)}]" for i in index)
+
+
+def _require_finite(where: str, field_name: str, array: np.ndarray) -> None:
+    bad = _first_bad(~np.isfinite(array))
+    if bad is not None:
+        raise SceneError(f"{where}: {field_name}{_index_text(bad)} must be finite, "
+                         f"got {array[bad]!r}")
+
+
+def _require_indices(where: str, field_name: str, array: np.ndarray, count: int,
+                     what: str) -> None:
+    bad = _first_bad((array < 0) | (array >= count))
+    if bad is not None:
+        raise SceneError(f"{where}: {field_name}{_index_text(bad)} must be in [0, {count}) "
+                         f"({what}), got {int(array[bad])}")
+
+
+def _materials(where: str, materials) -> tuple:
+    try:
+        table = tuple(materials)
+    except TypeError:
+        raise SceneError(f"{where}: materials must be a sequence of materials, "
+                         f"got {materials!r}") from None
+    if not table:
+        raise SceneError(f"{where}: materials must hold at least one material")
+    for i, material in enumerate(table):
+        if not isinstance(material, MATERIAL_TYPES):
+            raise SceneError(f"{where}: materials[{i}] must be a material, got {material!r}")
+    return table
+
+
+@dataclass(frozen=True, eq=False)
+class SphereSet:
+    """N spheres as arrays (point clouds, particles, molecules): world-space ``centers``
+    (N, 3), ``radii`` (N,) > 0, ``material_indices`` (N,) into ``materials`` (at least one)."""
+
+    centers: np.ndarray
+    radii: np.ndarray
+    material_indices: np.ndarray
+    materials: tuple
+    name: str = ""
+
+    def __post_init__(self):
+        where = _set_label("sphere set", self.name)
+        centers = _frozen_array(where, "centers", self.centers, np.float64, (None, 3))
+        count = len(centers)
+        radii = _frozen_array(where, "radii", self.radii, np.float64, (count,))
+        indices = _frozen_array(where, "material_indices", self.material_indices, np.int64,
+                                (count,))
+        materials = _materials(where, self.materials)
+        _require_finite(where, "centers", centers)
+        _require_finite(where, "radii", radii)
+        bad = _first_bad(radii <= 0)
+        if bad is not None:
+            raise SceneError(f"{where}: radii{_index_text(bad)} must be > 0, got {radii[bad]!r}")
+        _require_indices(where, "material_indices", indices, len(materials), "materials")
+        for name, value in (("centers", centers), ("radii", radii),
+                            ("material_indices", indices), ("materials", materials)):
+            _set(self, name, value)
+
+    def __len__(self) -> int:
+        return len(self.radii)
+
+
+def _identity_transforms() -> np.ndarray:
+    return np.eye(4)[None]
+
+
+@dataclass(frozen=True, eq=False)
+class TriangleMesh:
+    """A triangle mesh in object space, drawn once per instance transform.
+
+    vertices (V, 3); triangles (T, 3) vertex indices, counter-clockwise seen from the front
+    (Blender's winding); corner_normals (T, 3, 3) per-corner normals in object space (unit
+    after validation: they are normalised), or None for flat shading (the geometric normal);
+    material_indices (T,) into ``materials`` (at least one); transforms (K, 4, 4)
+    object-to-world matrices, one per instance (affine: last row 0 0 0 1, invertible 3 x 3).
+    Normals go to world space by the inverse transpose of each instance's 3 x 3.
+    """
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    corner_normals: np.ndarray | None
+    material_indices: np.ndarray
+    materials: tuple
+    transforms: np.ndarray = field(default_factory=_identity_transforms)
+    name: str = ""
+
+    def __post_init__(self):
+        where = _set_label("mesh", self.name)
+        vertices = _frozen_array(where, "vertices", self.vertices, np.float64, (None, 3))
+        triangles = _frozen_array(where, "triangles", self.triangles, np.int64, (None, 3))
+        count = len(triangles)
+        indices = _frozen_array(where, "material_indices", self.material_indices, np.int64,
+                                (count,))
+        materials = _materials(where, self.materials)
+        transforms = _frozen_array(where, "transforms", self.transforms, np.float64,
+                                   (None, 4, 4))
+        _require_finite(where, "vertices", vertices)
+        _require_indices(where, "triangles", triangles, len(vertices), "vertices")
+        _require_indices(where, "material_indices", indices, len(materials), "materials")
+        _require_finite(where, "transforms", transforms)
+        if len(transforms) == 0:
+            raise SceneError(f"{where}: transforms must hold at least one 4 x 4 matrix")
+        bad = _first_bad(np.any(transforms[:, 3, :] != (0.0, 0.0, 0.0, 1.0), axis=1))
+        if bad is not None:
+            raise SceneError(f"{where}: transforms{_index_text(bad)} must be affine (last row "
+                             f"0 0 0 1), got {transforms[bad][3].tolist()}")
+        linear = transforms[:, :3, :3]
+        scale = np.abs(linear).max(axis=(1, 2))
+        bad = _first_bad(np.abs(np.linalg.det(linear)) <= 1e-12 * np.maximum(scale, 1e-300) ** 3)
+        if bad is not None:
+            raise SceneError(f"{where}: transforms{_index_text(bad)} is singular (its 3 x 3 "
+                             f"part has no inverse)")
+        normals = self.corner_normals
+        if normals is not None:
+            normals = _frozen_array(where, "corner_normals", normals, np.float64, (count, 3, 3))
+            _require_finite(where, "corner_normals", normals)
+            lengths = np.sqrt((normals * normals).sum(axis=2))
+            bad = _first_bad(lengths <= 1e-30)
+            if bad is not None:
+                raise SceneError(f"{where}: corner_normals{_index_text(bad)} must not be zero")
+            normals = np.ascontiguousarray(normals / lengths[:, :, None])
+            normals.setflags(write=False)
+        for name, value in (("vertices", vertices), ("triangles", triangles),
+                            ("corner_normals", normals), ("material_indices", indices),
+                            ("materials", materials), ("transforms", transforms)):
+            _set(self, name, value)
+
+    def __len__(self) -> int:
+        """Triangles drawn: triangles per instance times instances."""
+        return len(self.triangles) * len(self.transforms)
+
+
 @dataclass(frozen=True)
 class Scene:
     """A whole scene.
 
-    spheres: the objects (may be empty).  lights: point lights, whose contributions sum.
+    spheres: hand-made spheres (may be empty).  lights: point lights, whose contributions sum.
+    sphere_sets: spheres as arrays (``SphereSet``); meshes: triangle meshes (``TriangleMesh``).
     camera: a ScreenCamera (the article's) or a BlenderCamera.
     background: RGB seen where a ray escapes (default semantics; the article's is black).
     ambient: an RGB ambient intensity lighting every point in addition to the lights' own
@@ -320,6 +531,8 @@ class Scene:
     lights: tuple[PointLight, ...] = ()
     background: Vec3 = (0.0, 0.0, 0.0)
     ambient: Vec3 = (0.0, 0.0, 0.0)
+    sphere_sets: tuple[SphereSet, ...] = ()
+    meshes: tuple[TriangleMesh, ...] = ()
 
     def __post_init__(self):
         if not isinstance(self.camera, (ScreenCamera, BlenderCamera)):
@@ -333,6 +546,14 @@ class Scene:
         for i, light in enumerate(self.lights):
             if not isinstance(light, PointLight):
                 raise SceneError(f"scene.lights[{i}] must be a PointLight, got {light!r}")
+        _set(self, "sphere_sets", tuple(self.sphere_sets))
+        _set(self, "meshes", tuple(self.meshes))
+        for i, sphere_set in enumerate(self.sphere_sets):
+            if not isinstance(sphere_set, SphereSet):
+                raise SceneError(f"scene.sphere_sets[{i}] must be a SphereSet, got {sphere_set!r}")
+        for i, mesh in enumerate(self.meshes):
+            if not isinstance(mesh, TriangleMesh):
+                raise SceneError(f"scene.meshes[{i}] must be a TriangleMesh, got {mesh!r}")
         _set(self, "background", _colour("scene.background", self.background))
         _set(self, "ambient", _colour("scene.ambient", self.ambient))
 
@@ -371,11 +592,11 @@ class RenderSettings:
         _choice("settings.semantics", self.semantics, SEMANTICS)
         _choice("settings.precision", self.precision, PRECISIONS)
         _choice("settings.anti_aliasing", self.anti_aliasing, ANTI_ALIASING)
-        _count("settings.max_depth", self.max_depth)
-        _count("settings.samples", self.samples)
-        _count("settings.light_samples", self.light_samples)
-        _count("settings.tile_size", self.tile_size, minimum=8)
+        _count("settings.max_depth", self.max_depth, maximum=MAX_DEPTH)
+        _count("settings.samples", self.samples, maximum=MAX_SAMPLES)
+        _count("settings.light_samples", self.light_samples, maximum=MAX_LIGHT_SAMPLES)
+        _count("settings.tile_size", self.tile_size, minimum=8, maximum=MAX_TILE_SIZE)
         if self.threads is not None:
-            _count("settings.threads", self.threads)
+            _count("settings.threads", self.threads, maximum=MAX_THREADS)
         _set(self, "contribution_cutoff",
              _non_negative("settings.contribution_cutoff", self.contribution_cutoff))

@@ -17,22 +17,24 @@ Default semantics, each quirk fixed:
     specular (and so needs no shadow ray);
   * V points back along the incoming ray (where the light is seen from), not at the camera;
   * ambient ``ka (sum Ia + scene ambient)`` is kept in shadow, and shadow never ends a path;
-  * shadow rays are exact segments P -> light that ignore the sphere P lies on when P faces
-    outward (a convex sphere cannot block its own lit side), and stop short of P by an
-    offset that scales with |P| (Mitsuba's (1 + max|P_i|) eps), never a fixed 1e-5;
+  * shadow rays are exact segments P -> light that ignore the primitive P lies on where it
+    cannot block them (a sphere's lit outside, any triangle: ``Aggregate.exclusions``), and
+    stop short of P by an offset that scales with |P| (Mitsuba's (1 + max|P_i|) eps), never
+    a fixed 1e-5;
   * a light with radius > 0 casts soft shadows: visibility is the fraction of
     ``light_samples`` points on its sphere that P sees.
 
 Shadow rays are traced from the light towards the points: every shadow ray of a light then
-shares one origin, so the sphere terms are computed once per light, not once per ray.
+shares one origin, so the geometry's terms are computed once per light, not once per ray.
+Visibility is asked of the scene's aggregate (``ctx.geometry.occluded``), segment by segment.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .context import ARTICLE_OFFSET, RayStats, TraceContext, ray_offsets
-from .cull import DENSE_CANDIDATES, SHADOW_CELLS, candidate_roots, direction_cells
+from .context import TraceContext
+from .rays import ARTICLE_OFFSET, RayBatch, RayStats, ray_offsets
 from .vectors import dot, length, normalize, take
 
 #: One digit of a shadow code per light: unlit (0) or visibility 0, 1/4, .., 1 (1 .. 5).
@@ -64,70 +66,58 @@ def _whole_power(base, n: int):
     return result
 
 
-def light_blocked(ctx: TraceContext, terms, origin, directions, distance, exclude,
-                  stats: RayStats, *, start=None, end=None):
+def light_blocked(ctx: TraceContext, origin, directions, distance, exclude, stats: RayStats,
+                  *, start=None, end=None):
     """Whether the segments from a light sample towards m points are blocked, (m,) bool.
 
-    terms: OriginTerms at ``origin`` (3,), the light sample.  directions: (3, m) unit vectors
-    from the light towards the points; distance: (m,) how far the points are.  Default
-    semantics: blocked if a sphere other than ``exclude`` (m,) (-1: none) is crossed in
-    (0, distance - end), end (m,) the offset.  Article semantics (the points are the shifted
-    points S, start (m,) = |light - P|): blocked if the reversed ray S -> light has both roots
-    positive and its nearer one below ``start``.
+    origin: the sample's ``SharedOrigin`` (``ctx.lights.origins``).  directions: (3, m) unit
+    vectors from the light towards the points; distance: (m,) how far the points are.
+    Default semantics: blocked if a primitive other than ``exclude`` (m,) (-1: none) is
+    crossed in (0, distance - end), end (m,) the offset.  Article semantics (the points are
+    the shifted points S, start (m,) = |light - P|): blocked if the reversed ray S -> light
+    meets a sphere (both roots positive) nearer than ``start``, i.e. its far root from the
+    light lies in (distance - start, distance).
     """
-    m = directions.shape[1]
-    blocked = np.zeros(m, bool)
-    if m == 0:
-        return blocked
-    stats.shadow_rays += m
-    # All rays leave the light: packing them by direction makes each packet a narrow cone.
-    key = direction_cells(directions, SHADOW_CELLS) if len(ctx.radii) > DENSE_CANDIDATES else None
-    for block in candidate_roots(ctx.centers, ctx.radii, ctx.clusters, origin[:, None],
-                                 directions, distance, terms, article=ctx.article,
-                                 stats=stats, key=key):
-        t_near, t_far, valid = block.t_near, block.t_far, block.valid
-        reach = block.per_pair(distance)
-        if ctx.article:
-            hit = valid & (t_far < reach) & (t_far > reach - block.per_pair(start))
-        else:
-            limit = reach - block.per_pair(end)
-            hit = valid & (((t_near > 0) & (t_near < limit)) | ((t_far > 0) & (t_far < limit)))
-            if exclude is not None:
-                hit &= block.spheres != block.per_pair(exclude)
-        blocked[block.rays] |= block.any(hit)
-    return blocked
+    light = origin.position[:, None]      # float64: the geometry's culling works in it
+    if ctx.article:
+        segments = RayBatch(light, directions, distance - start, distance, origin)
+    else:
+        segments = RayBatch(light, directions, 0.0, distance - end, origin, exclude)
+    return ctx.geometry.occluded(segments, stats)
 
 
-def shade(ctx: TraceContext, points, normals, directions, spheres, front, stats: RayStats):
+def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
+          stats: RayStats):
     """(colour (3, m), goes_on (m,), shadow_code (m,) uint64) at m hit points.
 
     goes_on: whether the path continues (article shadows end it).  shadow_code: which lights
     each point sees (a digit per light, soft visibility in quarters), so that adaptive
     anti-aliasing can find shadow edges.
 
-    points, normals (facing the incoming ray in default semantics), directions (incoming,
-    unit): (3, m); spheres: (m,) scene indices; front: (m,) True where the ray hit the outside.
+    points, normals (shading normals, facing the incoming ray in default semantics),
+    directions (incoming, unit): (3, m); materials: (m,) material ids (``ctx.materials``);
+    exclude: (m,) the primitive each point's shadow segments ignore (-1: none;
+    ``Aggregate.exclusions``), None in article semantics.
     """
     mat = ctx.materials
-    ka, kd, ks = take(mat.ambient, spheres), take(mat.diffuse, spheres), take(mat.specular, spheres)
-    exponent = mat.exponent.take(spheres)
+    ka, kd, ks = take(mat.ambient, materials), take(mat.diffuse, materials), take(mat.specular,
+                                                                                materials)
+    exponent = mat.exponent.take(materials)
     if ctx.article:
         return _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats)
-    return _shade_default(ctx, points, normals, directions, spheres, front, ka, kd, ks,
-                          exponent, stats)
+    return _shade_default(ctx, points, normals, directions, exclude, ka, kd, ks, exponent,
+                          stats)
 
 
 def _column(values, dtype):
     return np.asarray(values, dtype)[:, None]
 
 
-def _shade_default(ctx, points, normals, directions, spheres, front, ka, kd, ks, exponent,
-                   stats):
-    lights = ctx.arrays.lights
+def _shade_default(ctx, points, normals, directions, exclude, ka, kd, ks, exponent, stats):
+    lights = ctx.lights
     dtype = points.dtype
     m = points.shape[1]
-    colour = ka * _column(lights.ambient.sum(axis=0) + ctx.arrays.ambient, dtype)
-    exclude = np.where(front, spheres, -1)
+    colour = ka * _column(lights.ambient.sum(axis=0) + ctx.ambient, dtype)
     shadow_code = np.zeros(m, np.uint64)
     offset = ray_offsets(points)
     for light in range(len(lights)):
@@ -146,14 +136,14 @@ def _shade_default(ctx, points, normals, directions, spheres, front, ka, kd, ks,
         pick_row = (lambda a: a) if everywhere else (lambda a: a.take(lit))
         lit_points, lit_from_light = pick(points), pick(from_light)
         visibility = np.ones(len(lit), dtype)
-        samples = ctx.light_samples[light]
-        for sample, terms in zip(samples, ctx.light_terms[light]):
+        samples = lights.samples[light]
+        for sample, origin in zip(samples, lights.origins[light]):
             if len(samples) == 1:
                 towards, reach = lit_from_light, pick_row(distance)
             else:
                 towards, reach = normalize(lit_points - _column(sample, dtype))
-            blocked = light_blocked(ctx, terms, sample, towards, reach, pick_row(exclude),
-                                    stats, end=pick_row(offset))
+            blocked = light_blocked(ctx, origin, towards, reach, pick_row(exclude), stats,
+                                    end=pick_row(offset))
             visibility -= blocked.astype(dtype) / len(samples)
         lit_normals = pick(normals)
         half, _ = normalize(-pick(directions) - lit_from_light)
@@ -171,7 +161,7 @@ def _shade_default(ctx, points, normals, directions, spheres, front, ka, kd, ks,
 
 
 def _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats):
-    lights = ctx.arrays.lights
+    lights = ctx.lights
     dtype = points.dtype
     m = points.shape[1]
     shifted = points + ARTICLE_OFFSET * normals
@@ -182,9 +172,8 @@ def _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats):
     for light in range(len(lights)):
         position = _column(lights.positions[light], dtype)
         from_light, shifted_distance = normalize(shifted - position)
-        blocked = light_blocked(ctx, ctx.light_terms[light][0], lights.positions[light],
-                                from_light, shifted_distance, None, stats,
-                                start=length(position - points))
+        blocked = light_blocked(ctx, lights.origins[light][0], from_light, shifted_distance,
+                                None, stats, start=length(position - points))
         # H = normalize(to_light + to_camera), with to_light = -from_light.
         half, _ = normalize(to_camera - from_light)
         term = (ka * _column(lights.ambient[light], dtype)

@@ -1,10 +1,11 @@
 """The tracing loop: follow a bundle of camera rays through up to max_depth bounces.
 
-Each bounce: nearest hit among the spheres the bundle can reach (``core.cull``), shade the
-hits (``core.shading``), then compact: only paths that hit something, that the article's
+Each bounce: the nearest hits (``ctx.geometry.nearest``, the scene's one aggregate), shade
+them (``core.shading``), then compact: only paths that hit something, that the article's
 shadows did not end, whose material reflects, and whose remaining weight can still add more
-than ``contribution_cutoff`` go on as reflection rays.  Rays are (3, n) bundles
-(``core.vectors``); nothing per pixel runs in Python.
+than ``contribution_cutoff`` go on as reflection rays (``ctx.geometry.spawn``).  Rays are
+(3, n) bundles (``core.vectors``); nothing per pixel runs in Python, and nothing here knows
+how the geometry finds its hits.
 """
 
 from __future__ import annotations
@@ -14,9 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .camera import CameraRays
-from .context import ARTICLE_OFFSET, RayStats, TraceContext, ray_offsets
-from .cull import DENSE_CANDIDATES, REFLECTION_CELLS, candidate_roots, direction_cells
-from .intersect import first_hit_distance
+from .context import RayStats, TraceContext
+from .rays import RayBatch, SharedOrigin
 from .shading import shade
 from .vectors import dot, take
 
@@ -26,16 +26,18 @@ _SIGNATURE_PRIME = np.uint64(1_000_003)
 @dataclass
 class PrimaryHits:
     """What each camera ray hit first (render passes), read at depth 0 of the bounce loop:
-    t (n,) distance along the ray (inf: missed), sphere (n,) scene sphere index (-1: none),
-    normal (3, n) unit shading normal facing the ray (0 where missed)."""
+    t (n,) distance along the ray (inf: missed), primitive and material (n,) global ids (-1:
+    none), normal (3, n) unit shading normal facing the ray (0 where missed)."""
 
     t: np.ndarray
-    sphere: np.ndarray
+    primitive: np.ndarray
+    material: np.ndarray
     normal: np.ndarray
 
     @classmethod
     def missed(cls, n: int, dtype) -> "PrimaryHits":
-        return cls(np.full(n, np.inf, dtype), np.full(n, -1, np.intp), np.zeros((3, n), dtype))
+        return cls(np.full(n, np.inf, dtype), np.full(n, -1, np.intp), np.full(n, -1, np.intp),
+                   np.zeros((3, n), dtype))
 
 
 @dataclass
@@ -52,41 +54,30 @@ class BundleResult:
 
 
 def nearest_sphere(ctx: TraceContext, origins, directions, t_min, t_max, exclude,
-                   stats: RayStats, terms=None, key=None):
-    """Nearest hit per ray: (t (n,), scene sphere index (n,), -1 for none).
-
-    origins (3, 1) with ``terms`` (OriginTerms at that origin) when all rays share it, else
-    (3, n); directions (3, n).  t_min, t_max: scalars or (n,).  exclude: (n,) sphere each ray
-    must ignore (-1: none), or None.  key: optional (n,) packing key (``cull.candidate_roots``).
-    """
-    n = directions.shape[1]
-    best_t = np.full(n, np.inf, directions.dtype)
-    best = np.full(n, -1, np.intp)
-    for block in candidate_roots(ctx.centers, ctx.radii, ctx.clusters, origins, directions,
-                                 t_max, terms, article=ctx.article, stats=stats, key=key):
-        distances = first_hit_distance(block.t_near, block.t_far, block.valid,
-                                       block.per_pair(t_min), article=ctx.article)
-        distances[~(distances < block.per_pair(t_max))] = np.inf
-        if exclude is not None:
-            distances[block.spheres == block.per_pair(exclude)] = np.inf
-        t, sphere = block.nearest(distances)
-        # Strictly nearer only: on a tie the earlier block (earlier in scene order) keeps it.
-        better = t < best_t[block.rays]
-        best_t[block.rays] = np.where(better, t, best_t[block.rays])
-        best[block.rays] = np.where(better, sphere, best[block.rays])
-    return best_t, best
+                   stats: RayStats, terms=None):
+    """Nearest hit per ray, (t (n,), primitive (n,), -1 for none), for a bare batch: origins
+    (3, 1) with ``terms`` (``core.intersect.OriginTerms`` at that origin) when all rays share
+    it, else (3, n); directions (3, n); t_min, t_max: scalars or (n,); exclude: (n,) or None.
+    (The numerical tests' entry point; the tracer itself calls ``ctx.geometry.nearest``.)"""
+    shared = None
+    if terms is not None:
+        shared = SharedOrigin(np.asarray(origins[:, 0], np.float64), terms)
+    t, primitive, _ = ctx.geometry.intersect(
+        RayBatch(origins, directions, t_min, t_max, shared, exclude), stats)
+    return t, primitive
 
 
 def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
                  record_primary: bool = False) -> BundleResult:
     dtype = ctx.dtype
+    geometry = ctx.geometry
     n = rays.directions.shape[1]
     primary = PrimaryHits.missed(n, dtype) if record_primary else None
     colour = np.zeros((3, n), dtype)
     # Signatures feed adaptive anti-aliasing only: no work for them otherwise.
     signature = np.zeros(n, np.uint64) if ctx.settings.anti_aliasing == "adaptive" else None
     coverage = np.zeros(n, bool)
-    background = ctx.arrays.background.astype(dtype)[:, None]
+    background = ctx.background.astype(dtype)[:, None]
     add_background = not ctx.article and background.any()
     reflection = ctx.materials.reflection
     max_depth = ctx.settings.max_depth
@@ -94,43 +85,38 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
 
     path = np.arange(n)
     weight = np.ones(n, dtype)
-    origins, directions = rays.origins, rays.directions
-    t_min, t_max = rays.t_min, rays.t_max
-    terms = ctx.camera_terms if rays.shared_origin else None
-    exclude = key = None
+    batch = RayBatch(rays.origins, rays.directions, rays.t_min, rays.t_max,
+                     ctx.camera_origin if rays.shared_origin else None)
     stats.camera_rays += n
     for depth in range(max_depth):
-        t, sphere = nearest_sphere(ctx, origins, directions, t_min, t_max, exclude, stats, terms,
-                                   key)
-        hit = sphere >= 0
+        hits = geometry.nearest(batch, stats)
         if signature is not None:
-            signature[path] = signature[path] * _SIGNATURE_PRIME + (sphere + 1).astype(np.uint64)
+            signature[path] = (signature[path] * _SIGNATURE_PRIME
+                               + (hits.primitive_per_ray + 1).astype(np.uint64))
         if depth == 0:
-            coverage = hit.copy()
-        if add_background and not hit.all():
-            missed = np.flatnonzero(~hit)
+            coverage = hits.primitive_per_ray >= 0
+        if add_background and len(hits) < len(batch):
+            missed = np.flatnonzero(hits.primitive_per_ray < 0)
             colour[:, path[missed]] += weight[missed] * background
-        keep = np.flatnonzero(hit)
-        if len(keep) == 0:
+        if len(hits) == 0:
             break
-        if len(keep) < len(hit):
-            path, weight, t, sphere = path[keep], weight[keep], t[keep], sphere[keep]
-            directions = take(directions, keep)
-            origins = origins if origins.shape[1] == 1 else take(origins, keep)
+        if len(hits) < len(batch):
+            path, weight = path[hits.rays], weight[hits.rays]
 
-        points = origins + t * directions
-        normals = points - take(ctx.centers_t, sphere)
-        normals *= 1 / np.sqrt(dot(normals, normals))
+        points, directions, primitive = hits.points, hits.directions, hits.primitive
+        geometric, normals, front = hits.normals, hits.shading, hits.front
         cos_in = dot(directions, normals)
-        front = cos_in < 0
         if not ctx.article and not front.all():
-            # Shade the side the ray sees: inside a sphere the normal faces inwards.
-            normals *= np.where(front, 1, -1).astype(dtype)
+            # Shade the side the ray sees: inside a sphere, behind a triangle, the normal
+            # faces the other way.
+            normals = normals * np.where(front, 1, -1).astype(dtype)
             cos_in = np.where(front, cos_in, -cos_in)
         if primary is not None and depth == 0:
-            primary.t[path], primary.sphere[path], primary.normal[:, path] = t, sphere, normals
-        illumination, goes_on, shadow_code = shade(ctx, points, normals, directions, sphere,
-                                                   front, stats)
+            primary.t[path], primary.normal[:, path] = hits.t, normals
+            primary.primitive[path], primary.material[path] = primitive, hits.material
+        exclude = None if ctx.article else geometry.exclusions(primitive, front)
+        illumination, goes_on, shadow_code = shade(ctx, points, normals, directions,
+                                                   hits.material, exclude, stats)
         illumination *= weight
         if depth == 0 and len(path) == n:
             colour += illumination
@@ -139,7 +125,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
         if signature is not None:
             signature[path] = signature[path] * _SIGNATURE_PRIME + shadow_code
 
-        weight = weight * reflection.take(sphere)
+        weight = weight * reflection.take(hits.material)
         bounces_left = max_depth - depth - 1
         if bounces_left == 0:
             break
@@ -148,20 +134,13 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
         if len(keep) == 0:
             break
         if len(keep) < len(goes_on):
-            path, weight, sphere, front = path[keep], weight[keep], sphere[keep], front[keep]
-            points, normals = take(points, keep), take(normals, keep)
-            directions, cos_in = take(directions, keep), cos_in[keep]
+            path, weight, primitive, front = path[keep], weight[keep], primitive[keep], front[keep]
+            points, directions, cos_in = take(points, keep), take(directions, keep), cos_in[keep]
+            shared_normals = normals is geometric
+            geometric = take(geometric, keep)
+            normals = geometric if shared_normals else take(normals, keep)
         directions = directions - (2 * cos_in) * normals
-        if ctx.article:
-            origins = points + ARTICLE_OFFSET * normals
-            exclude = None
-        else:
-            origins = points + ray_offsets(points) * normals
-            exclude = np.where(front, sphere, -1)
-        t_min, t_max, terms = 0.0, np.inf, None
-        if len(ctx.radii) > DENSE_CANDIDATES:
-            # Reflection rays leaving one sphere in one direction cell cull well together.
-            key = (sphere * (6 * REFLECTION_CELLS ** 2)
-                   + direction_cells(directions, REFLECTION_CELLS))
+        # Reflections leave on the side the ray came from.
+        batch = geometry.spawn(points, geometric, primitive, directions, front)
         stats.reflection_rays += len(path)
     return BundleResult(colour, coverage, signature, primary)

@@ -56,21 +56,27 @@ def link(obj, scene=None):
     return obj
 
 
-def uv_sphere_mesh(name="sphere", radius=1.0, segments=32, rings=16):
+def uv_sphere_mesh(name="sphere", radius=1.0, segments=32, rings=16, smooth=True):
+    """A UV sphere mesh, smooth-shaded by default (flat facets show as soon as they cover a
+    pixel, which makes the exporter draw the triangles)."""
     mesh = bpy.data.meshes.new(name)
     builder = bmesh.new()
     bmesh.ops.create_uvsphere(builder, u_segments=segments, v_segments=rings, radius=radius)
     builder.to_mesh(mesh)
     builder.free()
+    if smooth:
+        mesh.shade_smooth()
     return mesh
 
 
-def ico_sphere_mesh(name="ico", radius=1.0, subdivisions=2):
+def ico_sphere_mesh(name="ico", radius=1.0, subdivisions=2, smooth=True):
     mesh = bpy.data.meshes.new(name)
     builder = bmesh.new()
     bmesh.ops.create_icosphere(builder, subdivisions=subdivisions, radius=radius)
     builder.to_mesh(mesh)
     builder.free()
+    if smooth:
+        mesh.shade_smooth()
     return mesh
 
 

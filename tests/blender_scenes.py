@@ -28,7 +28,7 @@ import numpy as np
 from mathutils import Euler, Vector
 
 from addon_support import core, depsgraph, empty_file, export_scene, link, uv_sphere_mesh
-from glint.core.camera import blender_view_plane
+from glint.core.camera import blender_view_plane, camera_to_world
 
 ENGINES = ("BLENDER_WORKBENCH", "CYCLES")
 
@@ -265,51 +265,154 @@ def band_radii(mesh) -> BandRadii:
     return BandRadii(plane_distances.min() / mean, vertex_distances.max() / mean)
 
 
-_INSTANCED = re.compile(r"^(?P<object>.*) \(instanced by .*\)$")
+_INSTANCED = re.compile(r"^(?P<object>.*?)( \(instanced by .*\))?( \(\d+ instances\))?$")
 
 
 def source_object(sphere_name: str):
-    """The object an exported sphere came from: the exporter names a sphere after its object,
-    and an instance 'object (instanced by parent)'."""
-    match = _INSTANCED.match(sphere_name)
-    name = match.group("object") if match else sphere_name
+    """The object an exported sphere or sphere set came from: the exporter names a sphere
+    after its object, and a set of instances 'object (instanced by parent) (N instances)'."""
+    name = _INSTANCED.match(sphere_name).group("object")
     obj = bpy.data.objects.get(name)
     if obj is None or obj.type != 'MESH':
         raise LookupError(f"exported sphere {sphere_name!r}: no mesh object {name!r}")
     return obj
 
 
-def with_radii(scene, factors: Sequence[float]):
-    """The core scene with sphere i's radius multiplied by factors[i]."""
+def with_radii(scene, sphere_factors: Sequence[float], set_factors: Sequence[float] = ()):
+    """The core scene with sphere i's radius multiplied by sphere_factors[i] and sphere set
+    j's radii by set_factors[j]."""
     spheres = tuple(dataclasses.replace(sphere, radius=sphere.radius * factor)
-                    for sphere, factor in zip(scene.spheres, factors, strict=True))
-    return dataclasses.replace(scene, spheres=spheres)
+                    for sphere, factor in zip(scene.spheres, sphere_factors, strict=True))
+    sets = tuple(dataclasses.replace(sphere_set, radii=sphere_set.radii * factor)
+                 for sphere_set, factor in zip(scene.sphere_sets, set_factors, strict=True))
+    return dataclasses.replace(scene, spheres=spheres, sphere_sets=sets)
 
 
 def glint_mask(scene) -> np.ndarray:
     return core.render(scene, GLINT_SETTINGS).image[..., 3] > 0.5
 
 
+#: Pixels whose centre lies this close to a projected triangle edge (in pixels) may go either
+#: way: there Workbench's rasteriser (float32 vertex transform, its own tie rule) and Glint's
+#: float64 ray test may round differently.  float32 rounding of positions of size ~10
+#: projected at ~100 px per unit is ~1e-4 px; 1e-3 px is ten times that.
+EDGE_TOLERANCE_PIXELS = 1e-3
+
+
+def _clip_segments(a, b, plane_z, keep_below: bool):
+    """Segments a -> b (n, 3) in camera space clipped to z <= plane_z (keep_below) or
+    z >= plane_z; returns the clipped (a, b) and which survived."""
+    za, zb = a[:, 2] - plane_z, b[:, 2] - plane_z
+    if not keep_below:
+        za, zb = -za, -zb
+    inside_a, inside_b = za <= 0, zb <= 0
+    alive = inside_a | inside_b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = za / (za - zb)
+    crossing = inside_a != inside_b
+    point = a + t[:, None] * (b - a)
+    a = np.where((crossing & ~inside_a)[:, None], point, a)
+    b = np.where((crossing & ~inside_b)[:, None], point, b)
+    return a[alive], b[alive]
+
+
+def _plane_cuts(corners, plane_z):
+    """Where triangles (n, 3, 3) in camera space cross the plane z = plane_z: (m, 2, 3)
+    segments (the outline a clip plane cuts into a mesh)."""
+    side = corners[:, :, 2] - plane_z
+    ends = []
+    for i, j in ((0, 1), (1, 2), (2, 0)):
+        a, b = corners[:, i], corners[:, j]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = side[:, i] / (side[:, i] - side[:, j])
+        crosses = (side[:, i] < 0) != (side[:, j] < 0)
+        ends.append((crosses, a + t[:, None] * (b - a)))
+    segments = []
+    for (c0, p0), (c1, p1) in ((ends[0], ends[1]), (ends[1], ends[2]), (ends[2], ends[0])):
+        both = c0 & c1
+        segments.append(np.stack([p0[both], p1[both]], axis=1))
+    return np.concatenate(segments)
+
+
+def projected_edges(scene) -> np.ndarray:
+    """(S, 2, 2) image positions (column, row from the top) of every triangle edge of the
+    exported scene's meshes, and of the outlines the clip planes cut into them, clipped to
+    the visible depth range."""
+    camera = scene.camera
+    plane = blender_view_plane(camera)
+    rotation, translation = camera_to_world(camera)
+    near, far = -camera.clip_start, -camera.clip_end
+    segments = []
+    for mesh in scene.meshes:
+        for transform in mesh.transforms:
+            world = mesh.vertices @ transform[:3, :3].T + transform[:3, 3]
+            local = (world - translation) @ rotation  # camera space, -Z ahead
+            corners = local[mesh.triangles]
+            a = corners.reshape(-1, 3)
+            b = corners[:, [1, 2, 0]].reshape(-1, 3)
+            a, b = _clip_segments(a, b, near, keep_below=True)
+            a, b = _clip_segments(a, b, far, keep_below=False)
+            segments.append(np.stack([a, b], axis=1))
+            for cut in (near, far):
+                segments.append(_plane_cuts(corners, cut))
+    if not segments:
+        return np.zeros((0, 2, 2))
+    points = np.concatenate(segments)  # (S, 2, 3)
+    if camera.projection == "ORTHO":
+        u, v = points[..., 0], points[..., 1]
+    else:
+        u, v = points[..., 0] / -points[..., 2], points[..., 1] / -points[..., 2]
+    columns = ((u - plane.offset_x) / plane.half_width + 1.0) * camera.width / 2
+    rows = camera.height - ((v - plane.offset_y) / plane.half_height + 1.0) * camera.height / 2
+    return np.stack([columns, rows], axis=-1)
+
+
+def near_edges(scene, tolerance: float = EDGE_TOLERANCE_PIXELS) -> np.ndarray:
+    """(H, W) bool: pixels whose centre lies within ``tolerance`` pixels of a projected edge."""
+    camera = scene.camera
+    edges = projected_edges(scene)
+    mask = np.zeros((camera.height, camera.width), bool)
+    if not len(edges):
+        return mask
+    columns, rows = np.meshgrid(np.arange(camera.width) + 0.5, np.arange(camera.height) + 0.5)
+    centres = np.stack([columns.ravel(), rows.ravel()], axis=1)
+    start, along = edges[:, 0], edges[:, 1] - edges[:, 0]
+    length_squared = np.maximum((along * along).sum(axis=1), 1e-300)
+    for first in range(0, len(edges), 256):
+        s, d = start[first:first + 256], along[first:first + 256]
+        offset = centres[:, None, :] - s[None]
+        t = np.clip((offset * d[None]).sum(axis=2) / length_squared[first:first + 256], 0, 1)
+        gap = offset - t[..., None] * d[None]
+        close = ((gap * gap).sum(axis=2) <= tolerance ** 2).any(axis=1)
+        mask |= close.reshape(mask.shape)
+    return mask
+
+
 @dataclass
 class GlintMasks:
-    """Glint's mask of the exported scene and of the same scene with every sphere swapped for
-    its mesh's inscribed and circumscribed spheres."""
+    """Glint's mask of the exported scene, of the same scene with every sphere swapped for its
+    mesh's inscribed and circumscribed spheres, and the pixels next to a triangle edge."""
 
     mask: np.ndarray
     inscribed: np.ndarray
     circumscribed: np.ndarray
+    edges: np.ndarray
 
     @property
     def band(self) -> np.ndarray:
-        return self.inscribed != self.circumscribed
+        return (self.inscribed != self.circumscribed) | self.edges
 
 
 def glint_masks(scene) -> GlintMasks:
-    radii = [band_radii(source_object(sphere.name).data) for sphere in scene.spheres]
+    sphere_radii = [band_radii(source_object(sphere.name).data) for sphere in scene.spheres]
+    set_radii = [band_radii(source_object(s.name).data) for s in scene.sphere_sets]
     return GlintMasks(
         mask=glint_mask(scene),
-        inscribed=glint_mask(with_radii(scene, [r.inscribed for r in radii])),
-        circumscribed=glint_mask(with_radii(scene, [r.circumscribed for r in radii])))
+        inscribed=glint_mask(with_radii(scene, [r.inscribed for r in sphere_radii],
+                                        [r.inscribed for r in set_radii])),
+        circumscribed=glint_mask(with_radii(scene, [r.circumscribed for r in sphere_radii],
+                                            [r.circumscribed for r in set_radii])),
+        edges=near_edges(scene))
 
 
 def export_current_scene():

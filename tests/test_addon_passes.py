@@ -24,6 +24,8 @@ def passes_scene(layers=("ViewLayer",)):
     for name, (centre, radius), index in (("big", BIG, 3), ("small", SMALL, 7)):
         material = bpy.data.materials.new(f"{name} material")
         material.pass_index = index + 10
+        material.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (
+            0.1 * index, 0.5, 0.2, 1.0)
         add_sphere(name, centre, radius, material=material, segments=128, rings=64)
         bpy.data.objects[name].pass_index = index
     add_point_light()
@@ -116,6 +118,19 @@ def test_the_passes_agree_with_cycles(tmp_path):
     np.testing.assert_array_equal(glint["object"][interior], cycles["object"][interior])
     np.testing.assert_array_equal(glint["material"][interior], cycles["material"][interior])
     assert (cycles["depth"][interior & (glint["object"] == 0)] >= 1e9).all()
+
+
+def test_material_ids_follow_the_cores_material_table():
+    from glint.addon.engine.job import prepare_job
+    from glint.core.arrays import scene_arrays
+    from glint.core.passes import material_entries
+
+    passes_scene()
+    scene = prepare_job(bpy.context.evaluated_depsgraph_get()).scene
+    entries = material_entries(scene)
+    table = scene_arrays(scene).materials
+    np.testing.assert_array_equal([m.diffuse for m in entries], table.diffuse)
+    assert len(entries) == len(table.diffuse) == 2
 
 
 def test_enabled_passes_glint_cannot_produce_are_named_in_one_warning():

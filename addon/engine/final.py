@@ -37,8 +37,7 @@ from ...core import RenderCancelled
 from ..utils.colour import premultiplied_to_scene_linear
 from ..export import ExportError
 from .job import failure_message, prepare_job
-from .passes import (enabled_passes, pass_warning, register_passes, sphere_pass_indices,
-                     write_result_with_passes)
+from .passes import enabled_passes, pass_warning, register_passes, write_result_with_passes
 from .preview import prepare_preview_job
 from .viewport import ViewportEngine
 
@@ -167,9 +166,8 @@ class GlintRenderEngine(bpy.types.RenderEngine):
             request.frames.append((job, result))
         if passes and fill:
             # The passes, with Combined again, over the whole region at once.
-            write_result_with_passes(self, result.image, result.passes, passes,
-                                     sphere_pass_indices(job.scene, depsgraph), region,
-                                     view_layer.name)
+            write_result_with_passes(self, result.image, result.passes, passes, job.scene,
+                                     region, view_layer.name)
 
     def update_render_passes(self, scene=None, renderlayer=None):
         register_passes(self, scene, renderlayer)

@@ -11,9 +11,12 @@ silently left empty.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
+
+from ...core.passes import entry_names, material_entries, primitive_sources
 
 
 
@@ -80,27 +83,41 @@ def pass_warning(view_layer):
             f"empty: {', '.join(missing)}")
 
 
-def sphere_pass_indices(scene, depsgraph) -> tuple[np.ndarray, np.ndarray]:
-    """(object pass index, material pass index) (N,) float32 of the core scene's spheres,
-    looked up by the name the export gave each (an instance is named after its object).  The
-    material is the object's first material slot's."""
+def _object_name(entry_name: str) -> str:
+    """The Blender object a core scene entry was exported from: entries of instances are
+    named "object (instanced by parent)", sets of instances "object (N instances)"."""
+    return re.sub(r" \((instanced by .*|\d+ instances)\)$", "", entry_name or "")
+
+
+def scene_pass_indices(scene) -> tuple[np.ndarray, np.ndarray]:
+    """(object pass index per scene entry (E,), material pass index per material table entry
+    (M,)), float32, for ``core.passes``' primitive and material ids.
+
+    An entry's object is found by the name the export gave it (a mesh shared by several
+    objects is one entry, named after the first of them, whose Object Index it gets).  A
+    material table entry's Blender material is the one that exports to the same values
+    (``export_material``), or Blender's default surface (pass index 0)."""
     import bpy
 
-    objects, materials = [], []
-    for sphere in scene.spheres:
-        name = sphere.name.split(" (instanced by ")[0]
-        obj = depsgraph.objects.get(name) or bpy.data.objects.get(name)
-        objects.append(obj.pass_index if obj is not None else 0)
-        material = obj.active_material if obj is not None else None
-        if obj is not None and obj.material_slots:
-            material = obj.material_slots[0].material
-        materials.append(material.pass_index if material is not None else 0)
-    return np.asarray(objects, np.float32), np.asarray(materials, np.float32)
+    from ..export.materials import export_material
+
+    objects = [bpy.data.objects.get(_object_name(name)) for name in entry_names(scene)]
+    object_index = [obj.pass_index if obj is not None else 0 for obj in objects]
+    by_values = {}
+    for material in bpy.data.materials:
+        if material.users and material.pass_index:
+            try:
+                by_values.setdefault(export_material(material)[0], material.pass_index)
+            except Exception:  # an invalid material fails the export itself, not here
+                continue
+    material_index = [by_values.get(entry, 0) for entry in material_entries(scene)]
+    return np.asarray(object_index, np.float32), np.asarray(material_index, np.float32)
 
 
-def pass_pixels(primary, specs, object_index, material_index, region) -> dict:
+def pass_pixels(primary, specs, object_index, material_index, sources, region) -> dict:
     """{pass name: (h * w * channels,) float32} of the render region (x0, y0, x1, y1, rows
-    from the bottom) for Blender's result: rows from the bottom."""
+    from the bottom) for Blender's result: rows from the bottom.  sources: the scene entry of
+    each primitive (``core.passes.primitive_sources``)."""
     height = primary.depth.shape[0]
     x0, y0, x1, y1 = region
     rows = slice(height - y1, height - y0)
@@ -108,33 +125,36 @@ def pass_pixels(primary, specs, object_index, material_index, region) -> dict:
     def region_of(array):
         return array[rows, x0:x1][::-1]
 
-    sphere = region_of(primary.sphere)
-    hit = sphere >= 0
-    safe = np.where(hit, sphere, 0)
+    def lookup(ids, table):
+        hit = ids >= 0
+        if not len(table):
+            return np.zeros(ids.shape)
+        return np.where(hit, table[np.where(hit, ids, 0)], 0.0)
 
-    def per_sphere(indices):
-        return np.where(hit, indices[safe], 0.0) if len(indices) else np.zeros(sphere.shape)
-
+    primitive = region_of(primary.primitive)
+    entries = np.where(primitive >= 0, sources[np.maximum(primitive, 0)], -1) \
+        if len(sources) else primitive
     values = {
         "Depth": lambda: region_of(primary.depth),
         "Position": lambda: region_of(primary.position),
         "Normal": lambda: region_of(primary.normal),
-        "Object Index": lambda: per_sphere(object_index),
-        "Material Index": lambda: per_sphere(material_index),
+        "Object Index": lambda: lookup(entries, object_index),
+        "Material Index": lambda: lookup(region_of(primary.material), material_index),
     }
     return {spec.name: np.ascontiguousarray(values[spec.name](), np.float32).reshape(-1)
             for spec in specs}
 
 
-def write_result_with_passes(engine, image, primary, specs, indices, region, layer) -> None:
+def write_result_with_passes(engine, image, primary, specs, scene, region, layer) -> None:
     """The whole render region of ``layer`` at once: Combined (the finished image, display
-    values, rows from the top) and the enabled passes."""
+    values, rows from the top) and the enabled passes of the core scene's render."""
     from .final import blender_pixels
 
     x0, y0, x1, y1 = region
     height = image.shape[0]
     combined = blender_pixels(image[height - y1:height - y0, x0:x1])
-    pixels = pass_pixels(primary, specs, *indices, region)
+    pixels = pass_pixels(primary, specs, *scene_pass_indices(scene),
+                         primitive_sources(scene), region)
     result = engine.begin_result(0, 0, x1 - x0, y1 - y0, layer=layer)
     try:
         passes = result.layers[0].passes

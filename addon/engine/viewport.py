@@ -404,13 +404,23 @@ def pixel_size(render, preferences=None) -> int:
     return int(value)
 
 
-def export_viewport_scene(depsgraph, preferences=None):
+def export_viewport_scene(depsgraph, preferences=None, view: Optional[ViewportView] = None):
     """(scene, settings, transparent, pixel size, warnings) for the viewport's evaluated
-    depsgraph.  Raises ExportError / SceneError like any export."""
-    from ..export import export_scene
+    depsgraph.  Raises ExportError / SceneError like any export.
+
+    The exporter decides from the camera which sphere-like meshes stay analytic spheres (at a
+    quarter pixel), so the export is made through the scene camera, as F12's is, and the
+    viewport shows what F12 renders; without a (usable) scene camera, through the view's, or
+    a placeholder's.  The passes then trace through the view whatever it becomes."""
+    from ..export import ExportError, export_scene
+    from ..export.camera import export_camera
     from .job import render_settings
 
-    scene, warnings = export_scene(depsgraph, view_camera=_PLACEHOLDER_CAMERA)
+    try:
+        camera = export_camera(depsgraph)
+    except ExportError:  # no (usable) scene camera: the viewport needs none
+        camera = view.camera() if view is not None else _PLACEHOLDER_CAMERA
+    scene, warnings = export_scene(depsgraph, view_camera=camera)
     blender_scene = depsgraph.scene_eval
     return (scene, render_settings(blender_scene.glint), blender_scene.render.film_transparent,
             pixel_size(blender_scene.render, preferences), warnings)
@@ -438,8 +448,10 @@ class ViewportEngine:
         from ..export import ExportError
 
         try:
+            view = ViewportView.from_context(context, depsgraph.scene_eval) \
+                if getattr(context, "region_data", None) is not None else None
             scene, settings, transparent, size, warnings = export_viewport_scene(
-                depsgraph, context.preferences)
+                depsgraph, context.preferences, view)
         except (ExportError, SceneError) as error:
             self.session.stop()
             self._report(engine, 'ERROR', (str(error),))

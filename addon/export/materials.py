@@ -38,7 +38,7 @@ from typing import Optional
 
 import numpy as np
 
-from ...core import Material
+from ...core import Material, SceneError
 from ..utils.colour import colour_from_blender
 
 AMBIENT_FRACTION = 0.1
@@ -145,4 +145,14 @@ def export_material(material) -> tuple[Material, Optional[str]]:
     if settings is not None and settings.use_custom:
         return custom_material(settings), None
     values, note = surface_values(material)
+    check_finite(values)
     return material_from_surface(values), note
+
+
+def check_finite(values: SurfaceValues) -> None:
+    """Raise SceneError naming the first input that is NaN or infinite (the mapping would
+    otherwise hide which one it was behind a derived field)."""
+    for name in ("base_colour", "metallic", "roughness", "specular_level"):
+        value = getattr(values, name)
+        if not np.all(np.isfinite(value)):
+            raise SceneError(f"{name.replace('_', ' ')} must be finite, got {value!r}")

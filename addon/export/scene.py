@@ -12,22 +12,36 @@ hidden for render (the camera icon, ``hide_render``) are dropped here; objects d
 viewports are absent from it and modifiers run at their viewport settings, as Blender's own
 viewport exporters see them.
 
-What is not rendered is never dropped silently: objects that are not spheres, spheres scaled
-non-uniformly and non-point lights are each named in one warning.
+Each instance goes to the exporter of its concept, all sharing one ``ExportContext`` (the
+caches, the results, the skipped lists and the notes; ``context``):
+
+* MESH instances (mesh objects, and the meshes that curve, text, surface and metaball
+  objects evaluate to) -> ``meshes.MeshExporter``: analytic spheres where the render cannot
+  tell them from the mesh (``geometry``), triangle meshes otherwise, each evaluated mesh read
+  once and instanced;
+* POINTCLOUD -> ``pointclouds``: a sphere set;
+* Geometry Nodes instances -> ``instances.InstanceExporter``, read in bulk from the
+  instancer's evaluated geometry instead of one Python step per instance;
+* LIGHT -> ``lights``; the camera -> ``camera``; materials -> ``materials`` through the
+  context's cache; the world colour here.
+
+What is not rendered is never dropped silently: other object types, zero-scale instances and
+non-point lights are each named in one warning.
 """
 
 from __future__ import annotations
 
 import bpy
-import numpy as np
 
-from ...core import Scene, SceneError, Sphere
+from ...core import Scene, SceneError
 from ..utils.colour import colour_from_blender
 from .camera import export_camera
+from .context import ExportContext
 from .errors import ExportError
-from .geometry import mesh_sphere, world_sphere
+from .instances import InstanceExporter
 from .lights import export_point_light
-from .materials import export_material
+from .meshes import MeshExporter
+from .pointclouds import export_point_cloud
 
 #: The scene-linear space Glint's sRGB conversions assume (Blender's default; Blender 5.0
 #: lets a file choose another).
@@ -35,6 +49,9 @@ WORKING_SPACE = "Linear Rec.709"
 
 #: Object types that never draw anything in a render, so skipping them needs no warning.
 NON_RENDERING_TYPES = {'CAMERA', 'EMPTY', 'LIGHT_PROBE', 'SPEAKER', 'ARMATURE', 'LATTICE'}
+#: Object types whose evaluated mesh the depsgraph yields as a MESH instance of the object
+#: itself; their own entry has nothing more to draw.
+EVALUATED_AS_MESH = {'CURVE', 'FONT', 'SURFACE', 'META'}
 
 
 def _collections_hidden_for_render() -> set:
@@ -69,23 +86,12 @@ class _RenderVisibility:
 
 
 def instance_name(instance) -> str:
+    """How warnings and sets name an instance: 'object (instanced by parent)', or the object's
+    name for its own evaluated geometry (a curve's mesh is an instance of the curve)."""
     name = instance.object.name
-    if instance.is_instance and instance.parent is not None:
+    if instance.is_instance and instance.parent is not None and instance.parent.name != name:
         return f"{name} (instanced by {instance.parent.name})"
     return name
-
-
-def _main_material(obj, mesh):
-    """The material on most of the mesh's faces (None if it has none)."""
-    slots = obj.material_slots
-    if not slots:
-        return None
-    index = 0
-    if len(slots) > 1:
-        indices = np.empty(len(mesh.polygons), np.int64)
-        mesh.polygons.foreach_get("material_index", indices)
-        index = int(np.bincount(indices).argmax())
-    return slots[min(index, len(slots) - 1)].material
 
 
 def world_colour(world) -> tuple[tuple[float, float, float], str | None]:
@@ -112,20 +118,15 @@ def world_colour(world) -> tuple[tuple[float, float, float], str | None]:
     return tuple(c * strength.default_value for c in colour.default_value[:3]), note
 
 
-class _Skipped:
-    """Names of what was not exported, by reason, for one warning per kind."""
-
-    def __init__(self):
-        self.by_name = {}
-
-    def add(self, name: str, reason: str) -> None:
-        self.by_name.setdefault(name, reason)
-
-    def warning(self, header: str) -> list[str]:
-        if not self.by_name:
-            return []
-        listed = ", ".join(f"{name} ({reason})" for name, reason in self.by_name.items())
-        return [f"{header} {len(self.by_name)} skipped: {listed}"]
+def export_light(context, obj, matrix, name: str) -> None:
+    """A light instance -> a core light in the context, or a skipped entry."""
+    if obj.data.type != 'POINT':
+        context.skipped_lights.add(name, f"{obj.data.type.lower()} light")
+        return
+    try:
+        context.lights.append(export_point_light(obj.data, matrix, name))
+    except SceneError as error:
+        raise ExportError(str(error)) from None  # the core's message names the light
 
 
 def export_scene(depsgraph, camera_override=None, *, view_camera=None
@@ -140,66 +141,57 @@ def export_scene(depsgraph, camera_override=None, *, view_camera=None
     """
     camera = view_camera if view_camera is not None else export_camera(depsgraph,
                                                                       camera_override)
+    context = ExportContext.for_camera(camera)
     visible = _RenderVisibility(depsgraph)
-    spheres, lights, notes = [], [], []
-    skipped_objects, skipped_lights = _Skipped(), _Skipped()
-    fits, materials = {}, {}
+    meshes = MeshExporter(context)
+    bulk = InstanceExporter(context, meshes, visible)
 
     for instance in depsgraph.object_instances:
+        if instance.is_instance and bulk.handles(instance):
+            continue
         if not instance.show_self or not visible(instance):
             continue
         obj = instance.object
-        name = instance_name(instance)
-        matrix = [list(row) for row in instance.matrix_world]
-        if obj.type == 'LIGHT':
-            if obj.data.type != 'POINT':
-                skipped_lights.add(name, f"{obj.data.type.lower()} light")
-                continue
-            try:
-                lights.append(export_point_light(obj.data, matrix, name))
-            except SceneError as error:
-                raise ExportError(f"light '{name}': {error}") from None
-        elif obj.type == 'MESH':
-            mesh = obj.data
-            key = mesh.as_pointer()
-            if key not in fits:
-                fits[key] = mesh_sphere(mesh)
-            if fits[key] is None:
-                skipped_objects.add(name, "not a sphere")
-                continue
-            placed = world_sphere(fits[key], matrix)
-            if placed is None:
-                skipped_objects.add(name, "non-uniformly scaled sphere")
-                continue
-            material = _main_material(obj, mesh)
-            material_key = material.name_full if material is not None else None
-            if material_key not in materials:
-                core_material, note = export_material(material)
-                materials[material_key] = core_material
-                if note:
-                    notes.append(note)
-            try:
-                spheres.append(Sphere(placed[0], placed[1], materials[material_key], name))
-            except SceneError as error:
-                raise ExportError(f"object '{name}': {error}") from None
-        elif obj.type not in NON_RENDERING_TYPES:
-            skipped_objects.add(name, f"{obj.type.lower().replace('_', ' ')} object")
+        kind = obj.type
+        if kind == 'MESH':
+            if instance.is_instance:
+                meshes.add(obj, instance.matrix_world, None, instance_name(instance))
+            else:
+                name = obj.name
+                meshes.add(obj, instance.matrix_world, name, name)
+        elif kind == 'LIGHT':
+            export_light(context, obj, [list(row) for row in instance.matrix_world],
+                         instance_name(instance))
+        elif kind == 'POINTCLOUD':
+            export_point_cloud(context, obj, instance.matrix_world, instance_name(instance))
+        elif kind not in NON_RENDERING_TYPES and kind not in EVALUATED_AS_MESH:
+            context.skip(instance_name(instance), f"{kind.lower().replace('_', ' ')} object")
+    meshes.finish()
 
     world = depsgraph.scene_eval.world
     colour, world_note = world_colour(world)
     background = colour_from_blender(colour)
+    try:
+        Scene(camera=context.camera, background=background)  # checks the world's colour alone
+    except SceneError as error:
+        raise ExportError(f"world '{world.name}' (Background colour x Strength): "
+                          f"{error}") from None
+    context.note(world_note)
 
-    warnings = skipped_objects.warning("Glint renders spheres only;")
-    warnings += skipped_lights.warning("Glint renders point lights only;")
-    if not spheres:
-        warnings.append("no sphere to render: the image shows only the background")
-    if not lights:
+    warnings = context.skipped_objects.warning("Glint renders meshes, spheres and point "
+                                               "clouds;")
+    warnings += context.skipped_lights.warning("Glint renders point lights only;")
+    if not context.has_geometry:
+        warnings.append("nothing to render: no sphere, mesh or point cloud; the image shows "
+                        "only the background")
+    if not context.lights:
         warnings.append("no point light: only the world's ambient light shows")
-    warnings += notes + ([world_note] if world_note else [])
+    warnings += context.notes
     working_space = getattr(getattr(bpy.data, "colorspace", None), "working_space", None)
     if working_space not in (None, WORKING_SPACE):
         warnings.append(f"the file's working colour space is {working_space}: Glint reads and "
                         f"writes colours as {WORKING_SPACE}")
-    scene = Scene(camera=camera, spheres=tuple(spheres), lights=tuple(lights),
-                  background=background, ambient=background)
+    scene = Scene(camera=context.camera, spheres=tuple(context.spheres),
+                  lights=tuple(context.lights), background=background, ambient=background,
+                  sphere_sets=tuple(context.sphere_sets), meshes=tuple(context.meshes))
     return scene, warnings

@@ -7,7 +7,8 @@ camera fits horizontally with sensor_width / lens = 2 (36 mm sensor, 18 mm lens)
 centres are Blender's ((i + 0.5) / W), not the article's linspace, a sub-pixel difference.
 
 Spheres are UV spheres (64 x 32 segments by default) whose vertices lie on the article's
-radii, which the exporter turns back into the article's analytic spheres; materials carry the
+radii, marked ``glint_analytic_sphere`` so that the exporter turns them back into the
+article's analytic spheres at any resolution; materials carry the
 article's five values in their Glint section, and a matching Principled base colour and
 viewport colour so Workbench and Cycles show the same objects.  Requires the add-on to be
 registered (for ``Scene.glint`` and ``Material.glint``).
@@ -20,6 +21,7 @@ import bmesh  # after bpy: the pip module makes bmesh importable
 
 from ...core.article import ARTICLE_EYE, ARTICLE_HEIGHT, ARTICLE_LIGHT, ARTICLE_WIDTH
 from ...core.article import ARTICLE_MAX_DEPTH, article_spheres
+from ..export.geometry import ANALYTIC_SPHERE_PROPERTY
 from .colour import srgb_to_linear
 
 SEGMENTS, RINGS = 64, 32
@@ -113,5 +115,8 @@ def build_article_scene(name: str = "Glint article", *, width: int = ARTICLE_WID
         mesh.materials.append(_article_material(sphere.name, sphere.material))
         obj = bpy.data.objects.new(sphere.name, mesh)
         obj.location = sphere.center
+        # The article's spheres are spheres at any resolution (its floor, radius 9000 seen
+        # from 0.7 away, is beyond any tessellation): see addon.export.geometry.
+        obj[ANALYTIC_SPHERE_PROPERTY] = True
         scene.collection.objects.link(obj)
     return scene

@@ -1,0 +1,211 @@
+"""Meshes -> analytic spheres (``core.Sphere``, ``core.SphereSet``) or ``core.TriangleMesh``.
+
+Every object Blender evaluates to a mesh arrives here as a MESH instance of the depsgraph:
+mesh objects with their modifiers, and curve, text, surface and metaball objects, whose
+evaluated mesh the depsgraph yields as an instance of the object itself (their own CURVE /
+FONT / SURFACE / META entry carries no faces and is passed over by ``scene``).
+
+Per instance only a key and the world matrix are recorded (``MeshExporter.add``); each
+evaluated mesh is read once, whatever its number of instances, keyed by the evaluated mesh and
+the materials in its object's slots (``MeshUse``).  Reading is ``foreach_get`` only, never a
+Python loop over vertices or faces:
+
+* ``vertices.co``; ``loop_triangles.vertices`` (the triangulation Blender renders),
+  ``loop_triangles.loops`` and ``corner_normals.vector``, which give each triangle corner the
+  normal Blender shades with (flat faces, smooth faces, auto smooth / sharp edges and custom
+  split normals all end up in ``corner_normals``, Blender 4.1+); a mesh whose normals
+  domain is FACE (all flat) gets ``corner_normals=None``: the geometric normal is the same;
+* ``loop_triangles.material_index``: each triangle keeps its face's material slot; indices
+  past the last slot use the last one, as Blender does.  Materials go through the context's
+  cache (``ExportContext.material``).
+
+Zero-area triangles (which no renderer hits) are dropped; a mesh without faces (loose
+vertices and edges, a Geometry Nodes host whose output is points) draws nothing, in Blender
+too, and is passed over without a warning.  Whether an instance of a
+sphere-like mesh is drawn as a sphere is ``geometry``'s rule; the others become one
+``TriangleMesh`` per evaluated mesh with one transform per instance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from ...core import SceneError, Sphere, SphereSet, TriangleMesh
+from .errors import ExportError
+from .geometry import (ANALYTIC_SPHERE_PROPERTY, SphereFit, degenerate_transforms, mesh_sphere,
+                       read_array, sphere_instances)
+
+
+@dataclass(frozen=True)
+class MeshArrays:
+    """An evaluated mesh's triangles as Glint draws them (object space)."""
+
+    vertices: np.ndarray                  # (V, 3) float64
+    triangles: np.ndarray                 # (T, 3) int64
+    corner_normals: Optional[np.ndarray]  # (T, 3, 3) float64, or None: flat shading
+    slots: np.ndarray                     # (T,) int64 material slot of each triangle
+
+
+def read_mesh(mesh) -> MeshArrays:
+    """The triangles of an evaluated bpy Mesh (module docstring), with ``foreach_get``."""
+    vertices = read_array(mesh.vertices, "co", 3)
+    triangulation = mesh.loop_triangles
+    triangles = read_array(triangulation, "vertices", 3, np.int64)
+    slots = read_array(triangulation, "material_index", 1, np.int64)
+    corners = vertices[triangles]
+    area_vectors = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    keep = (area_vectors * area_vectors).sum(axis=1) > 0
+    normals = None
+    if mesh.normals_domain != 'FACE':
+        loops = read_array(triangulation, "loops", 3, np.int64)
+        corner_normals = read_array(mesh.corner_normals, "vector", 3)
+        normals = corner_normals[loops]
+        # A corner whose normal Blender left zero (a degenerate neighbourhood) shades flat.
+        zero = (normals * normals).sum(axis=2) == 0
+        if zero.any():
+            faces = np.repeat(area_vectors[:, None, :], 3, axis=1)
+            normals[zero] = faces[zero]
+    if not keep.all():
+        triangles, slots = triangles[keep], slots[keep]
+        normals = normals[keep] if normals is not None else None
+    return MeshArrays(vertices, triangles, normals, slots)
+
+
+def evaluated_materials(obj) -> tuple:
+    """The bpy materials in an evaluated object's slots (None for an empty slot)."""
+    return tuple(slot.material for slot in obj.material_slots)
+
+
+def forces_sphere(obj) -> bool:
+    original = obj.original
+    return bool(original.get(ANALYTIC_SPHERE_PROPERTY, False)) if original else False
+
+
+@dataclass
+class MeshUse:
+    """One evaluated mesh with one set of slot materials, and every instance that draws it."""
+
+    name: str                       # the first instance's name
+    mesh: object                    # the evaluated bpy Mesh (read in ``finish``)
+    materials: tuple                # bpy materials per slot
+    matrices: list = field(default_factory=list)   # 16 floats per instance, row-major
+    names: list = field(default_factory=list)      # per instance: its name, or None
+    forced: list = field(default_factory=list)     # per instance: glint_analytic_sphere
+    blocks: list = field(default_factory=list)     # (K, 4, 4) arrays of bulk instances
+
+    def instances(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(matrices (K, 4, 4), names (K,) object (None for set members), forced (K,) bool)
+        of every instance, those added one by one first."""
+        single = np.asarray(self.matrices, np.float64).reshape(-1, 4, 4)
+        matrices = np.concatenate([single, *self.blocks]) if self.blocks else single
+        names = np.full(len(matrices), None, dtype=object)
+        names[:len(self.names)] = self.names
+        forced = np.zeros(len(matrices), bool)
+        forced[:len(self.forced)] = self.forced
+        return matrices, names, forced
+
+
+class MeshExporter:
+    """Collects mesh instances during the depsgraph walk, converts them in ``finish``."""
+
+    def __init__(self, context):
+        self.context = context
+        self.uses: dict = {}
+
+    def add(self, obj, matrix, name: Optional[str], display_name: str) -> None:
+        """One instance of an evaluated MESH object.  name: the instance's own name for a
+        scene object (None for an instance, which is exported within a set);
+        display_name: how warnings name it."""
+        materials = evaluated_materials(obj)
+        key = (obj.data.as_pointer(), tuple(m.as_pointer() if m else 0 for m in materials))
+        use = self.uses.get(key)
+        if use is None:
+            use = self.uses[key] = MeshUse(display_name, obj.data, materials)
+        use.matrices.extend(matrix[0])
+        use.matrices.extend(matrix[1])
+        use.matrices.extend(matrix[2])
+        use.matrices.extend(matrix[3])
+        use.names.append(name)
+        use.forced.append(forces_sphere(obj))
+
+    def add_bulk(self, mesh, materials: tuple, matrices: np.ndarray, display_name: str) -> None:
+        """Instances of one evaluated mesh given as (K, 4, 4) world matrices (instances read
+        in bulk, ``instances``)."""
+        key = (mesh.as_pointer(), tuple(m.as_pointer() if m else 0 for m in materials))
+        use = self.uses.get(key)
+        if use is None:
+            use = self.uses[key] = MeshUse(display_name, mesh, materials)
+        use.blocks.append(np.asarray(matrices, np.float64).reshape(-1, 4, 4))
+
+    def finish(self) -> None:
+        for use in self.uses.values():
+            self._export(use)
+
+    # ------------------------------------------------------------------------------------
+    def _arrays(self, mesh) -> tuple[MeshArrays, Optional[SphereFit]]:
+        key = mesh.as_pointer()
+        cache = self.context
+        if key not in cache.mesh_arrays:
+            arrays = read_mesh(mesh)
+            cache.mesh_arrays[key] = arrays
+            cache.sphere_fits[key] = mesh_sphere(mesh, arrays.vertices)
+        return cache.mesh_arrays[key], cache.sphere_fits[key]
+
+    def _export(self, use: MeshUse) -> None:
+        context = self.context
+        matrices, names, forced = use.instances()
+        degenerate = degenerate_transforms(matrices)
+        if degenerate.any():
+            for index in np.flatnonzero(degenerate)[:1]:
+                context.skip(names[index] or use.name, "zero scale: draws nothing")
+        drawn = ~degenerate
+        if not use.mesh.polygons:
+            return  # loose vertices and edges: Blender renders nothing either
+        arrays, fit = self._arrays(use.mesh)
+        if len(arrays.triangles) == 0:
+            return
+        slot_materials = ([context.material(m, use.name) for m in use.materials]
+                          or [context.material(None, use.name)])
+        if fit is not None and drawn.any():
+            placed = sphere_instances(fit, matrices[drawn], context.footprint, forced[drawn])
+            as_sphere = np.zeros(len(matrices), bool)
+            as_sphere[np.flatnonzero(drawn)[placed.chosen]] = True
+            material = slot_materials[min(int(arrays.slots[0]), len(slot_materials) - 1)]
+            self._spheres(use, names[as_sphere], placed, material)
+            drawn &= ~as_sphere
+        if drawn.any():
+            self._triangles(use, arrays, matrices[drawn], slot_materials)
+
+    def _spheres(self, use: MeshUse, names, placed, material) -> None:
+        context = self.context
+        single = np.array([name is not None for name in names], bool)
+        try:
+            for name, center, radius in zip(names[single], placed.centers[single],
+                                            placed.radii[single]):
+                context.spheres.append(Sphere(tuple(center), float(radius), material, name))
+            if (~single).any():
+                centers, radii = placed.centers[~single], placed.radii[~single]
+                context.sphere_sets.append(SphereSet(
+                    centers=centers, radii=radii, material_indices=np.zeros(len(radii), int),
+                    materials=(material,), name=f"{use.name} ({len(radii)} instances)"))
+        except SceneError as error:
+            raise ExportError(f"object '{use.name}': {error}") from None
+
+    def _triangles(self, use: MeshUse, arrays: MeshArrays, matrices, slot_materials) -> None:
+        slots = np.minimum(arrays.slots, len(slot_materials) - 1)
+        used = np.unique(slots)
+        # Only the slots the triangles use enter the mesh's material table.
+        remap = np.zeros(len(slot_materials), np.int64)
+        remap[used] = np.arange(len(used))
+        name = use.name if len(matrices) == 1 else f"{use.name} ({len(matrices)} instances)"
+        try:
+            self.context.meshes.append(TriangleMesh(
+                vertices=arrays.vertices, triangles=arrays.triangles,
+                corner_normals=arrays.corner_normals, material_indices=remap[slots],
+                materials=tuple(slot_materials[i] for i in used), transforms=matrices,
+                name=name))
+        except SceneError as error:
+            raise ExportError(f"object '{use.name}': {error}") from None

@@ -1,0 +1,64 @@
+"""Point clouds -> ``core.SphereSet``: one analytic sphere per point.
+
+Blender's PointCloud objects, and the points Geometry Nodes makes (Mesh to Points, Distribute
+Points, Points, which the depsgraph yields as POINTCLOUD instances), render in Cycles as
+spheres of the ``radius`` attribute (0.01 where a cloud has none: Blender's default) around
+``position``.  Both attributes are read with one ``foreach_get`` each, and so is
+``material_index`` where it exists (slots as for meshes: past the last slot, the last one).
+The world matrix must be a rotation times a uniform scale, which scales the radii; points
+of radius <= 0 draw nothing and are left out.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...core import SceneError, SphereSet
+from .errors import ExportError
+from .geometry import degenerate_transforms, read_array, uniform_scales
+
+#: Cycles' radius for points that have no ``radius`` attribute.
+DEFAULT_POINT_RADIUS = 0.01
+
+
+def _attribute(cloud, name: str, width: int, dtype, default):
+    attribute = cloud.attributes.get(name)
+    if attribute is None:
+        return None if default is None else np.full(len(cloud.points), default, dtype)
+    field = "vector" if width == 3 else "value"
+    return read_array(attribute.data, field, width, dtype)
+
+
+def export_point_cloud(context, obj, matrix_world, name: str) -> None:
+    """An evaluated POINTCLOUD object (placed by ``matrix_world``) -> a SphereSet in the
+    context, or a skipped entry naming why it cannot be drawn."""
+    cloud = obj.data
+    count = len(cloud.points)
+    if count == 0:
+        return
+    matrix = np.asarray(matrix_world, np.float64)
+    if degenerate_transforms(matrix[None])[0]:
+        context.skip(name, "zero scale: draws nothing")
+        return
+    scales, uniform = uniform_scales(matrix[None])
+    if not uniform[0]:
+        context.skip(name, "non-uniformly scaled point cloud: its points would be ellipsoids")
+        return
+    positions = _attribute(cloud, "position", 3, np.float32, None)
+    radii = _attribute(cloud, "radius", 1, np.float32, DEFAULT_POINT_RADIUS)
+    slots = _attribute(cloud, "material_index", 1, np.int32, 0)
+    keep = radii > 0
+    if not keep.all():
+        positions, radii, slots = positions[keep], radii[keep], slots[keep]
+    if len(radii) == 0:
+        return
+    materials = [context.material(slot.material, name) for slot in obj.material_slots] or \
+        [context.material(None, name)]
+    centers = positions.astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+    try:
+        context.sphere_sets.append(SphereSet(
+            centers=centers, radii=radii.astype(np.float64) * scales[0],
+            material_indices=np.clip(slots, 0, len(materials) - 1), materials=tuple(materials),
+            name=name))
+    except SceneError as error:
+        raise ExportError(f"point cloud '{name}': {error}") from None

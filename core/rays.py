@@ -1,0 +1,128 @@
+"""What the tracer hands the geometry and gets back: ray batches, hits, and ray statistics.
+
+The bounce loop (``core.trace``) and the shading (``core.shading``) talk to the scene's
+geometry only through these types and ``core.aggregate.Aggregate``'s ``nearest``,
+``occluded`` and ``spawn``; how the geometry finds hits (culling, packets, a BVH) stays
+behind that interface, as in pbrt's ``Primitive``/``Aggregate``.
+
+Vectors are (3, n) bundles (``core.vectors``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .vectors import take
+
+#: The article's fixed shadow/reflection offset along the normal.
+ARTICLE_OFFSET = 1e-5
+#: Default semantics offset: (1 + max|P_i|) * RAY_EPSILON, Mitsuba 3's scaled ray epsilon
+#: (1500 eps of the precision), so offsets grow with the hit point's magnitude.
+RAY_EPSILON = {np.dtype(np.float64): 1500 * np.finfo(np.float64).eps,
+               np.dtype(np.float32): 1500 * np.finfo(np.float32).eps}
+
+
+def ray_offsets(points: np.ndarray) -> np.ndarray:
+    """(m,) how far rays leaving points (3, m) start from them, or shadow segments stop short
+    of them, in default semantics: (1 + max|P_i|) * RAY_EPSILON of the points' precision."""
+    dtype = points.dtype
+    return (1 + np.abs(points).max(axis=0)) * dtype.type(RAY_EPSILON[dtype])
+
+
+@dataclass
+class RayStats:
+    """What a render traced.  camera_rays: rays from the camera (every sample);
+    shadow_rays: light visibility rays; reflection_rays: mirror rays; sphere_tests: ray/sphere
+    pairs intersected (after culling); triangle_tests: ray/triangle pairs intersected;
+    node_tests: ray/BVH-node box tests; tiles: tiles rendered; supersampled_pixels: pixels
+    given more than one sample."""
+
+    camera_rays: int = 0
+    shadow_rays: int = 0
+    reflection_rays: int = 0
+    sphere_tests: int = 0
+    triangle_tests: int = 0
+    node_tests: int = 0
+    tiles: int = 0
+    supersampled_pixels: int = 0
+
+    def add(self, other: "RayStats") -> None:
+        for name in self.__dataclass_fields__:
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+
+
+@dataclass(frozen=True)
+class SharedOrigin:
+    """Per-primitive terms for rays that all leave ``position`` (3,) (float64): the camera's
+    eye, a light sample.  Made by ``Aggregate.shared_origin``; opaque to the tracer."""
+
+    position: np.ndarray
+    sphere_terms: object = None      # core.intersect.OriginTerms of the flat-culled spheres
+    tree_terms: object = None        # OriginTerms of every sphere, for the tree's, or None
+
+
+@dataclass
+class RayBatch:
+    """n rays, or n segments for ``Aggregate.occluded`` (a segment is a ray with a finite
+    t_max).
+
+    origins: (3, n), or (3, 1) when every ray starts at ``shared.position``;
+    directions: (3, n) unit vectors in the render precision;
+    t_min, t_max: scalars or (n,): hits count for t_min < t < t_max;
+    shared: SharedOrigin when the rays share their origin (camera rays of a perspective
+        camera, shadow segments traced from a light sample), else None;
+    exclude: (n,) primitive each ray ignores (-1: none), or None (the primitive a ray leaves,
+        when it cannot hit it again: ``Aggregate.spawn`` fills it in);
+    source: (n,) primitive each ray leaves (-1: none), or None: rays leaving one primitive
+        in similar directions are traced together.
+    """
+
+    origins: np.ndarray
+    directions: np.ndarray
+    t_min: np.ndarray | float = 0.0
+    t_max: np.ndarray | float = np.inf
+    shared: SharedOrigin | None = None
+    exclude: np.ndarray | None = None
+    source: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return self.directions.shape[1]
+
+
+@dataclass
+class Hits:
+    """The nearest hits of the rays of a batch that hit something: m of its n rays.
+
+    rays: (m,) index of each hit's ray in the batch; primitive_per_ray: (n,) primitive hit by
+    each ray of the batch, -1 where it missed.  t: (m,) distance; primitive, material: (m,)
+    global primitive id and material id; points: (3, m); directions: (3, m) the rays'
+    directions; normals: (3, m) unit geometric normals, on the outside (spheres) or the front
+    (triangles: counter-clockwise winding); shading: (3, m) unit shading normals on the same
+    side (interpolated corner normals; for spheres and flat triangles the geometric normal);
+    front: (m,) whether the ray arrived from the outside / front side.
+    """
+
+    rays: np.ndarray
+    primitive_per_ray: np.ndarray
+    t: np.ndarray
+    primitive: np.ndarray
+    material: np.ndarray
+    points: np.ndarray
+    directions: np.ndarray
+    normals: np.ndarray
+    shading: np.ndarray
+    front: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.rays)
+
+    def take(self, keep: np.ndarray) -> "Hits":
+        """The hits ``keep`` (k,) (indices into this set's m hits)."""
+        shading = self.normals if self.shading is self.normals else take(self.shading, keep)
+        normals = take(self.normals, keep)
+        return Hits(self.rays[keep], self.primitive_per_ray, self.t[keep],
+                    self.primitive[keep], self.material[keep], take(self.points, keep),
+                    take(self.directions, keep), normals,
+                    normals if self.shading is self.normals else shading, self.front[keep])

@@ -1,0 +1,95 @@
+"""An image does not depend on where the scene is or the unit it was modelled in
+(``core.frame``): the same scene translated and scaled over the whole range validation
+accepts (coordinates up to 1e300) renders the same picture, in the precision 'auto' picks
+for its shape; a scene float64 cannot resolve is refused, naming the sphere."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import core
+from core.frame import MAX_SCALE_RATIO, canonical_scene
+
+
+def scene(scale=1.0, offset=(0.0, 0.0, 0.0), width=96, height=64, floor=True):
+    """Three balls (one a mirror) over a floor, a light with a radius and a Blender camera,
+    all placed at scale * (x + offset)."""
+    def at(p):
+        return tuple(scale * (c + o) for c, o in zip(p, offset))
+    balls = [((0.0, 0.0, 0.5), 0.5, core.Material(diffuse=(0.8, 0.2, 0.1), reflection=0.2)),
+             ((1.2, 0.4, 0.3), 0.3, core.Material(diffuse=(0.1, 0.6, 0.9), reflection=0.0)),
+             ((-1.0, 0.8, 0.4), 0.4, core.Material(diffuse=(0.9, 0.9, 0.9), reflection=0.9))]
+    if floor:
+        balls.append(((0.0, 0.0, -1000.0), 1000.0, core.Material(reflection=0.1)))
+    spheres = tuple(core.Sphere(at(c), scale * r, m, f"ball{i}")
+                    for i, (c, r, m) in enumerate(balls))
+    light = core.PointLight(at((3.0, -3.0, 4.0)), radius=scale * 0.3, name="lamp")
+    # A camera at (0, -6, 1.5) looking along +Y (rotation of 90 degrees about X).
+    t = at((0.0, -6.0, 1.5))
+    camera = core.BlenderCamera(
+        matrix_world=((1, 0, 0, t[0]), (0, 0, -1, t[1]), (0, 1, 0, t[2]), (0, 0, 0, 1)),
+        resolution_x=width, resolution_y=height, clip_start=scale * 0.1,
+        clip_end=scale * 1e5)
+    return core.Scene(camera=camera, spheres=spheres, lights=(light,),
+                      background=(0.05, 0.1, 0.2), ambient=(0.05, 0.1, 0.2))
+
+
+SETTINGS = core.RenderSettings(light_samples=4)
+
+#: (scale, offset in scene units): from 1e-300 to 1e290 (coordinates up to ~1e296, below
+#: validation's 1e300), moved up to 1e6 scene units from the origin.  Powers of ten are not
+#: powers of two, so the inputs themselves round; offsets round them once more.
+PLACEMENTS = [(1e-300, (0, 0, 0)), (1e-150, (3e5, -1e6, 2e5)), (1e-19, (0, 0, 0)),
+              (1.0, (1e6, 1e6, -1e6)), (1e19, (0, 0, 0)), (1e20, (-7e5, 0, 1e3)),
+              (1e154, (0, 0, 0)), (1e155, (1e6, 0, 0)), (1e290, (2e5, 2e5, 2e5))]
+
+
+@pytest.fixture(scope="module")
+def reference():
+    return core.render(scene(), SETTINGS)
+
+
+@pytest.mark.parametrize("scale, offset", PLACEMENTS, ids=[f"{s:g}@{o}" for s, o in PLACEMENTS])
+def test_a_scene_renders_the_same_wherever_and_however_large_it_is(reference, scale, offset):
+    result = core.render(scene(scale, offset), SETTINGS)
+
+    assert result.precision == reference.precision
+    assert np.isfinite(result.image).all()
+    # Rounding the inputs (1e-16 relative, 1e-10 of a ball's radius with the offsets) can
+    # move a silhouette or shadow edge across a pixel centre, nothing more.
+    moved = np.abs(result.image - reference.image).max(axis=2) > 1 / 255
+    assert moved.mean() < 0.002, f"{moved.sum()} pixels differ"
+    # Not a blank or flat picture: balls, floor, shadow and sky all differ.
+    assert len(np.unique(np.round(result.image[..., :3], 2).reshape(-1, 3), axis=0)) > 50
+
+
+def test_auto_precision_depends_on_the_shape_not_the_position():
+    without_floor = [core.render(scene(scale, offset, floor=False), SETTINGS).precision
+                     for scale, offset in [(1.0, (0, 0, 0)), (1e100, (1e6, 0, 0)),
+                                           (1e-100, (0, -1e6, 0))]]
+    assert without_floor == ["float32"] * 3  # balls only: extent / radius well under 500
+    assert core.render(scene(1e100, (1e6, 0, 0)), SETTINGS).precision == "float64"  # floor
+
+
+def test_a_scene_too_deep_for_float64_is_refused_naming_the_sphere():
+    near = scene()
+    tiny = core.Sphere((0.0, 0.0, 2.0), 1e-13, core.Material(), "speck")
+    deep = core.Scene(camera=near.camera, spheres=near.spheres + (tiny,), lights=near.lights)
+
+    with pytest.raises(core.SceneError, match=r"sphere 'speck' \(radius 1e-13\).*float64"):
+        core.render(deep, SETTINGS)
+
+
+def test_the_canonical_scene_has_its_smallest_sphere_near_unit_size_at_the_eye():
+    for scale, offset in PLACEMENTS:
+        canonical = canonical_scene(scene(scale, offset), SETTINGS)
+        matrix = np.array(canonical.camera.matrix_world)
+        np.testing.assert_array_equal(matrix[:3, 3], 0.0)
+        assert 0.5 <= min(s.radius for s in canonical.spheres) < 1.0
+        assert max(np.abs(s.center).max() for s in canonical.spheres) < MAX_SCALE_RATIO
+
+
+def test_article_semantics_keeps_the_scene_as_given():
+    given = core.article_scene(30, 20)
+    assert canonical_scene(given, core.RenderSettings(semantics="article")) is given

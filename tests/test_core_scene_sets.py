@@ -1,0 +1,124 @@
+"""Array sets of the scene description: SphereSet and TriangleMesh, validated whole-array."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import core
+
+MATERIAL = core.Material()
+
+
+def _spheres(n=20, **changes):
+    rng = np.random.default_rng(0)
+    fields = dict(centers=rng.normal(size=(n, 3)), radii=rng.uniform(0.1, 1, n),
+                  material_indices=np.zeros(n, np.int64), materials=(MATERIAL,),
+                  name="Points")
+    fields.update(changes)
+    return core.SphereSet(**fields)
+
+
+def _cube_mesh(**changes):
+    vertices = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    triangles = np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))])
+    fields = dict(vertices=vertices, triangles=triangles, corner_normals=None,
+                  material_indices=np.zeros(len(triangles), np.int64), materials=(MATERIAL,),
+                  name="Cube")
+    fields.update(changes)
+    return core.TriangleMesh(**fields)
+
+
+def test_sphere_set_keeps_read_only_float64_copies():
+    centers = np.zeros((3, 3), np.float32)
+    spheres = core.SphereSet(centers, [1, 2, 3], [0, 0, 1], (MATERIAL, core.Material()))
+    assert spheres.centers.dtype == np.float64 and spheres.radii.dtype == np.float64
+    assert spheres.material_indices.dtype == np.int64 and len(spheres) == 3
+    centers[0, 0] = 5.0                       # the caller's array is not the set's
+    assert spheres.centers[0, 0] == 0.0
+    with pytest.raises(ValueError):
+        spheres.radii[0] = 7.0
+
+
+def test_empty_sphere_set_is_valid():
+    assert len(core.SphereSet(np.zeros((0, 3)), [], [], (MATERIAL,))) == 0
+
+
+@pytest.mark.parametrize("changes, message", [
+    (dict(radii=np.r_[np.ones(17), -1.0, np.ones(2)]),
+     "sphere set 'Points': radii[17] must be > 0, got -1.0"),
+    (dict(radii=np.r_[np.ones(5), 0.0, np.ones(14)]), "radii[5] must be > 0"),
+    (dict(radii=np.r_[np.ones(3), np.inf, np.ones(16)]), "radii[3] must be finite"),
+    (dict(centers=np.where(np.arange(60).reshape(20, 3) == 31, np.nan, 0.0)),
+     "sphere set 'Points': centers[10][1] must be finite"),
+    (dict(material_indices=np.r_[np.zeros(9, int), 1, np.zeros(10, int)]),
+     "material_indices[9] must be in [0, 1)"),
+    (dict(material_indices=np.r_[np.zeros(2, int), -1, np.zeros(17, int)]),
+     "material_indices[2] must be in [0, 1)"),
+    (dict(material_indices=np.zeros(20)), "material_indices must hold integers"),
+    (dict(radii=np.ones(19)), "radii must have shape (20), got (19,)"),
+    (dict(centers=np.zeros((20, 2))), "centers must have shape (N x 3)"),
+    (dict(materials=()), "materials must hold at least one material"),
+    (dict(materials=("red",)), "materials[0] must be a material"),
+])
+def test_sphere_set_errors_name_set_field_and_first_index(changes, message):
+    with pytest.raises(core.SceneError) as error:
+        _spheres(**changes)
+    assert message in str(error.value)
+
+
+def test_sphere_set_validates_a_million_spheres_as_arrays():
+    n = 1_000_000
+    spheres = core.SphereSet(np.zeros((n, 3)), np.ones(n), np.zeros(n, np.int64), (MATERIAL,))
+    assert len(spheres) == n
+    radii = np.ones(n)
+    radii[n - 2] = -3.0
+    with pytest.raises(core.SceneError, match=rf"radii\[{n - 2}\] must be > 0, got -3.0"):
+        core.SphereSet(np.zeros((n, 3)), radii, np.zeros(n, np.int64), (MATERIAL,))
+
+
+def test_triangle_mesh_defaults_to_one_identity_instance_and_normalises_normals():
+    mesh = _cube_mesh()
+    assert mesh.transforms.shape == (1, 4, 4) and (mesh.transforms[0] == np.eye(4)).all()
+    assert len(mesh) == 12
+    normals = np.tile([[0.0, 0.0, 2.0]], (12, 3, 1))
+    smooth = _cube_mesh(corner_normals=normals, transforms=np.stack([np.eye(4)] * 3))
+    assert np.allclose(smooth.corner_normals[..., 2], 1.0) and len(smooth) == 36
+
+
+def _shifted(matrix_changes):
+    transforms = np.stack([np.eye(4)] * 4)
+    for (k, r, c), value in matrix_changes.items():
+        transforms[k, r, c] = value
+    return transforms
+
+
+@pytest.mark.parametrize("changes, message", [
+    (dict(triangles=np.r_[np.zeros((4, 3), int), [[0, 1, 8]], np.zeros((7, 3), int)]),
+     "mesh 'Cube': triangles[4][2] must be in [0, 8) (vertices), got 8"),
+    (dict(vertices=np.where(np.arange(24).reshape(8, 3) == 13, np.inf, 1.0)),
+     "mesh 'Cube': vertices[4][1] must be finite"),
+    (dict(material_indices=np.r_[np.zeros(11, int), 3]), "material_indices[11] must be in [0, 1)"),
+    (dict(corner_normals=np.zeros((12, 3, 3))), "corner_normals[0][0] must not be zero"),
+    (dict(corner_normals=np.ones((11, 3, 3))), "corner_normals must have shape (12 x 3 x 3)"),
+    (dict(transforms=_shifted({(2, 3, 0): 1.0})), "transforms[2] must be affine"),
+    (dict(transforms=_shifted({(1, 2, 2): 0.0})), "transforms[1] is singular"),
+    (dict(transforms=_shifted({(3, 0, 3): np.nan})), "transforms[3][0][3] must be finite"),
+    (dict(transforms=np.zeros((0, 4, 4))), "transforms must hold at least one"),
+    (dict(triangles=np.zeros((12, 3))), "triangles must hold integers"),
+])
+def test_triangle_mesh_errors_name_mesh_field_and_first_index(changes, message):
+    with pytest.raises(core.SceneError) as error:
+        _cube_mesh(**changes)
+    assert message in str(error.value)
+
+
+def test_scene_holds_sets_and_rejects_other_things():
+    camera = core.ScreenCamera(4, 4)
+    scene = core.Scene(camera=camera, sphere_sets=[_spheres()], meshes=[_cube_mesh()])
+    assert isinstance(scene.sphere_sets, tuple) and isinstance(scene.meshes, tuple)
+    with pytest.raises(core.SceneError, match=r"scene.sphere_sets\[0\] must be a SphereSet"):
+        core.Scene(camera=camera, sphere_sets=[_cube_mesh()])
+    with pytest.raises(core.SceneError, match=r"scene.meshes\[1\] must be a TriangleMesh"):
+        core.Scene(camera=camera, meshes=[_cube_mesh(), _spheres()])
