@@ -59,19 +59,57 @@ class Frame:
     def length(self, d: float) -> float:
         return float(d) * self.scale
 
+    def transforms(self, matrices: np.ndarray) -> np.ndarray:
+        """(K, 4, 4) object-to-world matrices -> object-to-canonical: scale the 3 x 3 part,
+        move and scale the translation."""
+        moved = np.array(matrices, np.float64)
+        moved[:, :3, :3] *= self.scale
+        moved[:, :3, 3] = (moved[:, :3, 3] - self.centre) * self.scale
+        return moved
+
+
+def _mesh_corners(mesh) -> np.ndarray:
+    """(8 K, 3) world-space corners of a mesh's object-space bounding box, per instance."""
+    lower, upper = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
+    corners = np.array([[(lower, upper)[(i >> axis) & 1][axis] for axis in range(3)]
+                        for i in range(8)])                                     # (8, 3)
+    linear, shift = mesh.transforms[:, :3, :3], mesh.transforms[:, :3, 3]
+    return (np.einsum("kij,cj->kci", linear, corners) + shift[:, None, :]).reshape(-1, 3)
+
 
 def scene_bounds(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """(lower (3,), upper (3,)) of spheres, lights (with radii) and the camera's eye."""
+    """(lower (3,), upper (3,)) of spheres, sphere sets, meshes, lights (with radii) and the
+    camera's eye."""
     points = [eye_position(scene.camera)[None, :]]
     reach = [np.zeros(1)]
     if scene.spheres:
         points.append(np.array([s.center for s in scene.spheres], np.float64))
         reach.append(np.array([s.radius for s in scene.spheres], np.float64))
+    for sphere_set in scene.sphere_sets:
+        points.append(sphere_set.centers)
+        reach.append(sphere_set.radii)
+    for mesh in scene.meshes:
+        if len(mesh.vertices):
+            corners = _mesh_corners(mesh)
+            points.append(corners)
+            reach.append(np.zeros(len(corners)))
     if scene.lights:
         points.append(np.array([light.position for light in scene.lights], np.float64))
         reach.append(np.array([light.radius for light in scene.lights], np.float64))
     points, reach = np.concatenate(points), np.concatenate(reach)[:, None]
     return (points - reach).min(axis=0), (points + reach).max(axis=0)
+
+
+def smallest_sphere(scene: Scene) -> tuple[float, str] | None:
+    """(radius, name) of the scene's smallest sphere, loose or in a set; None without any."""
+    candidates = [(s.radius, f"sphere '{s.name}'" if s.name else f"sphere {i}")
+                  for i, s in enumerate(scene.spheres)]
+    for sphere_set in scene.sphere_sets:
+        if len(sphere_set):
+            index = int(sphere_set.radii.argmin())
+            label = f"sphere set '{sphere_set.name}'" if sphere_set.name else "sphere set"
+            candidates.append((float(sphere_set.radii[index]), f"{label} sphere {index}"))
+    return min(candidates, default=None, key=lambda item: item[0])
 
 
 def scene_reach(scene: Scene) -> float:
@@ -87,7 +125,8 @@ def scene_frame(scene: Scene) -> Frame:
     """The frame whose unit is the scene's smallest sphere, centred on the camera's eye
     (module docstring)."""
     centre = eye_position(scene.camera)
-    unit = min((s.radius for s in scene.spheres), default=scene_reach(scene))
+    smallest = smallest_sphere(scene)
+    unit = smallest[0] if smallest is not None else scene_reach(scene)
     if unit == 0.0:
         return Frame(centre, 1.0)
     exponent = math.frexp(unit)[1]  # unit = m 2^e, 0.5 <= m < 1
@@ -97,16 +136,14 @@ def scene_frame(scene: Scene) -> Frame:
 def check_resolvable(scene: Scene) -> None:
     """Raise SceneError when float64 cannot resolve the scene's smallest sphere from where
     rays reach."""
-    if not scene.spheres:
+    smallest = smallest_sphere(scene)
+    if smallest is None:
         return
-    radii = np.array([s.radius for s in scene.spheres])
-    smallest = int(radii.argmin())
-    ratio = scene_reach(scene) / radii[smallest]
+    radius, name = smallest
+    ratio = scene_reach(scene) / radius
     if ratio > MAX_SCALE_RATIO:
-        sphere = scene.spheres[smallest]
-        name = f"sphere '{sphere.name}'" if sphere.name else f"sphere {smallest}"
         raise SceneError(
-            f"{name} (radius {sphere.radius:g}) is {ratio:.1e} times smaller than the "
+            f"{name} (radius {radius:g}) is {ratio:.1e} times smaller than the "
             f"scene's extent, more than the {MAX_SCALE_RATIO:.0e} float64 can render exactly: "
             f"enlarge it, or move far-away objects, lights or the camera closer")
 
@@ -149,5 +186,10 @@ def canonical_scene(scene: Scene, settings: RenderSettings) -> Scene:
     lights = tuple(dataclasses.replace(light, position=frame.point(light.position),
                                        radius=frame.length(light.radius))
                    for light in scene.lights)
+    sphere_sets = tuple(dataclasses.replace(
+        sphere_set, centers=(sphere_set.centers - frame.centre) * frame.scale,
+        radii=sphere_set.radii * frame.scale) for sphere_set in scene.sphere_sets)
+    meshes = tuple(dataclasses.replace(mesh, transforms=frame.transforms(mesh.transforms))
+                   for mesh in scene.meshes)
     return dataclasses.replace(scene, camera=_camera(scene.camera, frame), spheres=spheres,
-                               lights=lights)
+                               lights=lights, sphere_sets=sphere_sets, meshes=meshes)

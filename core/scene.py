@@ -489,8 +489,11 @@ class TriangleMesh:
             raise SceneError(f"{where}: transforms{_index_text(bad)} must be affine (last row "
                              f"0 0 0 1), got {transforms[bad][3].tolist()}")
         linear = transforms[:, :3, :3]
+        # Judged on the matrix divided by its largest entry, so that a scene modelled at any
+        # scale (1e-150 or 1e155) is not singular through under- or overflow of the det.
         scale = np.abs(linear).max(axis=(1, 2))
-        bad = _first_bad(np.abs(np.linalg.det(linear)) <= 1e-12 * np.maximum(scale, 1e-300) ** 3)
+        unit = linear / np.where(scale > 0, scale, 1.0)[:, None, None]
+        bad = _first_bad((scale == 0) | (np.abs(np.linalg.det(unit)) <= 1e-12))
         if bad is not None:
             raise SceneError(f"{where}: transforms{_index_text(bad)} is singular (its 3 x 3 "
                              f"part has no inverse)")

@@ -93,3 +93,39 @@ def test_the_canonical_scene_has_its_smallest_sphere_near_unit_size_at_the_eye()
 def test_article_semantics_keeps_the_scene_as_given():
     given = core.article_scene(30, 20)
     assert canonical_scene(given, core.RenderSettings(semantics="article")) is given
+
+
+def mixed_scene(scale=1.0, offset=(0.0, 0.0, 0.0)):
+    """``scene`` plus a box (a TriangleMesh placed by its transform) and two balls in a
+    SphereSet, all at scale * (x + offset): the canonical frame must move them too."""
+    base = scene(scale, offset, floor=True)
+    corners = np.array([[x, y, z] for x in (-0.3, 0.3) for y in (-0.3, 0.3) for z in (0, 0.6)])
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    triangles = np.array([tri for a, b, c, d in faces for tri in ((a, b, c), (a, c, d))])
+    placement = np.eye(4)
+    placement[:3, :3] *= scale
+    placement[:3, 3] = scale * (np.array([0.6, -1.2, 0.0]) + offset)
+    box = core.TriangleMesh(corners, triangles, None, np.zeros(12, int),
+                            (core.Material(diffuse=(0.2, 0.9, 0.2), reflection=0.0),),
+                            transforms=placement[None], name="box")
+    balls = core.SphereSet(scale * (np.array([[-0.5, -1.5, 0.2], [0.2, -2.0, 0.15]]) + offset),
+                           scale * np.array([0.2, 0.15]), np.zeros(2, int),
+                           (core.Material(diffuse=(0.9, 0.1, 0.9)),), name="beads")
+    return core.Scene(camera=base.camera, spheres=base.spheres, lights=base.lights,
+                      background=base.background, ambient=base.ambient,
+                      sphere_sets=(balls,), meshes=(box,))
+
+
+@pytest.mark.parametrize("scale, offset", [(1e-150, (3e5, -1e6, 2e5)), (1.0, (1e6, 1e6, -1e6)),
+                                           (1e20, (-7e5, 0, 1e3)), (1e155, (1e6, 0, 0))])
+def test_meshes_and_sphere_sets_move_with_the_scene(scale, offset):
+    reference = core.render(mixed_scene(), SETTINGS)
+    result = core.render(mixed_scene(scale, offset), SETTINGS)
+
+    # The green box is in both pictures (the reference goes through the frame too, so this is
+    # what fails if the frame leaves meshes behind), and nothing moved.
+    for image in (reference.image, result.image):
+        red, green, blue = image[..., 0], image[..., 1], image[..., 2]
+        assert ((green > 2 * red) & (green > 2 * blue)).sum() > 50
+    moved = np.abs(result.image - reference.image).max(axis=2) > 1 / 255
+    assert moved.mean() < 0.003, f"{moved.sum()} pixels differ"
