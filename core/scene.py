@@ -23,11 +23,10 @@ from typing import Literal, Sequence, Union
 
 import numpy as np
 
+from .choices import ANTI_ALIASING, PRECISIONS, SEMANTICS  # noqa: F401  (defined once there)
+
 Vec3 = tuple[float, float, float]
 
-SEMANTICS = ("default", "article")
-PRECISIONS = ("auto", "float64", "float32")
-ANTI_ALIASING = ("off", "fixed", "adaptive")
 PROJECTIONS = ("PERSP", "ORTHO")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 

@@ -30,13 +30,19 @@ import numpy as np
 from ...core import RenderCancelled, RenderSettings, Scene, SceneError, render
 from ...core.render import RayStats, missed_colour
 from ..export import ExportError, export_scene
+from .ignored import ignored_settings_warning
 
 #: Set (to anything) to have unexpected errors print their traceback to stderr as well.
 DEBUG_VARIABLE = "GLINT_DEBUG"
 
 
-def render_settings(settings) -> RenderSettings:
-    """``Scene.glint`` (a GlintRenderSettings) -> core RenderSettings."""
+def render_settings(settings, render=None) -> RenderSettings:
+    """``Scene.glint`` (a GlintRenderSettings) -> core RenderSettings; ``render`` (the scene's
+    RenderSettings), if given, sets the threads: Blender's Performance > Threads, so a farm
+    node running several jobs is not oversubscribed (Auto-detect: one per core)."""
+    threads = None
+    if render is not None and render.threads_mode == 'FIXED':
+        threads = render.threads
     return RenderSettings(
         semantics=settings.semantics.lower(),
         precision=settings.precision.lower(),
@@ -44,6 +50,7 @@ def render_settings(settings) -> RenderSettings:
         anti_aliasing=settings.anti_aliasing.lower(),
         samples=settings.samples,
         light_samples=settings.light_samples,
+        threads=threads,
     )
 
 
@@ -135,8 +142,10 @@ def prepare_job(depsgraph, camera_override=None) -> RenderJob:
     """Export the scene and read its Glint settings (main thread only).  Raises ExportError
     or core.SceneError with a message meant for the user."""
     scene, warnings = export_scene(depsgraph, camera_override)
+    warnings += ignored_settings_warning(depsgraph, camera_override)
     blender_scene = depsgraph.scene_eval
-    return RenderJob(scene=scene, settings=render_settings(blender_scene.glint),
+    return RenderJob(scene=scene,
+                     settings=render_settings(blender_scene.glint, blender_scene.render),
                      transparent=blender_scene.render.film_transparent, warnings=warnings)
 
 

@@ -30,6 +30,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from ...core import BlenderCamera, RenderCancelled, RenderSettings, Scene, SceneError, render
+from .ignored import ignored_settings_warning
 from .job import failure_message, finish_image
 
 #: The coarse pass traces at most this many pixels (a power-of-two fraction of the view's
@@ -421,9 +422,11 @@ def export_viewport_scene(depsgraph, preferences=None, view: Optional[ViewportVi
     except ExportError:  # no (usable) scene camera: the viewport needs none
         camera = view.camera() if view is not None else _PLACEHOLDER_CAMERA
     scene, warnings = export_scene(depsgraph, view_camera=camera)
+    warnings += ignored_settings_warning(depsgraph)
     blender_scene = depsgraph.scene_eval
-    return (scene, render_settings(blender_scene.glint), blender_scene.render.film_transparent,
-            pixel_size(blender_scene.render, preferences), warnings)
+    return (scene, render_settings(blender_scene.glint, blender_scene.render),
+            blender_scene.render.film_transparent, pixel_size(blender_scene.render, preferences),
+            warnings)
 
 
 class ViewportEngine:

@@ -79,7 +79,11 @@ class _RenderVisibility:
     def __call__(self, instance) -> bool:
         if not self.filter:
             return True
-        if self._hidden(instance.object.original):
+        # A particle system renders its instance object even when that object itself is
+        # hidden for render (the usual set-up: the source is hidden, its copies are not), as
+        # F12 does; only the emitter's visibility counts.
+        by_particles = instance.is_instance and instance.particle_system is not None
+        if not by_particles and self._hidden(instance.object.original):
             return False
         parent = instance.parent if instance.is_instance else None
         return parent is None or not self._hidden(parent.original)
