@@ -476,3 +476,22 @@ def test_a_camera_view_renders_only_its_render_border():
     job.settings = dataclasses.replace(job.settings, anti_aliasing="off")
     expected = job.run().image
     np.testing.assert_array_equal(final.image, expected[0:240, 160:480])
+
+
+def test_an_empty_render_border_draws_nothing():
+    from glint.addon.engine.viewport import ViewportEngine
+
+    scene = simple_scene()
+    scene.render.use_border = True
+    scene.render.border_min_x = scene.render.border_max_x = 0.5
+    graph = depsgraph()
+    engine, drawer = RecordingEngine(), RecordingDrawer()
+    viewport_engine = ViewportEngine()
+    viewport_engine._drawer = drawer
+    context = camera_view_context(320, 240, graph)
+
+    viewport_engine.view_update(engine, context, graph)
+    for _ in range(3):
+        viewport_engine.view_draw(engine, context, graph)
+
+    assert drawer.frames == [] and viewport_engine.session.render is None

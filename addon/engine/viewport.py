@@ -176,7 +176,8 @@ class ViewportView:
         width, height = region.width, region.height
         rect = None
         camera = scene.camera
-        if rv3d.view_perspective == 'CAMERA' and scene.render.use_border and camera is not None:
+        if (rv3d.view_perspective == 'CAMERA' and scene.render.use_border and camera is not None
+                and camera.type == 'CAMERA'):
             frame = [camera.matrix_world @ corner for corner in camera.data.view_frame(scene=scene)]
             rect = border_rect(camera_frame_rect(rv3d.perspective_matrix, frame, width, height),
                                (scene.render.border_min_x, scene.render.border_min_y,
@@ -464,9 +465,10 @@ class ViewportEngine:
 
     def view_draw(self, engine, context, depsgraph) -> None:
         scene = depsgraph.scene_eval
-        self.session.update_view(ViewportView.from_context(context, scene))
+        view = ViewportView.from_context(context, scene)
+        self.session.update_view(view)
         frame = self.session.frame
-        if frame is not None:
+        if frame is not None and view is not None:  # None: the render border is empty
             if self._drawer is None:
                 from ..draw.viewport import FrameDrawer
 
