@@ -48,6 +48,12 @@ REPOSITORY = os.path.dirname(os.path.abspath(__file__))
 PACKAGE_NAME = "glint"
 PROGRAM = "render.py"
 
+#: Limits checked before anything is loaded: Blender's resolution_x/y hard maximum, and the
+#: core's (core.scene.MAX_SAMPLES, MAX_DEPTH; repeated, as the package is imported later).
+MAX_RESOLUTION = 65536
+MAX_SAMPLES = 16384
+MAX_DEPTH = 256
+
 EXIT_USAGE = 2   # bad option (argparse's convention)
 EXIT_FAILURE = 1  # the render could not be made
 #: Exit status after a signal cancelled the run: the shell's convention, 128 + its number.
@@ -159,6 +165,15 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _at_most(maximum: int):
+    def parse(text: str) -> int:
+        value = _positive_int(text)
+        if value > maximum:
+            raise argparse.ArgumentTypeError(f"must be at most {maximum}, got {value}")
+        return value
+    return parse
+
+
 def _integer(text: str) -> int:
     try:
         return int(text)
@@ -190,13 +205,14 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--output", required=True,
                         help="PNG or EXR file to write; #### is replaced by the frame number, "
                              "zero-padded to the number of #")
-    parser.add_argument("--width", type=_positive_int, help="resolution X in pixels")
-    parser.add_argument("--height", type=_positive_int, help="resolution Y in pixels")
+    parser.add_argument("--width", type=_at_most(MAX_RESOLUTION), help="resolution X in pixels")
+    parser.add_argument("--height", type=_at_most(MAX_RESOLUTION),
+                        help="resolution Y in pixels")
     parser.add_argument("--percentage", type=_percentage, help="resolution percentage")
-    parser.add_argument("--samples", type=_positive_int,
+    parser.add_argument("--samples", type=_at_most(MAX_SAMPLES),
                         help="rays per anti-aliased pixel; turns Fixed anti-aliasing on if the "
                              "scene has it off")
-    parser.add_argument("--max-depth", type=_positive_int, help="bounces per path")
+    parser.add_argument("--max-depth", type=_at_most(MAX_DEPTH), help="bounces per path")
     parser.add_argument("--frame", type=_integer, help="frame to render")
     choices = load_choices()
     parser.add_argument("--semantics", choices=choices.SEMANTICS)

@@ -83,7 +83,7 @@ class GLINT_OT_render(bpy.types.Operator):
         window_manager.progress_begin(0, 100)
         try:
             result = job.run(progress=lambda fraction: window_manager.progress_update(
-                round(100 * fraction)))
+                round(100 * fraction)), reserve_bytes=job.frame_bytes)  # the Image's buffer
         except BaseException as error:  # any failure keeps the image and says so in one line
             self.report({'ERROR'}, f"Glint render failed, image '{image_name}' unchanged: "
                                    f"{failure_message(error)}")

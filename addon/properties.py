@@ -9,6 +9,8 @@ from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorPro
 
 from ..core import Material
 from ..core.choices import ANTI_ALIASING_CHOICES, PRECISION_CHOICES, SEMANTICS_CHOICES
+from ..core.scene import (MAX_COLOUR, MAX_DEPTH, MAX_LIGHT_SAMPLES, MAX_SAMPLES,
+                          MAX_SHININESS)
 
 DEFAULT_IMAGE_NAME = "Glint Render"
 _ARTICLE_FLOOR = Material()  # the core's default material is the article's floor
@@ -23,16 +25,16 @@ def enum_items(choices) -> list[tuple[str, str, str]]:
 
 class GlintRenderSettings(bpy.types.PropertyGroup):
     max_depth: IntProperty(
-        name="Max Depth", default=3, min=1, soft_max=16,
+        name="Max Depth", default=3, min=1, soft_max=16, max=MAX_DEPTH,
         description="Bounces per path; the camera ray's hit counts as the first (the article "
                     "uses 3)")
     anti_aliasing: EnumProperty(
         name="Anti-Aliasing", default='ADAPTIVE', items=enum_items(ANTI_ALIASING_CHOICES))
     samples: IntProperty(
-        name="Samples", default=16, min=1, soft_max=256,
+        name="Samples", default=16, min=1, soft_max=256, max=MAX_SAMPLES,
         description="Rays per anti-aliased pixel")
     light_samples: IntProperty(
-        name="Light Samples", default=16, min=1, soft_max=256,
+        name="Light Samples", default=16, min=1, soft_max=256, max=MAX_LIGHT_SAMPLES,
         description="Shadow rays per light with a radius (soft shadows, default semantics)")
     precision: EnumProperty(
         name="Precision", default='AUTO', items=enum_items(PRECISION_CHOICES))
@@ -49,16 +51,17 @@ class GlintMaterialSettings(bpy.types.PropertyGroup):
         description="Use these values instead of the ones derived from the material's "
                     "Principled BSDF or Viewport Display")
     ambient: FloatVectorProperty(
-        name="Ambient", subtype='COLOR_GAMMA', size=3, min=0.0, soft_max=1.0,
+        name="Ambient", subtype='COLOR_GAMMA', size=3, min=0.0, soft_max=1.0, max=MAX_COLOUR,
         default=_ARTICLE_FLOOR.ambient, description="Reflectance of ambient light (ka)")
     diffuse: FloatVectorProperty(
-        name="Diffuse", subtype='COLOR_GAMMA', size=3, min=0.0, soft_max=1.0,
+        name="Diffuse", subtype='COLOR_GAMMA', size=3, min=0.0, soft_max=1.0, max=MAX_COLOUR,
         default=_ARTICLE_FLOOR.diffuse, description="Diffuse reflectance (kd)")
     specular: FloatVectorProperty(
-        name="Specular", subtype='COLOR_GAMMA', size=3, min=0.0, soft_max=1.0,
+        name="Specular", subtype='COLOR_GAMMA', size=3, min=0.0, soft_max=1.0, max=MAX_COLOUR,
         default=_ARTICLE_FLOOR.specular, description="Specular reflectance (ks)")
     shininess: FloatProperty(
         name="Shininess", default=_ARTICLE_FLOOR.shininess, min=0.0, soft_max=1000.0,
+        max=MAX_SHININESS,
         description="Blinn-Phong exponent as the article writes it (shading uses a quarter "
                     "of it on N.H)")
     reflection: FloatProperty(

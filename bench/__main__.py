@@ -71,7 +71,9 @@ def plan_lines(plan, quick: bool) -> list[str]:
         f"{size(plan.spheres_error_size)}); AA {size(plan.aa_size)} (errors at "
         f"{size(plan.aa_error_size)} vs {plan.aa_reference_samples} spp); per-pixel program "
         f"timed at {size(plan.per_pixel_article_size)} (article) and "
-        f"{size(plan.per_pixel_spheres_size)} (spheres).",
+        f"{size(plan.per_pixel_spheres_size)} (spheres); sphere sets of "
+        f"{', '.join(f'{c:,}' for c in plan.sphere_set_counts)} at "
+        f"{size(plan.sphere_set_size)}.",
         "Threads: Glint one per core; baseline and per-pixel program one (NumPy); Cycles all "
         "cores.  Memory: tracemalloc peak of the warm-up run (Python/NumPy contenders), "
         "resident-set growth of one render in a child process (Blender, marked RSS).",
@@ -107,7 +109,9 @@ def main(argv=None) -> int:
     lines += ["## Targets (ratios measured in this run)", ""]
     lines += [target.line() for target in report.targets(bench)] + [""]
     for curve, title in (("cost-pixels", "Cost against pixel count (article scene)"),
-                         ("cost-spheres", "Cost against sphere count")):
+                         ("cost-spheres", "Cost against sphere count"),
+                         ("cost-sphere-sets", "Cost against sphere count, spheres as one "
+                                              "SphereSet")):
         rows = report.curve_table(bench, curve)
         if rows:
             lines += [f"## {title}", ""] + rows + [""]

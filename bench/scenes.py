@@ -1,4 +1,5 @@
-"""The bench's scenes: the article's, and many small random spheres over the article's floor.
+"""The bench's scenes: the article's, and many small random spheres over the article's floor
+(as ``core.Sphere`` objects, or as one ``core.SphereSet`` for counts up to millions).
 
 All use the article's ScreenCamera (eye (0, 0, 1), screen [-1, 1] on z = 0), its light and
 its floor sphere, so that the only thing that changes between them is the sphere count.
@@ -10,10 +11,11 @@ import math
 
 import numpy as np
 
-from core import Material, PointLight, Scene, ScreenCamera, Sphere, article_scene
+from core import Material, PointLight, Scene, ScreenCamera, Sphere, SphereSet, article_scene
 from core.article import ARTICLE_EYE, ARTICLE_LIGHT, article_spheres
 
-__all__ = ["article_scene", "random_spheres_scene", "SEED"]
+__all__ = ["article_scene", "random_spheres_scene", "random_sphere_set_scene", "sphere_count",
+           "SEED"]
 
 SEED = 20240601
 RADIUS_RANGE = (0.02, 0.08)
@@ -64,3 +66,37 @@ def random_spheres_scene(count: int, width: int, height: int, *, floor: bool = T
         spheres.append(floor_sphere)
     return Scene(camera=ScreenCamera(width=width, height=height, eye=ARTICLE_EYE),
                  spheres=tuple(spheres), lights=(PointLight(ARTICLE_LIGHT, name="light"),))
+
+
+#: Materials of the sphere-set scenes: random diffuse colours drawn once, shared by index.
+SET_MATERIALS = 64
+
+
+def random_sphere_set_scene(count: int, width: int, height: int, *, floor: bool = True,
+                            seed: int = SEED) -> Scene:
+    """``count`` spheres drawn as ``random_spheres_scene`` draws them (same ranges, same
+    camera, light and floor), but with whole-array draws into one ``SphereSet`` (so a million
+    take a fraction of a second), coloured by SET_MATERIALS shared materials."""
+    rng = np.random.default_rng(seed)
+    floor_sphere = _floor()
+    eye_x, _, eye_z = ARTICLE_EYE
+    radius = rng.uniform(*RADIUS_RANGE, count)
+    depth = rng.uniform(*DEPTH_RANGE, count)
+    x = eye_x + rng.uniform(-1, 1, count) * depth * VIEW_MARGIN
+    z = eye_z - depth
+    cx, cy, cz = floor_sphere.center
+    top = cy + np.sqrt(floor_sphere.radius ** 2 - (x - cx) ** 2 - (z - cz) ** 2)
+    y = top + radius + rng.uniform(0, MAX_HEIGHT_ABOVE_FLOOR, count)
+    colours = rng.uniform(0.1, 0.9, (SET_MATERIALS, 3))
+    materials = tuple(Material(ambient=tuple(0.1 * c), diffuse=tuple(c), specular=(1.0, 1.0, 1.0),
+                               shininess=100.0, reflection=0.5) for c in colours)
+    spheres = SphereSet(np.column_stack([x, y, z]), radius,
+                        rng.integers(0, SET_MATERIALS, count), materials, name="spheres")
+    return Scene(camera=ScreenCamera(width=width, height=height, eye=ARTICLE_EYE),
+                 spheres=(floor_sphere,) if floor else (), sphere_sets=(spheres,),
+                 lights=(PointLight(ARTICLE_LIGHT, name="light"),))
+
+
+def sphere_count(scene: Scene) -> int:
+    """Spheres in a scene, listed one by one or in sets."""
+    return len(scene.spheres) + sum(len(s) for s in scene.sphere_sets)

@@ -10,6 +10,8 @@ Workloads (``--only NAME``):
 * aa-adaptive, aa-fixed16: the article's scene at 1920x1080 with anti-aliasing.
 * cost-pixels, cost-spheres: time and peak memory against pixel count (up to 7680x4320) and
   against sphere count (1 to 10,000).
+* cost-sphere-sets: time and peak memory of Glint default/auto against sphere count when the
+  spheres are one ``core.SphereSet`` (1,000 to 1,000,000 at 640x360; ``bench.scenes``).
 
 Contenders: Glint in each precision and semantics; the baseline (``bench.baseline``); the
 article's per-pixel program (``bench.per_pixel``), timed small and scaled per pixel; Cycles
@@ -38,7 +40,7 @@ from core import RenderSettings, Scene, render
 
 from . import baseline, per_pixel
 from .measure import Timing, measure, rgb_error, silhouette_mismatches
-from .scenes import article_scene, random_spheres_scene
+from .scenes import article_scene, random_sphere_set_scene, random_spheres_scene, sphere_count
 
 REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 #: The article's own image: shared/ beside the checkout, else the tests' copy of it.
@@ -71,6 +73,8 @@ class Plan:
     pixel_curve: tuple
     sphere_curve_size: Size
     sphere_counts: tuple
+    sphere_set_size: Size          # the cost-sphere-sets curve's size and counts
+    sphere_set_counts: tuple
     baseline_max_elements: int     # rays x spheres of the baseline's one broadcast
     repeats: int
     budget: float                  # seconds of timed runs per contender after its warm-up
@@ -87,6 +91,7 @@ FULL = Plan(
     pixel_curve=((160, 90), (320, 180), (640, 360), (1280, 720), (1920, 1080), (3840, 2160),
                  (7680, 4320)),
     sphere_curve_size=(640, 360), sphere_counts=(1, 10, 100, 1000, 3000, 10000),
+    sphere_set_size=(640, 360), sphere_set_counts=(1_000, 100_000, 1_000_000),
     baseline_max_elements=40_000_000, repeats=3, budget=40.0)
 
 QUICK = Plan(
@@ -99,11 +104,12 @@ QUICK = Plan(
     cycles16_max_pixels=300 * 200,
     pixel_curve=((160, 90), (320, 180), (640, 360), (960, 540)),
     sphere_curve_size=(160, 90), sphere_counts=(1, 10, 100, 1000),
+    sphere_set_size=(160, 90), sphere_set_counts=(1_000, 100_000),
     baseline_max_elements=5_000_000, repeats=1, budget=5.0)
 
 SCENE_WORKLOADS = ("article-small", "article-hd", "article-uhd", "spheres", "spheres-nofloor")
 AA_WORKLOADS = ("aa-adaptive", "aa-fixed16")
-CURVES = ("cost-pixels", "cost-spheres")
+CURVES = ("cost-pixels", "cost-spheres", "cost-sphere-sets")
 WORKLOADS = SCENE_WORKLOADS + AA_WORKLOADS + CURVES
 
 
@@ -134,6 +140,8 @@ GLINT_PLAIN = tuple(Glint(s, p) for s in ("article", "default")
                     for p in ("float64", "float32", "auto"))
 #: The two configurations the cost curves follow: float64-accurate, and Glint's defaults.
 CURVE_GLINTS = (Glint("article", "float64"), Glint("default", "auto"))
+#: The sphere-set curve's contender (a million spheres: one configuration is enough).
+SET_CURVE_GLINT = Glint("default", "auto")
 BASELINE_LABEL = "Baseline (vectorised NumPy)"
 PER_PIXEL_LABEL = "Per-pixel (article's program)"
 
@@ -163,7 +171,7 @@ class Row:
 
 @dataclass
 class CurvePoint:
-    curve: str                     # cost-pixels | cost-spheres
+    curve: str                     # cost-pixels | cost-spheres | cost-sphere-sets
     contender: str
     width: int
     height: int
@@ -236,6 +244,8 @@ class Bench:
                              lambda image: image.nbytes)
 
     def baseline_fits(self, scene: Scene) -> bool:
+        if scene.sphere_sets or scene.meshes:
+            return False          # the baseline knows spheres listed one by one only
         elements = scene.camera.width * scene.camera.height * len(scene.spheres)
         return elements <= self.plan.baseline_max_elements
 
@@ -372,6 +382,8 @@ class Bench:
                 self.pixel_curve()
             elif name == "cost-spheres":
                 self.sphere_curve()
+            elif name == "cost-sphere-sets":
+                self.sphere_set_curve()
             else:
                 raise ValueError(f"unknown workload {name!r}")
 
@@ -546,7 +558,7 @@ class Bench:
             label = contender.label
             _, timing, image_bytes = self.measure_glint(scene_key, scene, contender)
         self.curve_points.append(CurvePoint(
-            curve, label, scene.camera.width, scene.camera.height, len(scene.spheres),
+            curve, label, scene.camera.width, scene.camera.height, sphere_count(scene),
             timing.median, len(timing.runs), timing.peak_bytes, image_bytes))
 
     def pixel_curve(self) -> None:
@@ -568,3 +580,11 @@ class Bench:
                     f"{contender if contender == 'baseline' else contender.label}")
                 self._curve_point("cost-spheres", ("spheres", count, True, width, height),
                                   scene, contender)
+
+    def sphere_set_curve(self) -> None:
+        width, height = self.plan.sphere_set_size
+        for count in self.plan.sphere_set_counts:
+            scene = random_sphere_set_scene(count, width, height)
+            log(f"cost-sphere-sets {count} spheres: {SET_CURVE_GLINT.label}")
+            self._curve_point("cost-sphere-sets", ("sphere-set", count, width, height), scene,
+                              SET_CURVE_GLINT)

@@ -25,8 +25,16 @@ from .scene import SceneError
 SCENES = {"article": article_scene}
 
 
+class _OneLineParser(argparse.ArgumentParser):
+    """argparse's errors as one line (its default prints the usage first)."""
+
+    def error(self, message):
+        print(f"{self.prog}: error: {message}", file=sys.stderr)
+        raise SystemExit(2)
+
+
 def parse_args(argv):
-    parser = argparse.ArgumentParser(prog="python -m core", description=__doc__)
+    parser = _OneLineParser(prog="python -m core", description=__doc__)
     parser.add_argument("--scene", choices=sorted(SCENES), default="article")
     parser.add_argument("--width", type=int, default=300)
     parser.add_argument("--height", type=int, default=200)

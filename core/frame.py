@@ -59,57 +59,45 @@ class Frame:
     def length(self, d: float) -> float:
         return float(d) * self.scale
 
-    def transforms(self, matrices: np.ndarray) -> np.ndarray:
-        """(K, 4, 4) object-to-world matrices -> object-to-canonical: scale the 3 x 3 part,
-        move and scale the translation."""
-        moved = np.array(matrices, np.float64)
-        moved[:, :3, :3] *= self.scale
-        moved[:, :3, 3] = (moved[:, :3, 3] - self.centre) * self.scale
-        return moved
+
+def _sphere_arrays(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """(centres (N, 3), radii (N,)) of the hand-made spheres and every sphere set."""
+    centres = [np.array([s.center for s in scene.spheres], np.float64).reshape(-1, 3)]
+    radii = [np.array([s.radius for s in scene.spheres], np.float64)]
+    centres += [s.centers for s in scene.sphere_sets]
+    radii += [s.radii for s in scene.sphere_sets]
+    return np.concatenate(centres), np.concatenate(radii)
 
 
-def _mesh_corners(mesh) -> np.ndarray:
-    """(8 K, 3) world-space corners of a mesh's object-space bounding box, per instance."""
-    lower, upper = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
-    corners = np.array([[(lower, upper)[(i >> axis) & 1][axis] for axis in range(3)]
-                        for i in range(8)])                                     # (8, 3)
-    linear, shift = mesh.transforms[:, :3, :3], mesh.transforms[:, :3, 3]
-    return (np.einsum("kij,cj->kci", linear, corners) + shift[:, None, :]).reshape(-1, 3)
+def _mesh_boxes(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """(lower (K, 3), upper (K, 3)) world-space boxes of every mesh instance: the object-space
+    box's eight corners through each transform."""
+    lowers, uppers = [np.empty((0, 3))], [np.empty((0, 3))]
+    for mesh in scene.meshes:
+        if len(mesh.vertices) == 0:
+            continue
+        low, high = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
+        corners = np.array([[(high if (k >> a) & 1 else low)[a] for a in range(3)]
+                            for k in range(8)])                          # (8, 3)
+        world = (np.einsum("kij,cj->kci", mesh.transforms[:, :3, :3], corners)
+                 + mesh.transforms[:, None, :3, 3])                      # (K, 8, 3)
+        lowers.append(world.min(axis=1))
+        uppers.append(world.max(axis=1))
+    return np.concatenate(lowers), np.concatenate(uppers)
 
 
 def scene_bounds(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """(lower (3,), upper (3,)) of spheres, sphere sets, meshes, lights (with radii) and the
-    camera's eye."""
-    points = [eye_position(scene.camera)[None, :]]
-    reach = [np.zeros(1)]
-    if scene.spheres:
-        points.append(np.array([s.center for s in scene.spheres], np.float64))
-        reach.append(np.array([s.radius for s in scene.spheres], np.float64))
-    for sphere_set in scene.sphere_sets:
-        points.append(sphere_set.centers)
-        reach.append(sphere_set.radii)
-    for mesh in scene.meshes:
-        if len(mesh.vertices):
-            corners = _mesh_corners(mesh)
-            points.append(corners)
-            reach.append(np.zeros(len(corners)))
-    if scene.lights:
-        points.append(np.array([light.position for light in scene.lights], np.float64))
-        reach.append(np.array([light.radius for light in scene.lights], np.float64))
-    points, reach = np.concatenate(points), np.concatenate(reach)[:, None]
-    return (points - reach).min(axis=0), (points + reach).max(axis=0)
-
-
-def smallest_sphere(scene: Scene) -> tuple[float, str] | None:
-    """(radius, name) of the scene's smallest sphere, loose or in a set; None without any."""
-    candidates = [(s.radius, f"sphere '{s.name}'" if s.name else f"sphere {i}")
-                  for i, s in enumerate(scene.spheres)]
-    for sphere_set in scene.sphere_sets:
-        if len(sphere_set):
-            index = int(sphere_set.radii.argmin())
-            label = f"sphere set '{sphere_set.name}'" if sphere_set.name else "sphere set"
-            candidates.append((float(sphere_set.radii[index]), f"{label} sphere {index}"))
-    return min(candidates, default=None, key=lambda item: item[0])
+    """(lower (3,), upper (3,)) of spheres, meshes, lights (with radii) and the camera."""
+    centres, radii = _sphere_arrays(scene)
+    lights = np.array([light.position for light in scene.lights], np.float64).reshape(-1, 3)
+    light_radii = np.array([light.radius for light in scene.lights], np.float64)
+    eye = eye_position(scene.camera)[None, :]
+    mesh_low, mesh_high = _mesh_boxes(scene)
+    lower = np.concatenate([eye, centres - radii[:, None], lights - light_radii[:, None],
+                            mesh_low]).min(axis=0)
+    upper = np.concatenate([eye, centres + radii[:, None], lights + light_radii[:, None],
+                            mesh_high]).max(axis=0)
+    return lower, upper
 
 
 def scene_reach(scene: Scene) -> float:
@@ -121,12 +109,35 @@ def scene_reach(scene: Scene) -> float:
                                 np.abs(upper / 2 - centre / 2)).max())
 
 
+def smallest_feature(scene: Scene) -> tuple[float, str]:
+    """(size, what) of the scene's smallest object: a sphere's radius, or half the largest
+    side of a mesh instance's box; (0, "") for a scene without any."""
+    candidates = []
+    if scene.spheres:
+        smallest = min(range(len(scene.spheres)), key=lambda i: scene.spheres[i].radius)
+        sphere = scene.spheres[smallest]
+        label = f"sphere '{sphere.name}'" if sphere.name else f"sphere {smallest}"
+        candidates.append((sphere.radius, label))
+    for sphere_set in scene.sphere_sets:
+        if len(sphere_set):
+            i = int(sphere_set.radii.argmin())
+            candidates.append((float(sphere_set.radii[i]),
+                               f"sphere set '{sphere_set.name}' sphere {i}"))
+    for mesh in scene.meshes:
+        low, high = _mesh_boxes(Scene(camera=scene.camera, meshes=(mesh,)))
+        if len(low):
+            sizes = (high - low).max(axis=1) / 2
+            i = int(sizes.argmin())
+            if sizes[i] > 0:
+                candidates.append((float(sizes[i]), f"mesh '{mesh.name}' instance {i}"))
+    return min(candidates, default=(0.0, ""))
+
+
 def scene_frame(scene: Scene) -> Frame:
-    """The frame whose unit is the scene's smallest sphere, centred on the camera's eye
+    """The frame whose unit is the scene's smallest object, centred on the camera's eye
     (module docstring)."""
     centre = eye_position(scene.camera)
-    smallest = smallest_sphere(scene)
-    unit = smallest[0] if smallest is not None else scene_reach(scene)
+    unit = smallest_feature(scene)[0] or scene_reach(scene)
     if unit == 0.0:
         return Frame(centre, 1.0)
     exponent = math.frexp(unit)[1]  # unit = m 2^e, 0.5 <= m < 1
@@ -134,18 +145,21 @@ def scene_frame(scene: Scene) -> Frame:
 
 
 def check_resolvable(scene: Scene) -> None:
-    """Raise SceneError when float64 cannot resolve the scene's smallest sphere from where
+    """Raise SceneError when float64 cannot resolve the scene's smallest object from where
     rays reach."""
-    smallest = smallest_sphere(scene)
-    if smallest is None:
+    reach = scene_reach(scene)
+    if not math.isfinite(reach):
+        raise SceneError(f"the scene's coordinates reach past {MAX_MAGNITUDE:g} (sphere sets, "
+                         f"meshes or their transforms): scale the scene down")
+    size, label = smallest_feature(scene)
+    if size == 0.0:
         return
-    radius, name = smallest
-    ratio = scene_reach(scene) / radius
+    ratio = reach / size
     if ratio > MAX_SCALE_RATIO:
         raise SceneError(
-            f"{name} (radius {radius:g}) is {ratio:.1e} times smaller than the "
-            f"scene's extent, more than the {MAX_SCALE_RATIO:.0e} float64 can render exactly: "
-            f"enlarge it, or move far-away objects, lights or the camera closer")
+            f"{label} (size {size:g}) is {ratio:.1e} times smaller than the scene's extent, "
+            f"more than the {MAX_SCALE_RATIO:.0e} float64 can render exactly: enlarge it, or "
+            f"move far-away objects, lights or the camera closer")
 
 
 def _camera(camera, frame: Frame):
@@ -183,13 +197,22 @@ def canonical_scene(scene: Scene, settings: RenderSettings) -> Scene:
     frame = scene_frame(scene)
     spheres = tuple(dataclasses.replace(s, center=frame.point(s.center),
                                         radius=frame.length(s.radius)) for s in scene.spheres)
+    sphere_sets = tuple(dataclasses.replace(
+        s, centers=(s.centers - frame.centre) * frame.scale, radii=s.radii * frame.scale)
+        for s in scene.sphere_sets)
+    meshes = tuple(dataclasses.replace(mesh, transforms=_placed(mesh.transforms, frame))
+                   for mesh in scene.meshes)
     lights = tuple(dataclasses.replace(light, position=frame.point(light.position),
                                        radius=frame.length(light.radius))
                    for light in scene.lights)
-    sphere_sets = tuple(dataclasses.replace(
-        sphere_set, centers=(sphere_set.centers - frame.centre) * frame.scale,
-        radii=sphere_set.radii * frame.scale) for sphere_set in scene.sphere_sets)
-    meshes = tuple(dataclasses.replace(mesh, transforms=frame.transforms(mesh.transforms))
-                   for mesh in scene.meshes)
     return dataclasses.replace(scene, camera=_camera(scene.camera, frame), spheres=spheres,
-                               lights=lights, sphere_sets=sphere_sets, meshes=meshes)
+                               sphere_sets=sphere_sets, meshes=meshes, lights=lights)
+
+
+def _placed(transforms: np.ndarray, frame: Frame) -> np.ndarray:
+    """Object-to-world matrices (K, 4, 4) -> object-to-canonical: scale the 3 x 3 part,
+    move and scale the translation."""
+    placed = np.array(transforms, np.float64, copy=True)
+    placed[:, :3, :3] *= frame.scale
+    placed[:, :3, 3] = (placed[:, :3, 3] - frame.centre) * frame.scale
+    return placed

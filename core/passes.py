@@ -49,6 +49,9 @@ class PrimaryPasses:
     primitive: np.ndarray
     material: np.ndarray
 
+    #: depth, position and normal float32 (1 + 3 + 3), primitive and material int32.
+    BYTES_PER_PIXEL = 4 * (1 + 3 + 3) + 4 + 4
+
     @classmethod
     def empty(cls, width: int, height: int) -> "PrimaryPasses":
         return cls(np.full((height, width), MISSED_DEPTH, np.float32),

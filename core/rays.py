@@ -14,8 +14,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .vectors import take
-
 #: The article's fixed shadow/reflection offset along the normal.
 ARTICLE_OFFSET = 1e-5
 #: Default semantics offset: (1 + max|P_i|) * RAY_EPSILON, Mitsuba 3's scaled ray epsilon
@@ -117,12 +115,3 @@ class Hits:
 
     def __len__(self) -> int:
         return len(self.rays)
-
-    def take(self, keep: np.ndarray) -> "Hits":
-        """The hits ``keep`` (k,) (indices into this set's m hits)."""
-        shading = self.normals if self.shading is self.normals else take(self.shading, keep)
-        normals = take(self.normals, keep)
-        return Hits(self.rays[keep], self.primitive_per_ray, self.t[keep],
-                    self.primitive[keep], self.material[keep], take(self.points, keep),
-                    take(self.directions, keep), normals,
-                    normals if self.shading is self.normals else shading, self.front[keep])

@@ -24,6 +24,7 @@ import numpy as np
 from .camera import camera_rays
 from .context import RayStats, TraceContext, make_context
 from .cull import PACKET_SIZE
+from . import memory
 from .frame import canonical_scene, scene_frame
 from .passes import PrimaryPasses, fill_tile_passes
 from .precision import choose_precision
@@ -189,18 +190,22 @@ def missed_colour(scene: Scene, settings: RenderSettings) -> np.ndarray:
 def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
            progress: Optional[Callable[[float], None]] = None,
            should_cancel: Optional[Callable[[], bool]] = None,
-           image_dtype=None,
+           image_dtype=None, reserve_bytes: int = 0,
            on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None,
            passes: bool = False) -> RenderResult:
     """Render ``scene``; see ``core`` for the result's layout.  image_dtype: the image's
     dtype (default: the render's precision); float32 halves a float64 render's largest array
     for callers that keep no more than float32 anyway (Blender's render results).
+    reserve_bytes: memory the caller will need besides the render (counted in the plan).
     on_tile(tile, rgba): called on the calling thread as each tile lands (before
     ``progress``), with tile = (y0, y1, x0, x1) (rows from the top) and its (h, w, 4) pixels,
     a view of the image: copy what must outlive the call.  Tiles land in any order; a
     cancelled render has passed on exactly the tiles that finished.
     passes: also fill ``RenderResult.passes`` (``core.passes``: depth, position, normal,
-    primitive and material of each pixel centre's first hit, in world units)."""
+    primitive and material of each pixel centre's first hit, in world units).
+
+    Before anything is allocated, the render's memory is planned (``core.memory``) and a
+    render that cannot fit raises memory.NotEnoughMemory, a SceneError."""
     if not isinstance(scene, Scene):
         raise SceneError(f"scene must be a core.Scene, got {type(scene).__name__}")
     settings = RenderSettings() if settings is None else settings
@@ -209,12 +214,17 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     world = None if settings.semantics == "article" else scene_frame(scene)  # for passes
     scene = canonical_scene(scene, settings)  # positions and units stop mattering
     dtype = choose_precision(scene, settings.precision)
-    ctx = make_context(scene, settings, dtype)
     width, height = scene.camera.width, scene.camera.height
-    image = np.zeros((height, width, 4), dtype if image_dtype is None else image_dtype)
+    threads = settings.threads or os.cpu_count() or 1
+    image_dtype = dtype if image_dtype is None else np.dtype(image_dtype)
+    if passes:  # the passes' arrays, beside the image
+        reserve_bytes += PrimaryPasses.BYTES_PER_PIXEL * width * height
+    memory.check(memory.plan(scene, settings, image_dtype, threads, reserve_bytes),
+                 width, height)
+    ctx = make_context(scene, settings, dtype)
+    image = np.zeros((height, width, 4), image_dtype)
     tiles = _tiles(width, height, settings.tile_size)
     stats = RayStats()
-    threads = settings.threads or os.cpu_count() or 1
     primary = PrimaryPasses.empty(width, height) if passes else None
 
     def work(ctx, camera, tile, stop=None):

@@ -121,10 +121,11 @@ def add_camera(name="camera", location=(0.0, -6.0, 0.0), rotation=(math.pi / 2, 
 
 
 def simple_scene():
-    """Two spheres, a point light and a camera looking at them: a small but full scene."""
+    """Two spheres, a point light and a camera looking at them: a small but full scene.  The
+    spheres are fine enough (64 x 32) to be drawn as analytic spheres in any view of it."""
     scene = empty_file()
-    add_sphere("big", (0.0, 0.0, 0.0), 1.0)
-    add_sphere("small", (1.2, -0.8, 0.6), 0.3)
+    add_sphere("big", (0.0, 0.0, 0.0), 1.0, segments=64, rings=32)
+    add_sphere("small", (1.2, -0.8, 0.6), 0.3, segments=64, rings=32)
     add_point_light()
     add_camera()
     return scene

@@ -11,6 +11,11 @@ of the inscribed and the circumscribed spheres differ.  The band is computed fro
 exported scene under test, so an exporter or camera bug moves the band with the mask and
 shows up as mismatches outside it.
 
+Triangle meshes are drawn by both sides as the same triangles, so their masks must agree
+except where a pixel centre lies within ``EDGE_TOLERANCE_PIXELS`` of a projected edge
+(``near_edges``, computed from the exported triangles, clipped to the visible depths, and the
+outlines the clip planes cut into them), where rounding may decide either way.
+
 Blender's masks come from its own renderers at one sample per pixel centre (Workbench without
 anti-aliasing, Cycles with 1 sample and a 0.01 px filter), written as RGBA PNGs and read back.
 """
@@ -24,6 +29,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import bpy
+import bmesh  # after bpy: the pip module makes bmesh importable
 import numpy as np
 from mathutils import Euler, Vector
 
@@ -210,6 +216,46 @@ def fine_spheres(scene, camera) -> None:
     add_sphere(scene, "fine_b", (1.2, 0.8, -0.3), 0.4, 128, 64, rotation=(0.3, 1.2, -0.4),
                scale=1.5)
     add_sphere(scene, "fine_c", (0.6, -1.2, 0.9), 0.35, 128, 64)
+
+
+def _mesh_object(scene, name, mesh, location, rotation=(0.0, 0.0, 0.0), scale=(1, 1, 1)):
+    obj = link(bpy.data.objects.new(name, mesh), scene)
+    obj.location, obj.rotation_euler, obj.scale = location, rotation, scale
+    return obj
+
+
+def _bmesh_mesh(name, build):
+    mesh = bpy.data.meshes.new(name)
+    builder = bmesh.new()
+    build(builder)
+    builder.to_mesh(mesh)
+    builder.free()
+    return mesh
+
+
+def triangle_meshes(scene, camera) -> None:
+    """A cube, a tilted plane, Suzanne, and a second Suzanne sharing her mesh, rotated and
+    scaled non-uniformly (exported as one mesh with two transforms)."""
+    cube = _bmesh_mesh("cube", lambda b: bmesh.ops.create_cube(b, size=1.2))
+    _mesh_object(scene, "cube", cube, (-1.8, 0.5, 0.7), (0.3, 0.5, 0.2))
+    plane = bpy.data.meshes.new("plane")
+    plane.from_pydata([(-2, -1, 0), (2, -1, 0), (2, 1, 0), (-2, 1, 0)], [], [(0, 1, 2, 3)])
+    _mesh_object(scene, "plane", plane, (0.0, 0.5, -1.4), (0.5, 0.0, 0.3))
+    suzanne = _bmesh_mesh("suzanne", lambda b: bmesh.ops.create_monkey(b))
+    _mesh_object(scene, "suzanne", suzanne, (0.6, 0.0, 0.3), (0.2, 0.0, 0.4))
+    _mesh_object(scene, "squashed suzanne", suzanne, (2.4, 1.0, -0.3), (0.9, -0.4, 1.3),
+                 (0.5, 0.9, 0.35))
+
+
+def mesh_behind_camera(scene, camera) -> None:
+    """A box straddling the camera's plane (its front part cut by clip_start enters the view)
+    and a box in front, placed in camera coordinates (-Z ahead)."""
+    box = _bmesh_mesh("box", lambda b: bmesh.ops.create_cube(b, size=1.0))
+    _mesh_object(scene, "straddling", box, in_camera_space(camera, (0.6, -0.1, -0.2)),
+                 tuple(a + b for a, b in zip(camera.rotation_euler, (0.2, 0.1, 0.3))),
+                 (1.0, 0.8, 2.0))
+    _mesh_object(scene, "ahead", box, in_camera_space(camera, (-0.6, 0.2, -4.0)),
+                 (0.6, 0.4, 0.1))
 
 
 # --------------------------------------------------------------------------------------------

@@ -17,7 +17,7 @@ from addon_support import (ExportError, add_camera, add_point_light, add_sphere,
                            link, uv_sphere_mesh)
 from glint.addon.export.geometry import (ANALYTIC_SPHERE_PROPERTY, FLOAT32_SLACK,
                                          MAX_FACE_SAGITTA, MAX_RADIUS_SCATTER, fit_sphere,
-                                         uniform_scale)
+                                         uniform_scales)
 from glint.addon.export.materials import SurfaceValues, blinn_exponent, material_from_surface
 from glint.addon.utils.colour import linear_to_srgb, srgb_to_linear
 from glint.core.camera import blender_view_plane, camera_rays
@@ -161,9 +161,11 @@ def test_zero_scale_objects_are_skipped_as_degenerate_not_as_non_uniform(scene):
 
 
 def test_mirrored_spheres_are_spheres():
-    assert uniform_scale(Matrix.Diagonal((-2.0, 2.0, 2.0, 1.0))) == pytest.approx(2.0)
-    assert uniform_scale(Matrix.Diagonal((2.0, 2.0, 2.1, 1.0))) is None
-    assert uniform_scale(Matrix.Diagonal((0.0, 0.0, 0.0, 1.0))) is None
+    matrices = np.array([Matrix.Diagonal(d) for d in ((-2.0, 2.0, 2.0, 1.0), (2.0, 2.0, 2.1, 1.0),
+                                                      (0.0, 0.0, 0.0, 1.0))])
+    scales, uniform = uniform_scales(matrices)
+    assert scales[0] == pytest.approx(2.0)
+    assert uniform.tolist() == [True, False, False]
 
 
 def test_parented_spheres_are_exported_in_world_space(scene):

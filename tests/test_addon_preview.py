@@ -24,8 +24,10 @@ def preview_like_scene(material=None):
     scene = empty_file()
     scene.render.resolution_x, scene.render.resolution_y = 96, 96
     scene.glint.anti_aliasing = 'ADAPTIVE'
+    # A finely tessellated sphere, like preview.blend's: the exporter draws it as a sphere
+    # (a 32 x 16 one would be drawn as its triangles at this size: see export/geometry.py).
     add_sphere("preview_sphere", (0.0, 0.0, 0.0), 1.0,
-               material=material() if material else None)
+               material=material() if material else None, segments=64, rings=32)
     floor = link(bpy.data.objects.new("Floor", cube_mesh("Floor", 20.0)))
     floor.scale.z = 0.01
     floor.location.z = -1.0

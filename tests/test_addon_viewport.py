@@ -425,7 +425,7 @@ def test_view_update_and_view_draw_draw_each_pass_and_warn_once():
     from addon_support import link
 
     scene = simple_scene()
-    link(bpy.data.objects.new("sun", bpy.data.lights.new("sun", type='SUN')))
+    link(bpy.data.objects.new("fog", bpy.data.volumes.new("fog")))  # named in a warning
     scene.glint.anti_aliasing = 'ADAPTIVE'
     graph = depsgraph()
     engine, drawer = RecordingEngine(), RecordingDrawer()
@@ -438,7 +438,7 @@ def test_view_update_and_view_draw_draw_each_pass_and_warn_once():
     draw_until_final(viewport_engine, engine, context, graph)
 
     warnings = [message for kinds, message in engine.reports if kinds == {'WARNING'}]
-    assert len(warnings) == 1 and "sun (sun light)" in warnings[0]
+    assert len(warnings) == 1 and "fog (volume object)" in warnings[0]
     assert viewport_engine.session.restarts == 1
     assert drawer.frames[-1].final and drawer.frames[-1].rect == (0, 0, 400, 300)
     indices = [f.index for f in drawer.frames]

@@ -12,9 +12,26 @@ import core
 from core.frame import MAX_SCALE_RATIO, canonical_scene
 
 
-def scene(scale=1.0, offset=(0.0, 0.0, 0.0), width=96, height=64, floor=True):
+def cube(scale, at):
+    """A 2 x 2 x 2 cube mesh (12 triangles) drawn twice: beside the balls and tilted above."""
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    triangles = [t for a, b, c, d in faces for t in ((a, b, c), (a, c, d))]
+    def placed(centre, size, tilt):
+        c, s_ = np.cos(tilt), np.sin(tilt)
+        matrix = np.eye(4)
+        matrix[:3, :3] = scale * size * np.array([[c, -s_, 0], [s_, c, 0], [0, 0, 1]])
+        matrix[:3, 3] = at(centre)
+        return matrix
+    return core.TriangleMesh(corners, np.array(triangles), None, np.zeros(12, int),
+                             (core.Material(diffuse=(0.3, 0.8, 0.3), reflection=0.0),),
+                             np.stack([placed((2.2, 1.0, 0.3), 0.3, 0.5),
+                                       placed((0.3, 1.5, 1.6), 0.25, 1.0)]), "box")
+
+
+def scene(scale=1.0, offset=(0.0, 0.0, 0.0), width=96, height=64, floor=True, extras=False):
     """Three balls (one a mirror) over a floor, a light with a radius and a Blender camera,
-    all placed at scale * (x + offset)."""
+    all placed at scale * (x + offset); extras: a sphere set and an instanced cube mesh."""
     def at(p):
         return tuple(scale * (c + o) for c, o in zip(p, offset))
     balls = [((0.0, 0.0, 0.5), 0.5, core.Material(diffuse=(0.8, 0.2, 0.1), reflection=0.2)),
@@ -31,8 +48,14 @@ def scene(scale=1.0, offset=(0.0, 0.0, 0.0), width=96, height=64, floor=True):
         matrix_world=((1, 0, 0, t[0]), (0, 0, -1, t[1]), (0, 1, 0, t[2]), (0, 0, 0, 1)),
         resolution_x=width, resolution_y=height, clip_start=scale * 0.1,
         clip_end=scale * 1e5)
+    more = {}
+    if extras:
+        centres = np.array([at((x, -0.8, 0.12)) for x in np.linspace(-1.5, 1.5, 7)])
+        more = dict(sphere_sets=(core.SphereSet(centres, np.full(7, scale * 0.12),
+                                                np.zeros(7, int), (core.Material(),), "beads"),),
+                    meshes=(cube(scale, at),))
     return core.Scene(camera=camera, spheres=spheres, lights=(light,),
-                      background=(0.05, 0.1, 0.2), ambient=(0.05, 0.1, 0.2))
+                      background=(0.05, 0.1, 0.2), ambient=(0.05, 0.1, 0.2), **more)
 
 
 SETTINGS = core.RenderSettings(light_samples=4)
@@ -64,6 +87,29 @@ def test_a_scene_renders_the_same_wherever_and_however_large_it_is(reference, sc
     assert len(np.unique(np.round(result.image[..., :3], 2).reshape(-1, 3), axis=0)) > 50
 
 
+@pytest.fixture(scope="module")
+def reference_with_meshes():
+    return core.render(scene(extras=True), SETTINGS)
+
+
+#: Mesh instances: their validation needs the determinant of the 3 x 3 part to be a normal
+#: float64 (scale^3), so meshes are accepted from about 1e-100 to 1e100.
+MESH_PLACEMENTS = [(1e-90, (0, 0, 0)), (1.0, (1e6, -1e6, 0)), (1e20, (0, 5e5, 0)),
+                   (1e90, (1e6, 0, 0))]
+
+
+@pytest.mark.parametrize("scale, offset", MESH_PLACEMENTS,
+                         ids=[f"{s:g}@{o}" for s, o in MESH_PLACEMENTS])
+def test_meshes_and_sphere_sets_move_and_scale_with_the_scene(reference_with_meshes, scale,
+                                                              offset):
+    result = core.render(scene(scale, offset, extras=True), SETTINGS)
+    moved = np.abs(result.image - reference_with_meshes.image).max(axis=2) > 1 / 255
+    assert moved.mean() < 0.002, f"{moved.sum()} pixels differ"
+    # The extras are in the picture: without them it differs.
+    assert (np.abs(reference_with_meshes.image - core.render(scene(), SETTINGS).image)
+            .max(axis=2) > 0.1).sum() > 50
+
+
 def test_auto_precision_depends_on_the_shape_not_the_position():
     without_floor = [core.render(scene(scale, offset, floor=False), SETTINGS).precision
                      for scale, offset in [(1.0, (0, 0, 0)), (1e100, (1e6, 0, 0)),
@@ -77,7 +123,7 @@ def test_a_scene_too_deep_for_float64_is_refused_naming_the_sphere():
     tiny = core.Sphere((0.0, 0.0, 2.0), 1e-13, core.Material(), "speck")
     deep = core.Scene(camera=near.camera, spheres=near.spheres + (tiny,), lights=near.lights)
 
-    with pytest.raises(core.SceneError, match=r"sphere 'speck' \(radius 1e-13\).*float64"):
+    with pytest.raises(core.SceneError, match=r"sphere 'speck' \(size 1e-13\).*float64"):
         core.render(deep, SETTINGS)
 
 

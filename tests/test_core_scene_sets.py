@@ -122,3 +122,27 @@ def test_scene_holds_sets_and_rejects_other_things():
         core.Scene(camera=camera, sphere_sets=[_cube_mesh()])
     with pytest.raises(core.SceneError, match=r"scene.meshes\[1\] must be a TriangleMesh"):
         core.Scene(camera=camera, meshes=[_cube_mesh(), _spheres()])
+
+
+def test_sphere_set_renders_like_the_same_spheres_listed_one_by_one():
+    """Default semantics moves the scene into its canonical frame (core.frame): sets must
+    move with everything else, so a set and the same spheres as core.Sphere objects give the
+    same image."""
+    rng = np.random.default_rng(4)
+    centers = np.column_stack([rng.uniform(-1, 1, 40), rng.uniform(-0.5, 0.5, 40),
+                               rng.uniform(-4, -2, 40)])
+    radii = rng.uniform(0.05, 0.2, 40)
+    materials = (core.Material(diffuse=(0.8, 0.2, 0.2)), core.Material(reflection=0.0))
+    indices = rng.integers(0, 2, 40)
+    camera = core.ScreenCamera(48, 32)
+    lights = (core.PointLight((3, 4, 2)),)
+    listed = core.Scene(camera=camera, lights=lights, spheres=tuple(
+        core.Sphere(tuple(c), r, materials[i]) for c, r, i in zip(centers, radii, indices)))
+    as_set = core.Scene(camera=camera, lights=lights,
+                        sphere_sets=(core.SphereSet(centers, radii, indices, materials),))
+    for semantics in ("default", "article"):
+        settings = core.RenderSettings(semantics=semantics, precision="float64")
+        a = core.render(listed, settings).image
+        b = core.render(as_set, settings).image
+        assert np.array_equal(a, b)
+        assert (a[..., 3] == 1).sum() > 30

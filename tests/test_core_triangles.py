@@ -373,3 +373,31 @@ def test_meshes_render_finite_in_both_semantics(semantics):
     assert np.isfinite(result.image).all()
     assert result.stats.triangle_tests > 0
     assert (result.image[..., 3] == 1).sum() > 100
+
+
+def test_a_mesh_far_from_the_origin_renders_as_near_it():
+    """The same scene (a smooth icosphere on a floor plane of two triangles, a light) moved by
+    1e4 in every axis renders the same: meshes move into the render's frame with the camera."""
+    vertices, triangles = icosphere(1)
+    floor = np.array([[-5, -0.5, -8], [5, -0.5, -8], [5, -0.5, 2], [-5, -0.5, 2]], float)
+
+    def scene(offset):
+        shift = np.array([offset, offset, offset], float)
+        ball = _mesh(vertices * 0.5, triangles, vertices[triangles],
+                     _affine(translation=np.array([0, 0, -3]) + shift)[None])
+        plane = _mesh(floor, np.array([[0, 2, 1], [0, 3, 2]]),
+                      transforms=_affine(translation=shift)[None])
+        camera = core.ScreenCamera(48, 32, eye=tuple(shift + [0, 0, 1]), left=offset - 1,
+                                   right=offset + 1, top=offset + 1 / 1.5,
+                                   bottom=offset - 1 / 1.5, screen_z=offset)
+        return core.Scene(camera=camera, meshes=(ball, plane),
+                          lights=(core.PointLight(tuple(shift + [2, 3, 0])),))
+
+    settings = core.RenderSettings(precision="float64")
+    near = core.render(scene(0.0), settings).image
+    far = core.render(scene(1e4), settings).image
+    assert (near[..., 3] == 1).mean() > 0.3
+    difference = np.abs(near - far).max(axis=2)
+    # Silhouette and shadow-edge pixels may flip under the ~1e-12 rounding of the offset.
+    assert (difference > 1e-3).mean() <= 0.01
+    assert np.median(difference) < 1e-9

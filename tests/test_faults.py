@@ -98,6 +98,8 @@ def test_engine_animation_stops_at_a_failed_frame_and_keeps_earlier_files(tmp_pa
     scene.render.use_stamp_time = False
     bpy.ops.render.render(animation=True)
     previous = {name: (tmp_path / name).read_bytes() for name in os.listdir(tmp_path)}
+    assert len(previous) == 3
+    frame_3_written = (tmp_path / "frame_0003.png").stat().st_mtime_ns
     run = job.RenderJob.run
 
     def fail_on_frame_2(self, *args, **kwargs):
@@ -109,7 +111,12 @@ def test_engine_animation_stops_at_a_failed_frame_and_keeps_earlier_files(tmp_pa
     with pytest.raises(RuntimeError, match="frame 2"):
         bpy.ops.render.render(animation=True)
 
-    assert {name: (tmp_path / name).read_bytes() for name in os.listdir(tmp_path)} == previous
+    # Frame 1 was rendered again; the failed frame 2 and frame 3, where the animation
+    # stopped, keep their previous files.
+    assert sorted(os.listdir(tmp_path)) == sorted(previous)
+    for name in ("frame_0002.png", "frame_0003.png"):
+        assert (tmp_path / name).read_bytes() == previous[name]
+    assert (tmp_path / "frame_0003.png").stat().st_mtime_ns == frame_3_written
 
 
 @pytest.mark.parametrize("stage", [*ADDON_FAULTS, "image write"])

@@ -17,8 +17,8 @@ exported with its own visibility and written to its own layer of the result
 Blender expects scene-linear render results; the core's values are display values, so they
 are handed over through the inverse sRGB transfer function, and with view transform Standard
 Blender shows and saves the core's own numbers.  Render results have row 0 at the bottom.
-The hand-over is done in place, a block of rows at a time, so a frame costs one float32 image
-besides Blender's own buffer.
+Tiles are handed over as they land (``TileHandOver``), so a frame costs the job's float32
+image and Blender's own buffer, plus a tile.
 
 Scripts that want the core's numbers rather than Blender's colour-managed result (render.py)
 ask for them explicitly with ``FrameRequest`` (below).
@@ -160,7 +160,9 @@ class GlintRenderEngine(bpy.types.RenderEngine):
         tiles = TileHandOver(self, region, height, view_layer.name) if fill else None
         result = job.run(progress=progress, should_cancel=should_cancel,
                          on_tile=tiles.hand_over if tiles is not None else None,
-                         passes=bool(passes) and fill)
+                         passes=bool(passes) and fill,
+                         # Blender's render result: a float32 frame besides the job's.
+                         reserve_bytes=job.frame_bytes if fill else 0)
         self.update_stats("Glint", f"{summary}, {result.precision}")
         if request is not None:
             request.frames.append((job, result))

@@ -76,12 +76,21 @@ class RenderJob:
     def size(self) -> tuple[int, int]:
         return self.scene.camera.width, self.scene.camera.height
 
+    @property
+    def frame_bytes(self) -> int:
+        """Bytes of one float32 RGBA copy of the frame (what Blender's render result or an
+        Image datablock holds)."""
+        width, height = self.size
+        return width * height * 4 * 4
+
     def run(self, progress: Optional[Callable[[float], None]] = None,
             should_cancel: Optional[Callable[[], bool]] = None,
+            reserve_bytes: int = 0,
             on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None,
             passes: bool = False) -> JobResult:
         """The finished frame (module docstring).  Raises core.RenderCancelled if
-        should_cancel() answers True, core.SceneError for settings the core rejects.
+        should_cancel() answers True, core.SceneError for settings the core rejects or a
+        render that cannot fit in memory with ``reserve_bytes`` more (the caller's copies).
         on_tile(tile, rgba): each tile as it lands (``core.render``'s tile, rows from the top),
         its pixels finished as the frame's will be (a copy the callee may keep).
         passes: also compute the render passes (``core.passes``) into JobResult.passes."""
@@ -94,6 +103,7 @@ class RenderJob:
 
         result = render(self.scene, self.settings, progress=progress,
                         should_cancel=should_cancel, image_dtype=np.float32,
+                        reserve_bytes=reserve_bytes,
                         on_tile=finished_tile if on_tile is not None else None,
                         passes=passes)
         finish_image(result.image, result.missed_colour, self.transparent)
@@ -172,7 +182,8 @@ class ThreadedRender:
 
     def _run(self) -> None:
         try:
-            self.result = self.job.run(progress=self._progress, should_cancel=self._stop.is_set)
+            self.result = self.job.run(progress=self._progress, should_cancel=self._stop.is_set,
+                                       reserve_bytes=self.job.frame_bytes)  # the Image
         except RenderCancelled:
             self.cancelled = True
         except BaseException as error:  # reported to the user by the operator

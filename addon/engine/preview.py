@@ -27,7 +27,7 @@ import numpy as np
 
 from ...core import PointLight, Sphere
 from ...core.camera import camera_to_world
-from ..export.geometry import MAX_FACE_SAGITTA, fit_sphere, world_sphere
+from ..export.geometry import MAX_FACE_SAGITTA, fit_sphere, uniform_scales
 from .job import RenderJob, prepare_job
 
 #: Where the preview's key light comes from, in camera space (x right, y up, -z ahead): up
@@ -61,10 +61,12 @@ def analytic_spheres(scene):
         if fit is not None:
             corners = mesh.vertices[mesh.triangles]                 # (T, 3, 3)
             sag = fit.radius - np.linalg.norm(corners.mean(axis=1) - fit.center, axis=1)
-            placed = [world_sphere(fit, matrix) for matrix in mesh.transforms]
-            if sag.max() <= MAX_FACE_SAGITTA * fit.radius and all(placed):
-                spheres += [Sphere(centre, radius, mesh.materials[0], mesh.name)
-                            for centre, radius in placed]
+            scales, uniform = uniform_scales(mesh.transforms)
+            if sag.max() <= MAX_FACE_SAGITTA * fit.radius and uniform.all():
+                centres = (mesh.transforms[:, :3, :3] @ np.asarray(fit.center)
+                           + mesh.transforms[:, :3, 3])
+                spheres += [Sphere(tuple(centre), fit.radius * scale, mesh.materials[0],
+                                   mesh.name) for centre, scale in zip(centres, scales)]
                 continue
         meshes.append(mesh)
     return dataclasses.replace(scene, spheres=tuple(spheres), meshes=tuple(meshes))

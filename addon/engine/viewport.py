@@ -410,18 +410,14 @@ def export_viewport_scene(depsgraph, preferences=None, view: Optional[ViewportVi
     """(scene, settings, transparent, pixel size, warnings) for the viewport's evaluated
     depsgraph.  Raises ExportError / SceneError like any export.
 
-    The exporter decides from the camera which sphere-like meshes stay analytic spheres (at a
-    quarter pixel), so the export is made through the scene camera, as F12's is, and the
-    viewport shows what F12 renders; without a (usable) scene camera, through the view's, or
-    a placeholder's.  The passes then trace through the view whatever it becomes."""
-    from ..export import ExportError, export_scene
-    from ..export.camera import export_camera
+    The scene is exported with the view's camera (a placeholder before the first draw); the
+    exporter judges which sphere-like meshes stay analytic spheres from the scene's render
+    camera, so the viewport shows the shapes F12 renders.  The passes then trace through the
+    view whatever it becomes."""
+    from ..export import export_scene
     from .job import render_settings
 
-    try:
-        camera = export_camera(depsgraph)
-    except ExportError:  # no (usable) scene camera: the viewport needs none
-        camera = view.camera() if view is not None else _PLACEHOLDER_CAMERA
+    camera = view.camera() if view is not None else _PLACEHOLDER_CAMERA
     scene, warnings = export_scene(depsgraph, view_camera=camera)
     warnings += ignored_settings_warning(depsgraph)
     blender_scene = depsgraph.scene_eval

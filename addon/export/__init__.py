@@ -1,6 +1,9 @@
 """Export: Blender's evaluated scene -> a core Scene (``export_scene``), one pure step that
 reads Blender data and changes nothing.  One module per kind of data, as in BlendLuxCore's
-export/ and mitsuba-blender's io/exporter/."""
+export/ and mitsuba-blender's io/exporter/, sharing one ``context.ExportContext``:
+``scene`` (the depsgraph walk), ``meshes``, ``geometry`` (sphere or triangles),
+``pointclouds``, ``instances`` (Geometry Nodes instances in bulk), ``lights``, ``materials``,
+``camera``."""
 
 from .errors import ExportError
 from .scene import export_scene

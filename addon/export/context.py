@@ -29,6 +29,15 @@ from .errors import ExportError
 from .materials import export_material
 
 
+def instance_name(instance) -> str:
+    """How warnings and sets name an instance: 'object (instanced by parent)', or the object's
+    name for its own evaluated geometry (a curve's mesh is an instance of the curve)."""
+    name = instance.object.name
+    if instance.is_instance and instance.parent is not None and instance.parent.name != name:
+        return f"{name} (instanced by {instance.parent.name})"
+    return name
+
+
 class Skipped:
     """Names of what was not exported, by reason, for one warning per kind."""
 
@@ -63,6 +72,11 @@ class CameraFootprint:
     orthographic: bool
     clip_start: float
     clip_end: float
+
+    @classmethod
+    def unbounded(cls) -> "CameraFootprint":
+        """No camera to judge from: every pixel is infinitely large (nothing is resolved)."""
+        return cls(np.eye(3), np.zeros(3), np.inf, True, 0.0, np.inf)
 
     @classmethod
     def of(cls, camera) -> "CameraFootprint":
@@ -106,8 +120,13 @@ class ExportContext:
     lights: list = field(default_factory=list)         # core lights
 
     @classmethod
-    def for_camera(cls, camera) -> "ExportContext":
-        return cls(camera=camera, footprint=CameraFootprint.of(camera))
+    def for_camera(cls, camera, judged_from=...) -> "ExportContext":
+        """A context rendering through ``camera`` whose sphere-or-triangles rule judges from
+        ``judged_from`` (default: the same camera; None: no camera, nothing is resolved)."""
+        judge = camera if judged_from is ... else judged_from
+        footprint = CameraFootprint.of(judge) if judge is not None else \
+            CameraFootprint.unbounded()
+        return cls(camera=camera, footprint=footprint)
 
     def material(self, material, owner: str):
         """The core material for a bpy Material (None: Blender's default surface), converted

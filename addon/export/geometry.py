@@ -149,12 +149,6 @@ def uniform_scales(matrices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.sqrt(np.maximum(scale_squared, 0.0)), uniform
 
 
-def uniform_scale(matrix) -> Optional[float]:
-    """s if the 3x3 part of one 4x4 matrix is s times a rotation (or a mirror), else None."""
-    scales, uniform = uniform_scales(np.asarray(matrix, np.float64)[None])
-    return float(scales[0]) if uniform[0] else None
-
-
 def degenerate_transforms(matrices: np.ndarray) -> np.ndarray:
     """(K,) bool: 4x4 matrices whose 3x3 part flattens space (a zero scale on some axis), so
     the instance draws nothing."""
@@ -185,14 +179,3 @@ def sphere_instances(fit: SphereFit, matrices: np.ndarray, footprint,
     unseen = fit.deviation * scales < MAX_DEVIATION_PIXELS * pixel
     chosen = uniform & (scales > 0) & (unseen | np.asarray(forced, bool))
     return PlacedSpheres(chosen, centers[chosen], radii[chosen])
-
-
-def world_sphere(fit: SphereFit, matrix) -> Optional[tuple[tuple[float, float, float], float]]:
-    """(world centre, world radius) of an object-space sphere under a 4x4 world matrix, or None
-    when the matrix scales non-uniformly (the sphere would be an ellipsoid)."""
-    scale = uniform_scale(matrix)
-    if scale is None:
-        return None
-    world = np.asarray(matrix, np.float64)
-    center = world[:3, :3] @ np.asarray(fit.center) + world[:3, 3]
-    return tuple(float(c) for c in center), fit.radius * scale

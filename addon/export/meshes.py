@@ -34,9 +34,15 @@ from typing import Optional
 import numpy as np
 
 from ...core import SceneError, Sphere, SphereSet, TriangleMesh
+from .context import instance_name
 from .errors import ExportError
 from .geometry import (ANALYTIC_SPHERE_PROPERTY, SphereFit, degenerate_transforms, mesh_sphere,
                        read_array, sphere_instances)
+
+
+#: Object types whose evaluated mesh the depsgraph yields as a MESH instance of the object
+#: itself; their own entry has nothing more to draw.
+EVALUATED_AS_MESH = {'CURVE', 'FONT', 'SURFACE', 'META'}
 
 
 @dataclass(frozen=True)
@@ -91,7 +97,7 @@ class MeshUse:
     name: str                       # the first instance's name
     mesh: object                    # the evaluated bpy Mesh (read in ``finish``)
     materials: tuple                # bpy materials per slot
-    matrices: list = field(default_factory=list)   # 16 floats per instance, row-major
+    matrices: list = field(default_factory=list)   # per instance: 64 bytes, float32 4x4
     names: list = field(default_factory=list)      # per instance: its name, or None
     forced: list = field(default_factory=list)     # per instance: glint_analytic_sphere
     blocks: list = field(default_factory=list)     # (K, 4, 4) arrays of bulk instances
@@ -99,13 +105,27 @@ class MeshUse:
     def instances(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(matrices (K, 4, 4), names (K,) object (None for set members), forced (K,) bool)
         of every instance, those added one by one first."""
-        single = np.asarray(self.matrices, np.float64).reshape(-1, 4, 4)
-        matrices = np.concatenate([single, *self.blocks]) if self.blocks else single
+        single = np.frombuffer(b"".join(self.matrices), np.float32).reshape(-1, 4, 4)
+        matrices = np.concatenate([single.astype(np.float64), *self.blocks])
         names = np.full(len(matrices), None, dtype=object)
         names[:len(self.names)] = self.names
         forced = np.zeros(len(matrices), bool)
         forced[:len(self.forced)] = self.forced
         return matrices, names, forced
+
+
+def own_geometry(instance) -> bool:
+    """Whether an instance is a scene object's own geometry (exported under its name) rather
+    than one of many instances (exported within a set): a curve, text, surface or metaball
+    object's evaluated mesh comes as an instance of the object itself."""
+    if not instance.is_instance:
+        return True
+    parent = instance.parent
+    return parent.type in EVALUATED_AS_MESH and parent.name == instance.object.name
+
+
+def _material_key(materials: tuple) -> tuple:
+    return tuple(m.as_pointer() if m else 0 for m in materials)
 
 
 class MeshExporter:
@@ -114,27 +134,33 @@ class MeshExporter:
     def __init__(self, context):
         self.context = context
         self.uses: dict = {}
+        # (original object, evaluated mesh) -> (its MeshUse, forced): an object's slots and
+        # custom property are read once, not once per instance.
+        self.objects: dict = {}
 
-    def add(self, obj, matrix, name: Optional[str], display_name: str) -> None:
-        """One instance of an evaluated MESH object.  name: the instance's own name for a
-        scene object (None for an instance, which is exported within a set);
-        display_name: how warnings name it."""
-        materials = evaluated_materials(obj)
-        key = (obj.data.as_pointer(), tuple(m.as_pointer() if m else 0 for m in materials))
-        use = self.uses.get(key)
-        if use is None:
-            use = self.uses[key] = MeshUse(display_name, obj.data, materials)
-        use.matrices.extend(matrix[0])
-        use.matrices.extend(matrix[1])
-        use.matrices.extend(matrix[2])
-        use.matrices.extend(matrix[3])
-        use.names.append(name)
-        use.forced.append(forces_sphere(obj))
+    def add(self, instance) -> None:
+        """One MESH instance of the depsgraph walk.  Per instance this costs two pointer
+        reads, a dictionary look-up and a 64-byte copy of the matrix (matrix_world lives only
+        until the walk moves on)."""
+        obj = instance.object
+        key = (obj.original.as_pointer(), obj.data.as_pointer())
+        known = self.objects.get(key)
+        if known is None:
+            materials = evaluated_materials(obj)
+            use_key = (key[1], _material_key(materials))
+            use = self.uses.get(use_key)
+            if use is None:
+                use = self.uses[use_key] = MeshUse(instance_name(instance), obj.data, materials)
+            known = self.objects[key] = (use, forces_sphere(obj))
+        use, forced = known
+        use.matrices.append(bytes(instance.matrix_world))
+        use.names.append(obj.name if own_geometry(instance) else None)
+        use.forced.append(forced)
 
     def add_bulk(self, mesh, materials: tuple, matrices: np.ndarray, display_name: str) -> None:
         """Instances of one evaluated mesh given as (K, 4, 4) world matrices (instances read
         in bulk, ``instances``)."""
-        key = (mesh.as_pointer(), tuple(m.as_pointer() if m else 0 for m in materials))
+        key = (mesh.as_pointer(), _material_key(materials))
         use = self.uses.get(key)
         if use is None:
             use = self.uses[key] = MeshUse(display_name, mesh, materials)

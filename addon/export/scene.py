@@ -36,11 +36,11 @@ import bpy
 from ...core import Scene, SceneError
 from ..utils.colour import colour_from_blender
 from .camera import export_camera
-from .context import ExportContext
+from .context import ExportContext, instance_name
 from .errors import ExportError
 from .instances import InstanceExporter
 from .lights import export_point_light
-from .meshes import MeshExporter
+from .meshes import EVALUATED_AS_MESH, MeshExporter
 from .pointclouds import export_point_cloud
 
 #: The scene-linear space Glint's sRGB conversions assume (Blender's default; Blender 5.0
@@ -49,9 +49,6 @@ WORKING_SPACE = "Linear Rec.709"
 
 #: Object types that never draw anything in a render, so skipping them needs no warning.
 NON_RENDERING_TYPES = {'CAMERA', 'EMPTY', 'LIGHT_PROBE', 'SPEAKER', 'ARMATURE', 'LATTICE'}
-#: Object types whose evaluated mesh the depsgraph yields as a MESH instance of the object
-#: itself; their own entry has nothing more to draw.
-EVALUATED_AS_MESH = {'CURVE', 'FONT', 'SURFACE', 'META'}
 
 
 def _collections_hidden_for_render() -> set:
@@ -70,11 +67,17 @@ class _RenderVisibility:
     def __init__(self, depsgraph):
         self.filter = depsgraph.mode != 'RENDER'
         self.hidden_collections = _collections_hidden_for_render() if self.filter else set()
+        self.hidden_objects: dict[int, bool] = {}  # original object pointer -> hidden
 
     def _hidden(self, obj) -> bool:
-        collections = obj.users_collection
-        return obj.hide_render or bool(collections) and all(
-            collection.name in self.hidden_collections for collection in collections)
+        # Once per object: users_collection searches every collection.
+        key = obj.as_pointer()
+        hidden = self.hidden_objects.get(key)
+        if hidden is None:
+            collections = obj.users_collection
+            hidden = self.hidden_objects[key] = obj.hide_render or bool(collections) and all(
+                collection.name in self.hidden_collections for collection in collections)
+        return hidden
 
     def __call__(self, instance) -> bool:
         if not self.filter:
@@ -87,15 +90,6 @@ class _RenderVisibility:
             return False
         parent = instance.parent if instance.is_instance else None
         return parent is None or not self._hidden(parent.original)
-
-
-def instance_name(instance) -> str:
-    """How warnings and sets name an instance: 'object (instanced by parent)', or the object's
-    name for its own evaluated geometry (a curve's mesh is an instance of the curve)."""
-    name = instance.object.name
-    if instance.is_instance and instance.parent is not None and instance.parent.name != name:
-        return f"{name} (instanced by {instance.parent.name})"
-    return name
 
 
 def world_colour(world) -> tuple[tuple[float, float, float], str | None]:
@@ -133,19 +127,34 @@ def export_light(context, obj, matrix, name: str) -> None:
         raise ExportError(str(error)) from None  # the core's message names the light
 
 
+def _render_camera(depsgraph, camera_override):
+    """The scene's render camera as a core camera, or None when it has none (or one Glint
+    cannot render through)."""
+    try:
+        return export_camera(depsgraph, camera_override)
+    except ExportError:
+        return None
+
+
 def export_scene(depsgraph, camera_override=None, *, view_camera=None
                  ) -> tuple[Scene, list[str]]:
     """(core Scene, warnings) for an evaluated depsgraph.
 
     camera_override: the camera object to render through instead of the scene camera (the
     render engine's ``camera_override``).  view_camera: a core camera to use instead of any
-    Blender camera (the viewport renders its own view, with or without a scene camera).
+    Blender camera (the viewport renders its own view, with or without a scene camera).  The
+    sphere-or-triangles rule (``geometry``) always judges from the scene's render camera, so
+    the viewport draws the shapes the final render will; without one, sphere-like meshes are
+    analytic spheres.
     Raises ExportError, naming the culprit, when the scene cannot be rendered at all (no
     camera, a panoramic camera, invalid values).
     """
-    camera = view_camera if view_camera is not None else export_camera(depsgraph,
-                                                                      camera_override)
-    context = ExportContext.for_camera(camera)
+    if view_camera is None:
+        camera = export_camera(depsgraph, camera_override)
+        context = ExportContext.for_camera(camera)
+    else:
+        context = ExportContext.for_camera(view_camera, _render_camera(depsgraph,
+                                                                       camera_override))
     visible = _RenderVisibility(depsgraph)
     meshes = MeshExporter(context)
     bulk = InstanceExporter(context, meshes, visible)
@@ -158,11 +167,7 @@ def export_scene(depsgraph, camera_override=None, *, view_camera=None
         obj = instance.object
         kind = obj.type
         if kind == 'MESH':
-            if instance.is_instance:
-                meshes.add(obj, instance.matrix_world, None, instance_name(instance))
-            else:
-                name = obj.name
-                meshes.add(obj, instance.matrix_world, name, name)
+            meshes.add(instance)
         elif kind == 'LIGHT':
             export_light(context, obj, [list(row) for row in instance.matrix_world],
                          instance_name(instance))

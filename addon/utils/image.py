@@ -14,6 +14,8 @@ import bpy
 import numpy as np
 
 COLOUR_SPACE = 'Non-Color'
+#: Blender's datablock names: MAX_ID_NAME (66) minus the 2-byte type code and the final NUL.
+MAX_NAME_BYTES = 63
 
 
 class ImageError(Exception):
@@ -27,6 +29,12 @@ def check_image_name(name: str) -> None:
     if not name.strip():
         raise ImageError("the Glint image name is empty: type the name of the image to render "
                          "into")
+    size = len(name.encode("utf-8"))
+    if size > MAX_NAME_BYTES:
+        # Blender would cut the name short, so the image would never be found again under
+        # it: every render would make a new one.
+        raise ImageError(f"the Glint image name '{name[:20]}...' is {size} bytes long; "
+                         f"Blender names hold at most {MAX_NAME_BYTES}: shorten it")
     image = bpy.data.images.get(name)
     if image is not None and image.source != 'GENERATED':
         raise ImageError(f"image '{name}' is a {image.source.lower()} image, which Glint does "

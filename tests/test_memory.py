@@ -1,0 +1,114 @@
+"""Memory is planned, not discovered: the plan bounds what a render really allocates, a
+render that cannot fit is refused at once with one line, and every step after tracing works
+in place or a block of rows at a time.
+
+Sizes stay small here (at most 1024 x 1024, or a 2K image for the streaming steps); the 8K
+and 16K peak-RSS figures in the README were measured with the command given there, not in CI.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tracemalloc
+
+import numpy as np
+import pytest
+
+import core
+from core import memory
+from core.png import decode_png, write_png
+
+REPOSITORY = __file__.rsplit("/tests/", 1)[0]
+
+
+def traced_peak(function):
+    tracemalloc.start()
+    try:
+        result = function()
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    return result, peak
+
+
+def spheres_scene(count, size=64, soft=True):
+    rng = np.random.default_rng(7)
+    centres = rng.uniform(-5, 5, (count, 3)) + (0, 0, -12)
+    spheres = tuple(core.Sphere(tuple(c), 0.05, name=f"s{i}") for i, c in enumerate(centres))
+    return core.Scene(camera=core.ScreenCamera(size, size), spheres=spheres,
+                      lights=(core.PointLight((5, 5, 5), radius=0.5 if soft else 0.0),))
+
+
+CASES = {
+    "article 1024x1024, 2 threads": (lambda: core.article_scene(1024, 1024),
+                                     core.RenderSettings(threads=2)),
+    "article 512x512, fixed 64 samples": (lambda: core.article_scene(512, 512),
+                                          core.RenderSettings(threads=2, anti_aliasing="fixed",
+                                                              samples=64)),
+    "5,000 spheres at 64x64, soft light": (lambda: spheres_scene(5000),
+                                           core.RenderSettings(threads=2, light_samples=16)),
+}
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_the_plan_covers_what_a_render_allocates_without_wild_overestimates(case):
+    make_scene, settings = CASES[case]
+    scene = make_scene()
+    result, peak = traced_peak(lambda: core.render(scene, settings))
+    plan = memory.plan(scene, settings, result.image.dtype, settings.threads)
+    assert plan.image == result.image.nbytes
+    assert peak <= plan.total, f"allocated {peak / 1e6:.0f} MB, planned {plan.total / 1e6:.0f}"
+    assert plan.total < 12 * peak, "the plan refuses far more than it needs to"
+
+
+def test_a_render_that_cannot_fit_is_refused_before_tracing_in_one_line():
+    scene = core.article_scene(100_000, 100_000)
+    with pytest.raises(memory.NotEnoughMemory) as raised:
+        core.render(scene, core.RenderSettings())
+    message = str(raised.value)
+    assert "100000x100000 render needs about 320.0 GB" in message
+    assert "lower the resolution" in message and "\n" not in message
+
+
+def test_the_advice_names_the_largest_term():
+    settings = core.RenderSettings()
+    small = core.article_scene(64, 64)
+    plan = memory.plan(small, settings, np.float32, threads=2)
+    assert "resolution" in memory.MemoryPlan(10**12, plan.tracing, plan.scene).what_to_lower()
+    assert "spheres" in memory.MemoryPlan(plan.image, plan.tracing, 10**12).what_to_lower()
+    with pytest.raises(memory.NotEnoughMemory, match="fewer spheres"):
+        memory.check(memory.MemoryPlan(1, 1, 10**12), 64, 64, available=10**9)
+    memory.check(memory.MemoryPlan(1, 1, 10**6), 64, 64, available=10**9)  # fits
+
+
+@pytest.mark.parametrize("arguments, words", [
+    (["--width", "100000", "--height", "100000"], ["100000x100000", "GB", "resolution"]),
+])
+def test_python_m_core_refuses_a_size_that_cannot_fit_in_one_line(tmp_path, arguments, words):
+    result = subprocess.run([sys.executable, "-m", "core", *arguments, "--output",
+                             str(tmp_path / "o.png")], capture_output=True, text=True,
+                            cwd=REPOSITORY, timeout=120)
+    assert result.returncode == 2
+    (line,) = result.stderr.strip().splitlines()
+    assert all(word in line for word in words)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_png_writer_streams_rows(tmp_path):
+    rng = np.random.default_rng(3)
+
+    def peak_for(height):
+        image = rng.random((height, 2048, 4)).astype(np.float32)
+        path = tmp_path / f"{height}.png"
+        _, peak = traced_peak(lambda: write_png(str(path), image, convert=lambda r: r * 1.0))
+        expected = np.round(np.clip(image, 0, 1) * 255).astype(np.uint8)
+        np.testing.assert_array_equal(decode_png(path.read_bytes()), expected)
+        return peak, image.nbytes
+
+    short, _ = peak_for(256)
+    tall, tall_bytes = peak_for(2048)
+    # A block of rows converted, quantised and compressed at a time: eight times the rows
+    # cost no more memory (a whole-image conversion would cost 8x, and more than the image).
+    assert tall < 1.5 * short, f"{short / 1e6:.1f} MB for 256 rows, {tall / 1e6:.1f} for 2048"
+    assert tall < tall_bytes / 4
