@@ -234,6 +234,13 @@ def test_the_refinement_schedule():
     assert [p.divisor for p in refinement_schedule(1574, 954, dataclasses.replace(
         settings, anti_aliasing="off"))] == [d, 1]
     assert [p.divisor for p in refinement_schedule(120, 90, settings)] == [1, 1]
+    # Fixed anti-aliasing with many samples gets a 4-sample pass before its own.
+    fixed = refinement_schedule(1574, 954, dataclasses.replace(settings, anti_aliasing="fixed",
+                                                               samples=64))
+    assert [(p.settings.anti_aliasing, p.settings.samples) for p in fixed[2:]] == [
+        ("fixed", 4), ("fixed", 64)]
+    assert [p.divisor for p in refinement_schedule(1574, 954, dataclasses.replace(
+        settings, anti_aliasing="fixed", samples=4))] == [d, 1, 1]
     # Pixel Size 2: everything at half resolution, the coarse pass coarser still.
     halved = refinement_schedule(1574, 954, settings, pixel_size=2)
     assert [p.divisor for p in halved][1:] == [2, 2] and halved[0].divisor >= 4

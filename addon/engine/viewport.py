@@ -37,6 +37,8 @@ from .job import failure_message, finish_image
 #: resolution), so the first picture of a small scene comes back in a few hundredths of a
 #: second whatever the size of the viewport.
 COARSE_PIXELS = 25_000
+#: Fixed anti-aliasing with more samples than this gets a pass with this many first.
+PREVIEW_SAMPLES = 4
 #: Tiles of the viewport's passes: small, so that a cancel is honoured within a few
 #: milliseconds of tracing.
 VIEWPORT_TILE = 64
@@ -226,7 +228,9 @@ def refinement_schedule(width: int, height: int, settings: RenderSettings,
        when the view is already small enough;
     2. the resolution (divided by ``pixel_size``, Blender's viewport Pixel Size), one ray
        through each pixel centre;
-    3. the scene's own anti-aliasing (its settings unchanged, so the last picture is what F12
+    3. with fixed anti-aliasing of more than PREVIEW_SAMPLES samples, first PREVIEW_SAMPLES
+       of them (a smooth picture for a fraction of the final pass's time);
+    4. the scene's own anti-aliasing (its settings unchanged, so the last picture is what F12
        renders of the same view); left out when anti-aliasing is off.
     """
     base = dataclasses.replace(settings, anti_aliasing="off", tile_size=VIEWPORT_TILE)
@@ -234,6 +238,9 @@ def refinement_schedule(width: int, height: int, settings: RenderSettings,
     if (width // pixel_size) * (height // pixel_size) > COARSE_PIXELS:
         passes.append(RefinementPass(coarse_divisor(width, height, pixel_size), base))
     passes.append(RefinementPass(pixel_size, base))
+    if settings.anti_aliasing == "fixed" and settings.samples > PREVIEW_SAMPLES:
+        passes.append(RefinementPass(pixel_size, dataclasses.replace(
+            settings, samples=PREVIEW_SAMPLES, tile_size=VIEWPORT_TILE)))
     if settings.anti_aliasing != "off":
         passes.append(RefinementPass(pixel_size, dataclasses.replace(
             settings, tile_size=VIEWPORT_TILE)))
