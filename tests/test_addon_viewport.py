@@ -502,3 +502,23 @@ def test_an_empty_render_border_draws_nothing():
         viewport_engine.view_draw(engine, context, graph)
 
     assert drawer.frames == [] and viewport_engine.session.render is None
+
+
+def test_dropping_the_viewport_engine_stops_its_worker():
+    import gc
+
+    from glint.addon.engine.viewport import ViewportEngine
+
+    scene, settings, transparent, size, view = viewport_inputs(640, 480)
+    viewport_engine = ViewportEngine()
+    viewport_engine.session.update_scene(
+        scene, dataclasses.replace(settings, anti_aliasing="fixed", samples=64), transparent,
+        size)
+    viewport_engine.session.update_view(view)
+    progressive = viewport_engine.session.render
+
+    del viewport_engine
+    gc.collect()
+
+    assert progressive.cancelled and progressive.wait(timeout=60)
+    assert progressive.frame is None or not progressive.frame.final

@@ -1,8 +1,9 @@
 """The viewport's Rendered shading: what the 3D View shows, traced progressively.
 
-The engine's ``view_update`` / ``view_draw`` hand over to a ``ViewportSession`` (one per
-engine instance, i.e. per 3D View in Rendered mode).  Everything here except
-``ViewportView.from_context`` works on plain data, so the tests drive it headless:
+The engine's ``view_update`` / ``view_draw`` hand over to a ``ViewportEngine`` (one per
+engine instance, i.e. per 3D View in Rendered mode), which exports the scene, reports, draws
+(``addon.draw.viewport``) and keeps a ``ViewportSession``.  Everything below it works on plain
+data (Blender's matrices, core scenes), so the tests drive it headless:
 
 * ``view_camera``: a region's view and projection matrices (``RegionView3D.view_matrix`` /
   ``window_matrix``) -> a ``core.BlenderCamera`` whose rays are the rays through the region's
@@ -12,7 +13,8 @@ engine instance, i.e. per 3D View in Rendered mode).  Everything here except
 * ``camera_frame_rect``: where the scene camera's frame lies in the region (camera view),
   and so where its render border lies.
 * ``refinement_schedule``: the passes a view goes through: a coarse pass at a fraction of the
-  resolution, then full resolution at pixel centres, then the scene's anti-aliasing.
+  resolution, then full resolution at pixel centres, then the scene's anti-aliasing (a
+  4-sample pass first when that is fixed with more samples).
 * ``ProgressiveRender``: those passes on a worker thread (NumPy only, no Blender data),
   cancelled between tiles as soon as the user edits again.
 * ``ViewportSession``: re-renders only when the exported scene or the view changed.
@@ -483,6 +485,12 @@ class ViewportEngine:
             watch_for_frames(self)
 
     def free(self) -> None:
+        self.session.stop()
+
+    def __del__(self):
+        # The engine holds the only reference: when Blender frees it (Rendered shading ends,
+        # the 3D View closes), this goes too and the worker stops, even where the engine's
+        # own __del__ can no longer reach its attributes.
         self.session.stop()
 
     def has_undrawn_frame(self) -> bool:
