@@ -21,7 +21,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .camera import camera_rays
+from .camera import camera_rays, has_aperture
 from .context import RayStats, TraceContext, make_context
 from .cull import PACKET_SIZE
 from . import memory
@@ -76,9 +76,10 @@ def _tiles(width: int, height: int, size: int):
             for y in range(0, height, size) for x in range(0, width, size)]
 
 
-def _trace_positions(ctx: TraceContext, camera, xs, ys, stats):
-    """(rgb clipped (n, 3), coverage (n,), signature (n,)) for sample positions xs, ys (n,)."""
-    rays = camera_rays(camera, xs, ys, ctx.dtype)
+def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None):
+    """(rgb clipped (n, 3), coverage (n,), signature (n,)) for sample positions xs, ys (n,)
+    (and aperture positions lens (2, n) for a thin-lens camera)."""
+    rays = camera_rays(camera, xs, ys, ctx.dtype, lens)
     result = trace_bundle(ctx, rays, stats)
     return np.clip(result.colour.T, 0, 1), result.coverage, result.signature
 
@@ -120,11 +121,24 @@ def _supersample(ctx, camera, cols, rows, count, stats, stop=None):
         part = slice(first, first + pixels_per_bundle)
         xs = (cols[part, None] + offsets[None, :, 0]).ravel()
         ys = (rows[part, None] + offsets[None, :, 1]).ravel()
-        colour, hit, _ = _trace_positions(ctx, camera, xs, ys, stats)
+        lens = lens_samples(cols[part], rows[part], offsets) if has_aperture(camera) else None
+        colour, hit, _ = _trace_positions(ctx, camera, xs, ys, stats, lens)
         rgb[part] = colour.reshape(-1, count, 3).mean(axis=1)
         coverage[part] = hit.reshape(-1, count).mean(axis=1)
     stats.supersampled_pixels += len(cols)
     return rgb, coverage
+
+
+def lens_samples(cols, rows, offsets) -> np.ndarray:
+    """(2, n * count) aperture positions in [0, 1)^2 for ``count`` samples in each pixel
+    (cols, rows) (n,): the pixel offsets' sequence with its axes swapped (so a sample's lens
+    position is not its pixel position), shifted per pixel by an R2 point of the pixel's own
+    index (Cranley-Patterson rotation), so neighbouring pixels do not repeat one pattern."""
+    g = 1.32471795724474602596
+    index = (rows.astype(np.float64) * 7919.0 + cols)[:, None]
+    shift = (index * np.array([1 / g, 1 / (g * g)])) % 1.0            # (n, 2)
+    lens = (offsets[None, :, ::-1] + shift[:, None, :]) % 1.0           # (n, count, 2)
+    return lens.reshape(-1, 2).T
 
 
 def _edges(signature: np.ndarray) -> np.ndarray:
@@ -148,6 +162,8 @@ def render_tile(ctx: TraceContext, camera, tile, stop: Optional[threading.Event]
     h, w = y1 - y0, x1 - x0
     stats = RayStats(tiles=1)
     mode = ctx.settings.anti_aliasing
+    if mode == "adaptive" and has_aperture(camera):
+        mode = "fixed"  # defocus blurs every pixel, not only those on an edge
     rgba = np.empty((h, w, 4), ctx.dtype)
     cols, rows = _pixel_grid(y0, y1, x0, x1)
     if mode == "fixed":

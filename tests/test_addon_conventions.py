@@ -9,6 +9,7 @@ import sys
 
 import bpy
 import numpy as np
+import pytest
 
 from addon_support import (RENDER_SCRIPT, REPOSITORY, add_sphere, depsgraph, glint, link,
                            prepare_job, read_image, read_png, simple_scene, to_rgba8)
@@ -142,3 +143,44 @@ def test_each_choice_list_is_defined_once_in_the_core():
         raise AssertionError("accepted a value outside the list")
     except SceneError as error:
         assert "'off', 'fixed', 'adaptive'" in str(error)
+
+
+def test_depth_of_field_is_read_as_cycles_reads_it_and_blurs_like_cycles(tmp_path):
+    from addon_support import add_camera, add_point_light, empty_file
+
+    scene = empty_file()
+    scene.render.resolution_x, scene.render.resolution_y = 160, 80
+    scene.render.film_transparent = True
+    add_sphere("ball", (0.0, 0.0, 0.0), 1.0)
+    add_point_light()
+    cam = add_camera(location=(0.0, -10.0, 0.0))
+    target = link(bpy.data.objects.new("focus", None))
+    target.location = (0.0, -5.0, 3.0)            # 5 in front of the camera along its axis
+    dof = cam.data.dof
+    dof.use_dof, dof.focus_object, dof.aperture_fstop = True, target, 0.125
+    scene.glint.anti_aliasing, scene.glint.samples = 'FIXED', 256
+
+    exported = prepare_job(depsgraph()).scene.camera
+    assert exported.aperture_radius == pytest.approx(50e-3 / (2 * 0.125))   # 0.2
+    assert exported.focus_distance == pytest.approx(5.0, rel=1e-6)
+
+    def alpha_row(engine):
+        scene.render.engine = engine
+        scene.render.filepath = str(tmp_path / f"{engine}.png")
+        scene.render.image_settings.color_mode = 'RGBA'
+        bpy.ops.render.render(write_still=True)
+        return read_png(str(tmp_path / f"{engine}.png"))[40, :, 3] / 255.0
+
+    scene.cycles.samples, scene.cycles.use_denoising = 256, False
+    scene.cycles.pixel_filter_type, scene.render.filter_size = 'BOX', 1.0
+    glint_alpha, cycles_alpha = alpha_row('GLINT'), alpha_row('CYCLES')
+    # The ball's silhouette (depth about 10, focus at 5) spreads over a circle of confusion
+    # of radius 0.2 * |10 - 5| / 5 = 0.2, i.e. 4.4 px (a pixel there is 10 * 0.72 / 160 =
+    # 0.045 wide): both engines blur it over the same pixels.  256 samples leave about 0.03
+    # of coverage noise in each; the 32 x 16 UV sphere Cycles draws sags by under 2 % of r.
+    partial = lambda row: ((row > 0.02) & (row < 0.98)).sum()   # noqa: E731
+    print("partial pixels glint", partial(glint_alpha), "cycles", partial(cycles_alpha),
+          "max alpha difference", np.abs(glint_alpha - cycles_alpha).max())
+    assert partial(glint_alpha) >= 12   # both edges, about 7 px each (test_core_depth_of_field)
+    assert abs(partial(glint_alpha) - partial(cycles_alpha)) <= 2
+    assert np.abs(glint_alpha - cycles_alpha).max() < 0.15
