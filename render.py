@@ -8,10 +8,10 @@
 Both do the same job.  Without a .blend, the article's scene is built in Blender
 (``addon.utils.article_scene``).  Options override the scene's settings; everything else
 (camera, objects, materials, world, Film > Transparent, ...) comes from the .blend.  The
-frame is rendered by Glint's render engine, exactly as F12 would render it, and the PNG holds
-the core's own values (independent of Blender's view transform; with view transform
-Standard, Blender's saved render matches it within 1/255).  With Film > Transparent, alpha is
-the spheres' coverage and the background is transparent.
+frame is rendered by Glint's render engine, exactly as F12 would render it, and the PNG is
+what Blender's colour management (view transform, look, exposure) makes of it: the pixels F12
+saves and the Render button's Image shows (``write_output``).  With Film > Transparent, alpha
+is the spheres' coverage and the background is transparent.
 
 How the add-on is loaded: this file sits in the repository root, which is the extension
 package itself (``__init__.py``, ``addon/``, ``core/``).  ``import_glint`` loads that directory
@@ -48,9 +48,9 @@ REPOSITORY = os.path.dirname(os.path.abspath(__file__))
 PACKAGE_NAME = "glint"
 PROGRAM = "render.py"
 
-#: Limits checked before anything is loaded: Blender's resolution_x/y hard maximum, and the
+#: Limits checked before anything is loaded: Blender's resolution_x/y hard limits, and the
 #: core's (core.scene.MAX_SAMPLES, MAX_DEPTH; repeated, as the package is imported later).
-MAX_RESOLUTION = 65536
+MIN_RESOLUTION, MAX_RESOLUTION = 4, 65536
 MAX_SAMPLES = 16384
 MAX_DEPTH = 256
 
@@ -165,11 +165,13 @@ def _positive_int(text: str) -> int:
     return value
 
 
-def _at_most(maximum: int):
+def _at_most(maximum: int, minimum: int = 1):
     def parse(text: str) -> int:
         value = _positive_int(text)
         if value > maximum:
             raise argparse.ArgumentTypeError(f"must be at most {maximum}, got {value}")
+        if value < minimum:  # Blender would silently raise it
+            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
         return value
     return parse
 
@@ -205,8 +207,9 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--output", required=True,
                         help="PNG or EXR file to write; #### is replaced by the frame number, "
                              "zero-padded to the number of #")
-    parser.add_argument("--width", type=_at_most(MAX_RESOLUTION), help="resolution X in pixels")
-    parser.add_argument("--height", type=_at_most(MAX_RESOLUTION),
+    parser.add_argument("--width", type=_at_most(MAX_RESOLUTION, MIN_RESOLUTION),
+                        help="resolution X in pixels")
+    parser.add_argument("--height", type=_at_most(MAX_RESOLUTION, MIN_RESOLUTION),
                         help="resolution Y in pixels")
     parser.add_argument("--percentage", type=_percentage, help="resolution percentage")
     parser.add_argument("--samples", type=_at_most(MAX_SAMPLES),
@@ -351,15 +354,68 @@ def render_scene(scene, interruption: Interruption, progress=None, fill_render_r
     return request.frames[-1]
 
 
-def write_output(path: str, image, should_cancel=None) -> None:
+def write_output(path: str, image, should_cancel=None, *, scene=None, job=None) -> None:
+    """Write the frame as an 8-bit RGBA PNG, atomically.
+
+    With the Blender ``scene`` and the ``job`` that rendered ``image`` (the job's image, row
+    0 = top): what Blender's colour management makes of the render result, as F12 saves it
+    and as the Render button's Image shows it (one pipeline): the job's scene-linear pixels
+    (``RenderJob.scene_linear``) go into a temporary float Image in the working space with
+    *View as Render* on, which ``Image.save_render`` writes through the scene's view
+    transform, look, exposure, gamma and dither; the scene's output format is left as it
+    was.  Without them: the image's own values (display values) straight into the PNG."""
     from glint.addon.utils.colour import unpremultiply
-    from glint.core.png import write_png
+    from glint.core.png import write_atomically, write_png
 
     try:
-        # PNG stores straight alpha.
-        write_png(path, image, convert=unpremultiply, should_cancel=should_cancel)
+        if scene is None or job is None:
+            # PNG stores straight alpha.
+            write_png(path, image, convert=unpremultiply, should_cancel=should_cancel)
+        else:
+            write_atomically(path, _colour_managed_png(scene, job.scene_linear(image)))
     except OSError as error:
         raise RenderScriptError(f"cannot write {path}: {error.strerror or error}") from None
+
+
+def _colour_managed_png(scene, linear) -> bytes:
+    """PNG bytes of premultiplied scene-linear (H, W, 4) pixels (row 0 = top) saved by
+    Blender with ``scene``'s colour management (``write_output``)."""
+    import tempfile
+
+    import bpy
+    import numpy as np
+
+    from glint.addon.utils.image import COLOUR_SPACE
+
+    height, width = linear.shape[:2]
+    image = bpy.data.images.new(".glint render.py output", width, height, alpha=True,
+                                float_buffer=True)
+    settings = scene.render.image_settings
+    names = [name for name in ("media_type", "file_format", "color_mode", "color_depth")
+             if hasattr(settings, name)]
+    previous = {name: getattr(settings, name) for name in names}
+    handle, temporary = tempfile.mkstemp(prefix=".glint-", suffix=".png")
+    os.close(handle)
+    try:
+        image.colorspace_settings.name = COLOUR_SPACE
+        image.alpha_mode = 'PREMUL'
+        image.use_view_as_render = True
+        image.pixels.foreach_set(np.ascontiguousarray(linear[::-1], np.float32).ravel())
+        if "media_type" in previous:
+            settings.media_type = 'IMAGE'
+        settings.file_format, settings.color_mode, settings.color_depth = 'PNG', 'RGBA', '8'
+        try:
+            image.save_render(temporary, scene=scene)
+        except RuntimeError as error:
+            reason = str(error).strip().splitlines()[-1].removeprefix("Error: ")
+            raise OSError(reason) from None
+        with open(temporary, "rb") as stream:
+            return stream.read()
+    finally:
+        for name, value in previous.items():
+            setattr(settings, name, value)
+        bpy.data.images.remove(image)
+        os.unlink(temporary)
 
 
 # --------------------------------------------------------------------------------------------
@@ -573,7 +629,8 @@ def render_frame(scene, args, interruption: Interruption, path: str, label: str 
     finally:
         progress.end()
     if fmt == "png":
-        write_output(path, result.image, should_cancel=interruption.requested)
+        write_output(path, result.image, should_cancel=interruption.requested, scene=scene,
+                     job=job)
     else:
         write_exr(scene, path, multilayer=fmt == "multilayer-exr")
     return job, result

@@ -60,7 +60,7 @@ class GLINT_OT_render(bpy.types.Operator):
 
     def _store(self, job, result, image_name: str, seconds: float):
         try:
-            write_image(image_name, result.image)
+            write_image(image_name, job.scene_linear(result.image))
         except ImageError as error:
             self.report({'ERROR'}, str(error))
             return {'CANCELLED'}

@@ -1,4 +1,4 @@
-"""Glint's core: a pure Python + NumPy ray tracer for spheres and point lights (no bpy).
+"""Glint's core: a pure Python + NumPy ray tracer for spheres and Blender's lights (no bpy).
 
 Public API::
 
@@ -7,8 +7,10 @@ Public API::
                       SceneError, RenderCancelled)
 
     result = render(scene, RenderSettings(...), progress=None, should_cancel=None)
-    result.image      # (H, W, 4) float64 or float32, row 0 = TOP; RGB clipped to [0, 1];
+    result.image      # (H, W, 4) float64 or float32, row 0 = TOP; RGB: article semantics
+                      # clipped to [0, 1], default semantics unclipped scene-linear radiance;
                       # alpha = fraction of the pixel whose camera ray hit a sphere
+    result.display()  # display values for an 8-bit file (view transform Standard)
     result.stats      # RayStats: camera_rays, shadow_rays, reflection_rays, ...
     result.precision  # 'float64' or 'float32', the precision the render ran in
 
@@ -17,12 +19,14 @@ and a True answer raises RenderCancelled.  Invalid scenes or settings raise Scen
 ValueError) naming the field, before any ray is traced.
 """
 
-from .scene import (BlenderCamera, Material, PointLight, RenderSettings, Scene, SceneError,
-                    ScreenCamera, Sphere, SphereSet, TriangleMesh)
+from .scene import (AreaLight, BlenderCamera, Material, PointLight, RenderSettings, Scene,
+                    SceneError, ScreenCamera, Sphere, SphereLight, SphereSet, SpotLight,
+                    SunLight, SurfaceMaterial, TriangleMesh)
 from .render import RayStats, RenderCancelled, RenderResult, render
 from .article import article_scene, article_settings
 
 __all__ = [
+    "AreaLight", "SphereLight", "SpotLight", "SunLight", "SurfaceMaterial",
     "BlenderCamera", "Material", "PointLight", "RenderSettings", "Scene", "SceneError",
     "ScreenCamera", "Sphere", "SphereSet", "TriangleMesh", "RayStats", "RenderCancelled",
     "RenderResult", "render",

@@ -78,7 +78,7 @@ def main(argv=None) -> int:
             with atomic_file(args.output) as stream:
                 np.save(stream, result.image)  # streamed from the array, no copy
         else:
-            write_png(args.output, result.image)
+            write_png(args.output, result.display())
     except (SceneError, OSError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

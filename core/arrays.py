@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene import Scene
+from .scene import PointLight, Scene
 
 
 @dataclass(frozen=True)
@@ -53,13 +53,15 @@ class TriangleArrays:
 class MaterialArrays:
     """The scene's material table (M entries): ambient / diffuse / specular (M, 3)
     reflectances, exponent (M,) = shininess / 4 (the article's Blinn-Phong exponent),
-    reflection (M,)."""
+    reflection (M,); entries: the M core materials themselves (``core.bsdf`` reads the
+    physically based ones' lobes)."""
 
     ambient: np.ndarray
     diffuse: np.ndarray
     specular: np.ndarray
     exponent: np.ndarray
     reflection: np.ndarray
+    entries: tuple = ()
 
     def __len__(self) -> int:
         return len(self.reflection)
@@ -113,7 +115,8 @@ class _MaterialTable:
             diffuse=_rows([m.diffuse for m in table], 3),
             specular=_rows([m.specular for m in table], 3),
             exponent=np.asarray([m.shininess / 4 for m in table], np.float64),
-            reflection=np.asarray([m.reflection for m in table], np.float64))
+            reflection=np.asarray([m.reflection for m in table], np.float64),
+            entries=tuple(table))
 
 
 def _remap(table: _MaterialTable, materials, indices) -> np.ndarray:
@@ -183,7 +186,8 @@ def scene_arrays(scene: Scene) -> SceneArrays:
         radii.append(sphere_set.radii)
         materials.append(_remap(table, sphere_set.materials, sphere_set.material_indices))
     triangles = _triangle_arrays(scene.meshes, table)
-    lights = scene.lights
+    # The article's point lights; Blender's light types are prepared by ``core.lights``.
+    lights = [light for light in scene.lights if isinstance(light, PointLight)]
     return SceneArrays(
         spheres=SphereArrays(np.concatenate(centers), np.concatenate(radii),
                              np.concatenate(materials)),

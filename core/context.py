@@ -12,9 +12,11 @@ import numpy as np
 
 from .aggregate import Aggregate
 from .arrays import scene_arrays
+from .bsdf import SurfaceArrays, surface_arrays
 from .camera import eye_position
 from .rays import ARTICLE_OFFSET, RAY_EPSILON, RayStats, SharedOrigin, ray_offsets
-from .scene import BlenderCamera, RenderSettings, Scene
+from .lights import PreparedLight, fibonacci_sphere, prepare_light
+from .scene import BlenderCamera, PointLight, RenderSettings, Scene
 
 __all__ = ["ARTICLE_OFFSET", "RAY_EPSILON", "RayStats", "ray_offsets", "Lights", "Materials",
            "TraceContext", "make_context"]
@@ -53,6 +55,17 @@ class Lights:
 
 
 @dataclass(frozen=True)
+class LookContext:
+    """What the default semantics' Blender look needs (``core.bsdf``, ``core.lights``): the
+    material table's lobes, Blender's lights prepared for sampling, and whether anything in
+    the scene is physically based (else the article's model runs alone, unchanged)."""
+
+    surfaces: SurfaceArrays
+    lights: tuple[PreparedLight, ...]
+    active: bool
+
+
+@dataclass(frozen=True)
 class TraceContext:
     settings: RenderSettings
     dtype: np.dtype
@@ -65,6 +78,7 @@ class TraceContext:
     background: np.ndarray               # (3,) float64, seen where rays escape
     ambient: np.ndarray                  # (3,) float64 scene ambient (default semantics)
     path_gain_bound: float               # max colour one bounce can add per unit weight
+    look: LookContext | None = None      # default semantics only
 
     @property
     def centers(self):
@@ -75,15 +89,6 @@ class TraceContext:
     def radii(self):
         """(N,) sphere radii, float64."""
         return self.geometry.spheres.radii
-
-
-def _fibonacci_sphere(count: int) -> np.ndarray:
-    """count well-spread unit vectors (count, 3), deterministic."""
-    i = np.arange(count) + 0.5
-    z = 1.0 - 2.0 * i / count
-    phi = np.pi * (1.0 + 5 ** 0.5) * i
-    rho = np.sqrt(1.0 - z * z)
-    return np.stack([rho * np.cos(phi), rho * np.sin(phi), z], axis=1)
 
 
 def make_context(scene: Scene, settings: RenderSettings, dtype, *,
@@ -103,7 +108,7 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
     samples = []
     for position, radius in zip(lights.positions, lights.radii):
         if radius > 0 and not article:
-            samples.append(position + radius * _fibonacci_sphere(settings.light_samples))
+            samples.append(position + radius * fibonacci_sphere(settings.light_samples))
         else:
             samples.append(position[None, :])
     origins = tuple(tuple(geometry.shared_origin(p) for p in s) for s in samples)
@@ -114,6 +119,17 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
         gain = float(max(per_material.max(), arrays.background.max()))
     else:
         gain = float(arrays.background.max())
+    look = None
+    if not article:
+        surfaces = surface_arrays(table.entries, dtype)
+        blender_lights = tuple(prepare_light(light, settings.light_samples, geometry)
+                               for light in scene.lights if not isinstance(light, PointLight))
+        look = LookContext(surfaces, blender_lights,
+                           active=bool(blender_lights) or surfaces.any_physical)
+        if look.active:
+            # Blender's lights have no bound on what a bounce adds (watts, not the article's
+            # unit intensities): paths then stop only where their weight is zero.
+            gain = np.inf
     cast = lambda a: np.ascontiguousarray(a, dtype)  # noqa: E731
     return TraceContext(
         settings=settings, dtype=np.dtype(dtype), article=article, geometry=geometry,
@@ -124,4 +140,5 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
                             cast(table.reflection)),
         eye=eye, camera_origin=geometry.shared_origin(eye) if perspective else None,
         background=arrays.background, ambient=arrays.ambient, path_gain_bound=gain,
+        look=look,
     )

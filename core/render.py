@@ -22,11 +22,12 @@ from typing import Callable, Optional
 import numpy as np
 
 from .camera import camera_rays, has_aperture
+from .colour import linear_to_srgb
 from .context import RayStats, TraceContext, make_context
+from .passes import PrimaryPasses, fill_tile_passes
 from .cull import PACKET_SIZE
 from . import memory
 from .frame import canonical_scene, scene_frame
-from .passes import PrimaryPasses, fill_tile_passes
 from .precision import choose_precision
 from .scene import RenderSettings, Scene, SceneError
 from .trace import trace_bundle
@@ -50,17 +51,31 @@ class RenderError(RuntimeError):
 @dataclass
 class RenderResult:
     """image: (H, W, 4) in the render's precision (or the ``image_dtype`` asked for), row 0 =
-    top, RGB clipped to [0, 1], alpha = fraction of the pixel's samples whose camera ray hit a
-    sphere.  stats: RayStats.  precision: 'float64' or 'float32'.
+    top; RGB: article semantics the article's display values clipped to [0, 1], default
+    semantics unclipped scene-linear radiance (Cycles' units; Blender's colour management
+    turns it into display values); alpha = fraction of the pixel's samples whose camera ray
+    hit a sphere.  stats: RayStats.  precision: 'float64' or 'float32'.
     missed_colour: (3,) float64, what a camera sample that hits nothing adds to its pixel's RGB
-    (the clipped background in default semantics, black in the article's), so a caller can
-    take the background out of a pixel exactly: ``rgb - (1 - alpha) * missed_colour``."""
+    (the background in default semantics, black in the article's), so a caller can take the
+    background out of a pixel exactly: ``rgb - (1 - alpha) * missed_colour``.
+    semantics: the semantics rendered."""
 
     image: np.ndarray
     stats: RayStats
     precision: str
     missed_colour: np.ndarray
+    semantics: str = "article"
     passes: Optional[PrimaryPasses] = None   # render(passes=True): see core.passes
+
+    def display(self) -> np.ndarray:
+        """(H, W, 4) display values in [0, 1] for an 8-bit file: the image itself in article
+        semantics; default semantics' radiance through view transform Standard (clipped,
+        sRGB-encoded), as Blender would show it with that view transform."""
+        if self.semantics == "article":
+            return self.image
+        shown = np.array(self.image, np.float64, copy=True)
+        shown[..., :3] = linear_to_srgb(np.clip(shown[..., :3], 0, 1))
+        return shown
 
 
 def sample_offsets(count: int) -> np.ndarray:
@@ -77,11 +92,13 @@ def _tiles(width: int, height: int, size: int):
 
 
 def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None):
-    """(rgb clipped (n, 3), coverage (n,), signature (n,)) for sample positions xs, ys (n,)
-    (and aperture positions lens (2, n) for a thin-lens camera)."""
+    """(rgb (n, 3), coverage (n,), signature (n,)) for sample positions xs, ys (n,); rgb
+    clipped to [0, 1] per sample in article semantics, unclipped radiance otherwise; lens:
+    aperture positions (2, n) for a thin-lens camera."""
     rays = camera_rays(camera, xs, ys, ctx.dtype, lens)
     result = trace_bundle(ctx, rays, stats)
-    return np.clip(result.colour.T, 0, 1), result.coverage, result.signature
+    rgb = result.colour.T
+    return (np.clip(rgb, 0, 1) if ctx.article else rgb), result.coverage, result.signature
 
 
 def _pixel_grid(y0, y1, x0, x1):
@@ -197,10 +214,11 @@ def render_tile(ctx: TraceContext, camera, tile, stop: Optional[threading.Event]
 
 def missed_colour(scene: Scene, settings: RenderSettings) -> np.ndarray:
     """(3,) what a camera sample that escapes adds to its pixel (see RenderResult): the
-    tracer adds the background only in default semantics, and every sample is clipped."""
+    tracer adds the background only in default semantics, unclipped (only the article's
+    samples are clipped, and it adds none)."""
     if settings.semantics != "default":
         return np.zeros(3)
-    return np.clip(np.asarray(scene.background, np.float64), 0.0, 1.0)
+    return np.asarray(scene.background, np.float64)
 
 
 def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
@@ -270,7 +288,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
                 raise RenderCancelled("render cancelled")
             finish(tile, *work(ctx, scene.camera, tile), done)
         return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
-                            primary)
+                            settings.semantics, primary)
 
     stop = threading.Event()
     with ThreadPoolExecutor(max_workers=threads) as pool:
@@ -304,4 +322,5 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
             for future in pending:
                 future.cancel()
             raise
-    return RenderResult(image, stats, dtype.name, missed_colour(scene, settings), primary)
+    return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
+                        settings.semantics, primary)

@@ -11,8 +11,12 @@ Conventions
   just a different choice of numbers, the tracer does not care.)
 * Lengths are in scene units (Blender units / metres), angles in radians, colours are linear
   RGB triples.
-* Colours and intensities follow the article: a pixel's colour is the sum of Blinn-Phong terms,
-  clipped to [0, 1] at the end.
+* Colours and intensities follow the article for its types (``Material``, ``PointLight``): a
+  pixel's colour is the sum of Blinn-Phong terms, clipped to [0, 1] at the end (article
+  semantics).  The physically based types (``SurfaceMaterial``, ``SphereLight``,
+  ``SpotLight``, ``SunLight``, ``AreaLight``) use Cycles' units: scene-linear Rec.709 radiance
+  in W / (m^2 sr), light power in W, sun strength in W/m^2; default semantics hands the
+  unclipped radiance to Blender (see ``core.lights`` and ``core.bsdf`` for the formulas).
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ Vec3 = tuple[float, float, float]
 
 PROJECTIONS = ("PERSP", "ORTHO")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
+AREA_SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
 
 
 class SceneError(ValueError):
@@ -151,6 +156,144 @@ class Material:
         self.validate()
 
 
+def _unit(name: str, value) -> Vec3:
+    vector = _vec3(name, value)
+    norm = math.sqrt(sum(c * c for c in vector))
+    if norm < 1e-12:
+        raise SceneError(f"{name} must be a non-zero direction, got {value!r}")
+    return tuple(c / norm for c in vector)
+
+
+def _fraction(name: str, value) -> float:
+    number = _finite(name, value)
+    if not 0.0 <= number <= 1.0:
+        raise SceneError(f"{name} must be in [0, 1], got {value!r}")
+    return number
+
+
+def dielectric_f0(ior: float) -> float:
+    """Fresnel reflectance at normal incidence of a dielectric of index ``ior`` in air."""
+    return ((ior - 1.0) / (ior + 1.0)) ** 2
+
+
+@dataclass(frozen=True)
+class SurfaceMaterial:
+    """A physically based surface as a sum of lobes, in Cycles' units (scene-linear colours).
+
+    diffuse: Lambertian albedo a (radiance a E / pi under irradiance E).
+    specular_f0, specular_f90: the glossy lobe's reflectance at normal and grazing incidence;
+        Schlick's curve F(c) = f0 + (f90 - f0) (1 - c)^5 between them.  A Glossy BSDF of colour
+        c is f0 = f90 = c; Principled's dielectric layer f0 = ((ior - 1) / (ior + 1))^2.
+    roughness: Blender's roughness (alpha = roughness^2).  Lights give a GGX highlight
+        (``core.bsdf``); surfaces with roughness <= ``MIRROR_ROUGHNESS`` also trace a mirror
+        ray.
+    transmission: colour of the light refracted through the surface (Snell's law, ``ior``);
+        ``transmission_fresnel`` in [0, 1]: how much of it Fresnel takes away (1: glass, whose
+        reflected part is the specular lobe; 0: Cycles' Refraction BSDF, all refracted).
+    ior: index of refraction (inside / outside), > 0.
+    emission: emitted radiance (colour x strength), seen by camera and reflection rays.
+    transparency: colour of the light passing straight through (1 - alpha, Transparent BSDF).
+    holdout: weight of a Holdout shader: renders black (and is not otherwise modelled).
+    """
+
+    diffuse: Vec3 = (0.8, 0.8, 0.8)
+    specular_f0: Vec3 = (0.0, 0.0, 0.0)
+    specular_f90: Vec3 = (0.0, 0.0, 0.0)
+    roughness: float = 0.5
+    transmission: Vec3 = (0.0, 0.0, 0.0)
+    transmission_fresnel: float = 1.0
+    ior: float = 1.5
+    emission: Vec3 = (0.0, 0.0, 0.0)
+    transparency: Vec3 = (0.0, 0.0, 0.0)
+    holdout: float = 0.0
+
+    #: Roughness up to which a sharp mirror (and the world seen in it) is traced.
+    MIRROR_ROUGHNESS = 0.2
+
+    def validate(self, where: str = "surface material") -> "SurfaceMaterial":
+        for name in ("diffuse", "specular_f0", "specular_f90", "transmission", "emission",
+                     "transparency"):
+            _set(self, name, _colour(f"{where}.{name}", getattr(self, name)))
+        _set(self, "roughness", _fraction(f"{where}.roughness", self.roughness))
+        _set(self, "transmission_fresnel",
+             _fraction(f"{where}.transmission_fresnel", self.transmission_fresnel))
+        _set(self, "ior", _positive(f"{where}.ior", self.ior))
+        _set(self, "holdout", _fraction(f"{where}.holdout", self.holdout))
+        return self
+
+    def __post_init__(self):
+        self.validate()
+
+    @classmethod
+    def principled(cls, base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5, ior=1.5,
+                   specular=0.5, specular_tint=(1.0, 1.0, 1.0), transmission=0.0,
+                   emission=(0.0, 0.0, 0.0), alpha=1.0) -> "SurfaceMaterial":
+        """Blender's Principled BSDF (its main inputs) as lobes.
+
+        Metallic m and transmission t split the surface: a metal (weight m) reflects with
+        f0 = base colour, f90 = white; the dielectric rest (1 - m) has a specular layer
+        f0 = ((ior - 1) / (ior + 1))^2 * 2 specular * tint (Blender's Specular IOR Level 0.5
+        leaves the IOR's reflectance unchanged), f90 = white, over glass (t: refracts the
+        base colour) and diffuse (1 - t: base colour, minus the f0 the layer reflects at
+        normal incidence).  alpha scales every lobe and lets 1 - alpha pass straight through.
+        emission: colour x strength, added as is (not scaled by alpha here).
+        """
+        base = _colour("principled.base_color", base_color)
+        tint = _colour("principled.specular_tint", specular_tint)
+        m = _fraction("principled.metallic", metallic)
+        t = _fraction("principled.transmission", transmission)
+        a = _fraction("principled.alpha", alpha)
+        level = _non_negative("principled.specular", specular)
+        ior = _positive("principled.ior", ior)
+        f0_dielectric = min(1.0, dielectric_f0(ior) * 2.0 * level)
+        dielectric = (1.0 - m) * a
+        return cls(
+            diffuse=tuple(dielectric * (1.0 - t) * (1.0 - f0_dielectric) * c for c in base),
+            specular_f0=tuple(dielectric * f0_dielectric * k + m * a * c
+                              for c, k in zip(base, tint)),
+            specular_f90=tuple(dielectric * min(1.0, 2.0 * level) * k + m * a
+                               for k in tint),
+            roughness=roughness,
+            transmission=tuple(dielectric * t * c for c in base),
+            ior=ior,
+            emission=emission,
+            transparency=(1.0 - a,) * 3,
+        )
+
+    # The article's Blinn-Phong terms of this surface, for code that shades every material
+    # with them (``core.arrays``, the article's point lights in default semantics): ambient
+    # light is reflected with the albedo, the highlight is a normalised Blinn-Phong lobe of
+    # the matching exponent at normal incidence, and reflection rays are spawned by
+    # ``core.bsdf`` (so 0 here).
+    @property
+    def ambient(self) -> Vec3:
+        return self.diffuse
+
+    @property
+    def shininess(self) -> float:
+        return 4.0 * blinn_exponent(self.roughness)
+
+    @property
+    def specular(self) -> Vec3:
+        scale = (blinn_exponent(self.roughness) + 8.0) / 8.0
+        return tuple(scale * c for c in self.specular_f0)
+
+    @property
+    def reflection(self) -> float:
+        return 0.0
+
+
+#: alpha = roughness^2 is clamped here so that roughness 0 gives a finite exponent.
+MIN_ALPHA = 1e-3
+
+
+def blinn_exponent(roughness: float) -> float:
+    """The Blinn-Phong exponent n = 2 / alpha^2 - 2 matching a Beckmann lobe of roughness
+    alpha = roughness^2 (Walter et al. 2007, eq. 30)."""
+    alpha = max(float(roughness) ** 2, MIN_ALPHA)
+    return 2.0 / alpha ** 2 - 2.0
+
+
 @dataclass(frozen=True)
 class Sphere:
     """A sphere in world space: ``center`` (3,), ``radius`` > 0, a material and a name."""
@@ -164,8 +307,9 @@ class Sphere:
         where = f"sphere {self.name!r}" if self.name else "sphere"
         _set(self, "center", _vec3(f"{where}.center", self.center))
         _set(self, "radius", _positive(f"{where}.radius", self.radius))
-        if not isinstance(self.material, Material):
-            raise SceneError(f"{where}.material must be a Material, got {self.material!r}")
+        if not isinstance(self.material, (Material, SurfaceMaterial)):
+            raise SceneError(f"{where}.material must be a Material or SurfaceMaterial, "
+                             f"got {self.material!r}")
         # Named here: a material shared by many spheres is checked again for each, so an
         # invalid one (built past its own check) names the sphere that uses it.
         self.material.validate(f"{where}.material")
@@ -179,7 +323,8 @@ class PointLight:
         (1, 1, 1) for all three.
     radius: 0 for a point (hard shadows); > 0 makes a spherical light whose shadows are soft
         (visibility averaged over ``RenderSettings.light_samples`` points on it).
-    Use ``PointLight.from_power`` for a Blender light given in watts.
+    ``PointLight.from_power`` maps a Blender light's watts onto this model (what the
+    article semantics exports); ``SphereLight`` is Blender's point light in Cycles' units.
     """
 
     position: Vec3
@@ -216,6 +361,130 @@ class PointLight:
         intensity = tuple(c * scale for c in rgb)
         return cls(position=position, ambient=intensity, diffuse=intensity,
                    specular=intensity, radius=radius, name=name)
+
+
+@dataclass(frozen=True)
+class SphereLight:
+    """Blender's point light in Cycles' units: ``power`` W of ``colour`` from a sphere of
+    ``radius`` (0: a point).  Radiant intensity P colour / (4 pi) W/sr, falling off as 1/d^2;
+    a radius gives soft shadows (``core.lights``)."""
+
+    position: Vec3
+    colour: Vec3 = (1.0, 1.0, 1.0)
+    power: float = 1000.0
+    radius: float = 0.0
+    name: str = ""
+
+    def __post_init__(self):
+        where = f"light {self.name!r}" if self.name else "light"
+        _set(self, "position", _vec3(f"{where}.position", self.position))
+        _set(self, "colour", _colour(f"{where}.colour", self.colour))
+        _set(self, "power", _non_negative(f"{where}.power", self.power))
+        _set(self, "radius", _non_negative(f"{where}.radius", self.radius))
+
+
+@dataclass(frozen=True)
+class SpotLight:
+    """Blender's spot light: a SphereLight masked to a cone around ``direction`` (where the
+    light points, the light's -Z), of full angle ``spot_size`` (radians, in (0, pi]) whose
+    edge is softened over the fraction ``spot_blend`` in [0, 1] (Cycles' smoothstep)."""
+
+    position: Vec3
+    direction: Vec3
+    colour: Vec3 = (1.0, 1.0, 1.0)
+    power: float = 1000.0
+    radius: float = 0.0
+    spot_size: float = math.radians(45.0)
+    spot_blend: float = 0.15
+    name: str = ""
+
+    def __post_init__(self):
+        where = f"light {self.name!r}" if self.name else "light"
+        _set(self, "position", _vec3(f"{where}.position", self.position))
+        _set(self, "direction", _unit(f"{where}.direction", self.direction))
+        _set(self, "colour", _colour(f"{where}.colour", self.colour))
+        _set(self, "power", _non_negative(f"{where}.power", self.power))
+        _set(self, "radius", _non_negative(f"{where}.radius", self.radius))
+        size = _positive(f"{where}.spot_size", self.spot_size)
+        if size > math.pi + 1e-9:
+            raise SceneError(f"{where}.spot_size must be <= pi, got {self.spot_size!r}")
+        _set(self, "spot_size", min(size, math.pi))
+        _set(self, "spot_blend", _fraction(f"{where}.spot_blend", self.spot_blend))
+
+
+@dataclass(frozen=True)
+class SunLight:
+    """Blender's sun: ``strength`` W/m^2 of ``colour`` arriving along ``direction`` (where the
+    light travels, the light's -Z) from a disc of full angle ``angle`` (radians, >= 0: soft
+    shadows).  Irradiance on a surface: strength cos(theta)."""
+
+    direction: Vec3
+    colour: Vec3 = (1.0, 1.0, 1.0)
+    strength: float = 1.0
+    angle: float = 0.0
+    name: str = ""
+
+    def __post_init__(self):
+        where = f"light {self.name!r}" if self.name else "light"
+        _set(self, "direction", _unit(f"{where}.direction", self.direction))
+        _set(self, "colour", _colour(f"{where}.colour", self.colour))
+        _set(self, "strength", _non_negative(f"{where}.strength", self.strength))
+        angle = _non_negative(f"{where}.angle", self.angle)
+        if angle >= math.pi:
+            raise SceneError(f"{where}.angle must be < pi, got {self.angle!r}")
+        _set(self, "angle", angle)
+
+    # A sun has no place; these let code that measures the scene's extent treat all lights
+    # alike (``core.precision``).
+    position = (0.0, 0.0, 0.0)
+    radius = 0.0
+
+
+@dataclass(frozen=True)
+class AreaLight:
+    """Blender's area light: a one-sided ``shape`` ('SQUARE', 'RECTANGLE', 'DISK',
+    'ELLIPSE') centred at ``position``, spanning ``size_x`` along ``axis_x`` and ``size_y``
+    along ``axis_y`` (world units; SQUARE and DISK use size_x for both), emitting ``power`` W
+    of ``colour`` towards ``direction`` (the light's -Z) as a Lambertian emitter of radiance
+    P colour / (pi A), A its area (Cycles' normalisation, checked in ``core.lights``)."""
+
+    position: Vec3
+    direction: Vec3
+    axis_x: Vec3
+    axis_y: Vec3
+    shape: str = "SQUARE"
+    size_x: float = 1.0
+    size_y: float = 1.0
+    colour: Vec3 = (1.0, 1.0, 1.0)
+    power: float = 1000.0
+    name: str = ""
+
+    def __post_init__(self):
+        where = f"light {self.name!r}" if self.name else "light"
+        _set(self, "position", _vec3(f"{where}.position", self.position))
+        for name in ("direction", "axis_x", "axis_y"):
+            _set(self, name, _unit(f"{where}.{name}", getattr(self, name)))
+        _choice(f"{where}.shape", self.shape, AREA_SHAPES)
+        _set(self, "size_x", _positive(f"{where}.size_x", self.size_x))
+        _set(self, "size_y", _positive(f"{where}.size_y", self.size_y))
+        if self.shape in ("SQUARE", "DISK"):
+            _set(self, "size_y", self.size_x)
+        _set(self, "colour", _colour(f"{where}.colour", self.colour))
+        _set(self, "power", _non_negative(f"{where}.power", self.power))
+
+    @property
+    def area(self) -> float:
+        full = self.size_x * self.size_y
+        return full * math.pi / 4.0 if self.shape in ("DISK", "ELLIPSE") else full
+
+    @property
+    def radius(self) -> float:
+        """Half the diagonal: how far the light reaches from its centre."""
+        return 0.5 * math.hypot(self.size_x, self.size_y)
+
+
+#: The light types a Scene holds: the article's, and Blender's in Cycles' units.
+LIGHT_TYPES = (PointLight, SphereLight, SpotLight, SunLight, AreaLight)
 
 
 @dataclass(frozen=True)
@@ -353,7 +622,7 @@ Camera = Union[ScreenCamera, BlenderCamera]
 # is not what ``==`` on a scene should mean.)
 
 #: The material types the tracer shades; the geometry treats them as opaque table entries.
-MATERIAL_TYPES = (Material,)
+MATERIAL_TYPES = (Material, SurfaceMaterial)
 
 
 def _set_label(kind: str, name: str) -> str:
@@ -533,17 +802,20 @@ class TriangleMesh:
 class Scene:
     """A whole scene.
 
-    spheres: hand-made spheres (may be empty).  lights: point lights, whose contributions sum.
-    sphere_sets: spheres as arrays (``SphereSet``); meshes: triangle meshes (``TriangleMesh``).
+    spheres: hand-made spheres (may be empty).  lights: any of ``LIGHT_TYPES``; their
+    contributions sum.  sphere_sets: spheres as arrays (``SphereSet``); meshes: triangle
+    meshes (``TriangleMesh``).
     camera: a ScreenCamera (the article's) or a BlenderCamera.
     background: RGB seen where a ray escapes (default semantics; the article's is black).
     ambient: an RGB ambient intensity lighting every point in addition to the lights' own
-        ambient terms (Blender's world colour plays this role; default semantics only).
+        ambient terms (default semantics only).  For a SurfaceMaterial it is the radiance of
+        a constant environment: a diffuse surface reflects albedo x ambient, a rough glossy
+        one F(N.V) x ambient (Blender's world colour x strength plays this role).
     """
 
     camera: Camera
     spheres: tuple[Sphere, ...] = ()
-    lights: tuple[PointLight, ...] = ()
+    lights: tuple = ()
     background: Vec3 = (0.0, 0.0, 0.0)
     ambient: Vec3 = (0.0, 0.0, 0.0)
     sphere_sets: tuple[SphereSet, ...] = ()
@@ -559,8 +831,9 @@ class Scene:
             if not isinstance(sphere, Sphere):
                 raise SceneError(f"scene.spheres[{i}] must be a Sphere, got {sphere!r}")
         for i, light in enumerate(self.lights):
-            if not isinstance(light, PointLight):
-                raise SceneError(f"scene.lights[{i}] must be a PointLight, got {light!r}")
+            if not isinstance(light, LIGHT_TYPES):
+                raise SceneError(f"scene.lights[{i}] must be a PointLight, SphereLight, "
+                                 f"SpotLight, SunLight or AreaLight, got {light!r}")
         _set(self, "sphere_sets", tuple(self.sphere_sets))
         _set(self, "meshes", tuple(self.meshes))
         for i, sphere_set in enumerate(self.sphere_sets):
@@ -587,6 +860,10 @@ class RenderSettings:
         whose neighbours hit a different sphere or differ in colour).
     samples: rays per supersampled pixel.
     light_samples: shadow rays per light with radius > 0 (soft shadows).
+    world_samples: shadow rays per point towards the world (a k x k grid of at least this
+        many; default semantics, scenes with several spheres and a world that shines): the
+        share of the sky a point sees scales the world's diffuse light (contact shadows);
+        0 treats the world as unoccluded.
     contribution_cutoff: a path stops once nothing it could still add exceeds this (a fraction
         of full white); 1e-6 keeps results float64-accurate to the 8-bit output many times over.
     tile_size: tiles are tile_size x tile_size pixels; memory per tile is bounded by it.
@@ -599,6 +876,7 @@ class RenderSettings:
     anti_aliasing: Literal["off", "fixed", "adaptive"] = "off"
     samples: int = 16
     light_samples: int = 16
+    world_samples: int = 9
     contribution_cutoff: float = 1e-6
     tile_size: int = 128
     threads: int | None = None
@@ -610,6 +888,8 @@ class RenderSettings:
         _count("settings.max_depth", self.max_depth, maximum=MAX_DEPTH)
         _count("settings.samples", self.samples, maximum=MAX_SAMPLES)
         _count("settings.light_samples", self.light_samples, maximum=MAX_LIGHT_SAMPLES)
+        _count("settings.world_samples", self.world_samples, minimum=0,
+               maximum=MAX_LIGHT_SAMPLES)
         _count("settings.tile_size", self.tile_size, minimum=8, maximum=MAX_TILE_SIZE)
         if self.threads is not None:
             _count("settings.threads", self.threads, maximum=MAX_THREADS)

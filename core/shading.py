@@ -27,13 +27,20 @@ Default semantics, each quirk fixed:
 Shadow rays are traced from the light towards the points: every shadow ray of a light then
 shares one origin, so the geometry's terms are computed once per light, not once per ray.
 Visibility is asked of the scene's aggregate (``ctx.geometry.occluded``), segment by segment.
+
+Default semantics also shades Blender's lights in Cycles' units (``_shade_blender_lights``:
+samples and irradiance from ``core.lights``, the surface's answer from ``core.bsdf``), for
+SurfaceMaterials and the article's Materials alike; a sun's shadow rays, and the rays that
+find how much of the world a point sees, leave the points instead.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from .bsdf import environment, light_response
 from .context import TraceContext
+from .lights import area_sample_irradiance, centre_irradiance, cosine_directions
 from .rays import ARTICLE_OFFSET, RayBatch, RayStats, ray_offsets
 from .vectors import dot, length, normalize, take
 
@@ -105,8 +112,14 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
     exponent = mat.exponent.take(materials)
     if ctx.article:
         return _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats)
-    return _shade_default(ctx, points, normals, directions, exclude, ka, kd, ks, exponent,
-                          stats)
+    colour, goes_on, shadow_code = _shade_default(ctx, points, normals, directions, exclude,
+                                                  ka, kd, ks, exponent, stats)
+    if ctx.look is not None and ctx.look.active:
+        blender_colour, shadow_code = _shade_blender_lights(ctx, points, normals, directions,
+                                                            materials, exclude, shadow_code,
+                                                            stats)
+        colour += blender_colour
+    return colour, goes_on, shadow_code
 
 
 def _column(values, dtype):
@@ -185,3 +198,129 @@ def _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats):
         goes_on |= unblocked
         shadow_code = shadow_code * np.uint64(_CODE_BASE) + unblocked.astype(np.uint64)
     return colour, goes_on, shadow_code
+
+
+def _rays_blocked(ctx, points, towards, offset, reach, exclude, stats):
+    """(m,) whether rays from the points along unit ``towards`` (3, m) hit anything between
+    ``offset`` and ``reach`` (m,) (np.inf: a sun, the world).  Rays leaving one primitive
+    (``exclude``, the primitive each ray ignores) in one direction cell are culled together,
+    as the bounce loop's reflection rays are."""
+    stats.shadow_rays += points.shape[1]
+    _, hit, _ = ctx.geometry.intersect(
+        RayBatch(points, towards, offset, reach, None, exclude, source=exclude), stats)
+    return hit >= 0
+
+
+def _world_occlusion(ctx, points, normals, materials, offset, exclude, stats):
+    """(m,) the cosine-weighted share of the world hidden from each point (0 for the
+    article's Materials), from ``world_samples`` fixed directions turned into each point's
+    normal frame.  The ambient term (``_shade_default``) adds diffuse x world unoccluded;
+    this share of it is taken back."""
+    physical = ctx.look.surfaces.physical[materials]
+    hidden = np.zeros(points.shape[1], points.dtype)
+    chosen = np.flatnonzero(physical)
+    if len(chosen) == 0:
+        return hidden
+    n = take(normals, chosen)
+    zero = np.zeros_like(n[0])
+    first = np.where(np.abs(n[0]) < 0.9, np.stack([zero, n[2], -n[1]]),
+                     np.stack([-n[2], zero, n[0]]))
+    first, _ = normalize(first)
+    second = np.stack([n[1] * first[2] - n[2] * first[1], n[2] * first[0] - n[0] * first[2],
+                       n[0] * first[1] - n[1] * first[0]])
+    directions = cosine_directions(ctx.settings.world_samples).astype(points.dtype)
+    origins = take(points, chosen)
+    for x, y, z in directions:
+        along = x * first + y * second + z * n
+        blocked = _rays_blocked(ctx, origins, along, offset[chosen], np.inf, exclude[chosen],
+                                stats)
+        hidden[chosen] += blocked / len(directions)
+    return hidden
+
+
+def _sphere_sample_weights(light, towards):
+    """(S, m) weights of a sphere light's samples for points seeing its centre along unit
+    ``towards`` (3, m): n_j . w on the hemisphere facing each point, normalised to sum 1
+    (``core.lights``); None for lights without a radius."""
+    if light.sample_normals is None:
+        return None
+    weights = np.maximum(-(light.sample_normals.astype(towards.dtype) @ towards), 0)
+    return weights / weights.sum(axis=0)
+
+
+def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, shadow_code,
+                          stats):
+    """(radiance (3, m), shadow_code) from Blender's lights (``core.lights``) and the world's
+    glossy, emitted and occluded terms (``core.bsdf``) at m points, default semantics.
+
+    materials: (m,) material ids; exclude: (m,) the primitive each point's rays ignore.
+    Each light appends a digit to ``shadow_code`` for adaptive anti-aliasing: not reached,
+    blocked, partly visible or visible.  (Not quarters of visibility as for the article's
+    lights: an area light's penumbra changes smoothly from pixel to pixel, and every pixel of
+    it would count as an edge.)"""
+    look = ctx.look
+    surfaces = look.surfaces
+    dtype = points.dtype
+    m = points.shape[1]
+    to_view = -directions
+    world = _column(ctx.ambient, dtype)
+    colour = np.zeros((3, m), dtype)
+    colour += environment(surfaces, materials, normals, to_view, world)
+    offset = ray_offsets(points)
+    if ctx.settings.world_samples and world.any() and len(ctx.geometry) > 1:
+        colour -= _world_occlusion(ctx, points, normals, materials, offset, exclude, stats) * (
+            take(surfaces.diffuse, materials) * world)
+    for light in look.lights:
+        scale = _column(light.scale, dtype)
+        shadow_code = shadow_code * np.uint64(_CODE_BASE)
+        visibility = np.zeros(m, dtype)
+        reached = np.zeros(m, bool)
+        if light.kind == "area":
+            for sample, origin in enumerate(light.terms):
+                towards, distance, e = area_sample_irradiance(light, sample, points, normals)
+                lit = np.flatnonzero(e > 0)
+                if len(lit) == 0:
+                    continue
+                reached[lit] = True
+                blocked = light_blocked(ctx, origin, -take(towards, lit), distance[lit],
+                                        exclude[lit], stats, end=offset[lit])
+                seen = lit[~blocked]
+                visibility[seen] += 1 / len(light.terms)
+                colour[:, seen] += scale * light_response(
+                    surfaces, materials[seen], take(normals, seen), take(to_view, seen),
+                    take(towards, seen), e[seen])
+        else:
+            towards, distance, e = centre_irradiance(light, points, normals)
+            lit = np.flatnonzero(e > 0)
+            if len(lit) == 0:
+                continue
+            reached[lit] = True
+            lit_points, lit_towards = take(points, lit), take(towards, lit)
+            weights = _sphere_sample_weights(light, lit_towards)
+            for sample, position in enumerate(light.samples):
+                if weights is not None:
+                    facing = np.flatnonzero(weights[sample] > 0)
+                    from_sample, reach = normalize(take(lit_points, facing)
+                                                   - _column(position, dtype))
+                    blocked = light_blocked(ctx, light.terms[sample], from_sample, reach,
+                                            exclude[lit[facing]], stats,
+                                            end=offset[lit[facing]])
+                    visibility[lit[facing]] += weights[sample, facing] * ~blocked
+                    continue
+                if light.kind == "sun":
+                    along = (lit_towards if len(light.samples) == 1 else
+                             np.repeat(position.astype(dtype)[:, None], len(lit), axis=1))
+                    blocked = _rays_blocked(ctx, lit_points, along, offset[lit], np.inf,
+                                            exclude[lit], stats)
+                else:
+                    blocked = light_blocked(ctx, light.terms[sample], -lit_towards,
+                                            distance[lit], exclude[lit], stats,
+                                            end=offset[lit])
+                visibility[lit] += (~blocked) / len(light.samples)
+            seen = lit[visibility[lit] > 0]
+            colour[:, seen] += scale * visibility[seen] * light_response(
+                surfaces, materials[seen], take(normals, seen), take(to_view, seen),
+                take(towards, seen), e[seen])
+        shadow_code += np.select([~reached, visibility <= 0, visibility < 1 - 1e-6],
+                                 [0, 1, 2], 3).astype(np.uint64)
+    return colour, shadow_code

@@ -16,9 +16,10 @@ import numpy as np
 
 from .camera import CameraRays
 from .context import RayStats, TraceContext
+from .bsdf import scatter
 from .rays import RayBatch, SharedOrigin
 from .shading import shade
-from .vectors import dot, take
+from .vectors import take
 
 _SIGNATURE_PRIME = np.uint64(1_000_003)
 
@@ -67,8 +68,24 @@ def nearest_sphere(ctx: TraceContext, origins, directions, t_min, t_max, exclude
     return t, primitive
 
 
+def _accumulate(colour, path, values, unique: bool, whole: bool):
+    """colour[:, path] += values (3, k); paths repeat once rays split (refraction), and then
+    every repeat must add."""
+    if whole:
+        colour += values
+    elif unique:
+        colour[:, path] += values
+    else:
+        for row in range(3):
+            colour[row] += np.bincount(path, values[row], colour.shape[1])
+
+
 def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
                  record_primary: bool = False) -> BundleResult:
+    """Follow the bundle: article semantics as the article does (one mirror ray per hit, a
+    scalar weight); default semantics with Blender's look (``ctx.look``) with colour weights
+    and, where ``core.bsdf`` says so, several secondary rays per hit (mirror, refraction,
+    straight through)."""
     dtype = ctx.dtype
     geometry = ctx.geometry
     n = rays.directions.shape[1]
@@ -80,11 +97,15 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
     background = ctx.background.astype(dtype)[:, None]
     add_background = not ctx.article and background.any()
     reflection = ctx.materials.reflection
+    look = None if ctx.article or ctx.look is None or not ctx.look.active else ctx.look
     max_depth = ctx.settings.max_depth
     cutoff = ctx.settings.contribution_cutoff
 
     path = np.arange(n)
-    weight = np.ones(n, dtype)
+    unique = True   # every path index appears once (until rays split)
+    # (n,) in article semantics and for the article's materials alone; (3, n) colour weights
+    # for Blender's look.
+    weight = np.ones((3, n) if look is not None else n, dtype)
     batch = RayBatch(rays.origins, rays.directions, rays.t_min, rays.t_max,
                      ctx.camera_origin if rays.shared_origin else None)
     stats.camera_rays += n
@@ -97,15 +118,14 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
             coverage = hits.primitive_per_ray >= 0
         if add_background and len(hits) < len(batch):
             missed = np.flatnonzero(hits.primitive_per_ray < 0)
-            colour[:, path[missed]] += weight[missed] * background
+            _accumulate(colour, path[missed], weight[..., missed] * background, unique, False)
         if len(hits) == 0:
             break
         if len(hits) < len(batch):
-            path, weight = path[hits.rays], weight[hits.rays]
+            path, weight = path[hits.rays], weight[..., hits.rays]
 
         points, directions, primitive = hits.points, hits.directions, hits.primitive
-        geometric, normals, front = hits.normals, hits.shading, hits.front
-        cos_in = dot(directions, normals)
+        geometric, normals, front, cos_in = hits.normals, hits.shading, hits.front, hits.cos_in
         if not ctx.article and not front.all():
             # Shade the side the ray sees: inside a sphere, behind a triangle, the normal
             # faces the other way.
@@ -118,15 +138,23 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
         illumination, goes_on, shadow_code = shade(ctx, points, normals, directions,
                                                    hits.material, exclude, stats)
         illumination *= weight
-        if depth == 0 and len(path) == n:
-            colour += illumination
-        else:
-            colour[:, path] += illumination
+        _accumulate(colour, path, illumination, unique, depth == 0 and len(path) == n)
         if signature is not None:
             signature[path] = signature[path] * _SIGNATURE_PRIME + shadow_code
 
-        weight = weight * reflection.take(hits.material)
         bounces_left = max_depth - depth - 1
+        if look is not None:
+            if bounces_left == 0:
+                break
+            batch = _secondary_rays(ctx, look, hits, normals, cos_in, path, weight,
+                                    bounces_left, cutoff)
+            if batch is None:
+                break
+            batch, path, weight = batch
+            unique = unique and len(np.unique(path)) == len(path)
+            stats.reflection_rays += len(path)
+            continue
+        weight = weight * reflection.take(hits.material)
         if bounces_left == 0:
             break
         goes_on &= weight * (ctx.path_gain_bound * bounces_left) > cutoff
@@ -144,3 +172,33 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
         batch = geometry.spawn(points, geometric, primitive, directions, front)
         stats.reflection_rays += len(path)
     return BundleResult(colour, coverage, signature, primary)
+
+
+def _secondary_rays(ctx, look, hits, normals, cos_in, path, weight, bounces_left, cutoff):
+    """The next bounce's rays for Blender's look (``core.bsdf.scatter``), or None:
+    (RayBatch, path (k,), weight (3, k)).  Mirror rays leave on the side the ray came from;
+    refracted and straight-through rays on the other (``Aggregate.spawn``)."""
+    branches = scatter(look.surfaces, normals, hits.directions, cos_in, hits.material,
+                       hits.front)
+    parts = []
+    for branch in branches:
+        w = weight[:, branch.index] * branch.weights
+        alive = np.flatnonzero(w.max(axis=0) * (ctx.path_gain_bound * bounces_left) > cutoff)
+        if len(alive) == 0:
+            continue
+        index = branch.index[alive]
+        front = hits.front[index]
+        rays = ctx.geometry.spawn(take(hits.points, index), take(hits.normals, index),
+                                  hits.primitive[index], take(branch.directions, alive),
+                                  ~front if branch.through else front)
+        parts.append((rays, path[index], w[:, alive]))
+    if not parts:
+        return None
+    if len(parts) == 1:
+        return parts[0]
+    joined = RayBatch(np.concatenate([p[0].origins for p in parts], axis=1),
+                      np.concatenate([p[0].directions for p in parts], axis=1),
+                      exclude=np.concatenate([p[0].exclude for p in parts]),
+                      source=np.concatenate([p[0].source for p in parts]))
+    return (joined, np.concatenate([p[1] for p in parts]),
+            np.concatenate([p[2] for p in parts], axis=1))

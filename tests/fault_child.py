@@ -47,6 +47,15 @@ def inject(stage: str, core, job=None) -> None:
     elif stage == "write":
         png_module.ROW_BLOCK = 4  # several blocks even for a small image
         png_module._filtered = fail_on_second_call(png_module._filtered, "disk full")
+
+        def half_then_full(path, data):
+            # render.py writes the PNG Blender's colour management encoded: the disk fills
+            # up half way through it.
+            with png_module.atomic_file(path) as stream:
+                stream.write(data[:len(data) // 2])
+                raise OSError(28, "injected fault: disk full")
+
+        png_module.write_atomically = half_then_full
     else:
         raise SystemExit(f"unknown stage {stage!r}")
 

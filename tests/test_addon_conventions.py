@@ -69,7 +69,9 @@ def test_the_render_button_renders_particle_instances_of_a_source_hidden_for_ren
     assert not any(s.name == "source" for s in button_scene.spheres)
 
     bpy.ops.glint.render()
-    button = to_rgba8(read_image(bpy.data.images["Glint Render"]))
+    # The button's Image as Blender saves it, through the scene's colour management.
+    bpy.data.images["Glint Render"].save_render(str(tmp_path / "button.png"), scene=scene)
+    button = read_png(str(tmp_path / "button.png"))
     scene.render.engine = 'GLINT'
     scene.render.filepath = str(tmp_path / "f12.png")
     scene.render.image_settings.file_format = 'PNG'

@@ -27,6 +27,12 @@ def export():
     return export_scene(depsgraph())
 
 
+def article_semantics():
+    """The article semantics exports the article's Material and PointLight (the default
+    semantics' Blender look is tested in test_addon_look.py)."""
+    bpy.context.scene.glint.semantics = 'ARTICLE'
+
+
 def spheres_by_name(scene):
     return {sphere.name: sphere for sphere in scene.spheres}
 
@@ -268,6 +274,7 @@ def test_other_object_types_are_named_in_the_warning(scene):
 # --- lights -----------------------------------------------------------------------------------
 
 def test_a_1000_watt_white_point_light_is_the_articles_light(scene):
+    article_semantics()
     (light,) = export()[0].lights
     assert light.position == (5.0, 5.0, 5.0)
     assert light.ambient == light.diffuse == light.specular == (1.0, 1.0, 1.0)
@@ -276,6 +283,7 @@ def test_a_1000_watt_white_point_light_is_the_articles_light(scene):
 
 def test_point_light_power_colour_exposure_and_radius_map_linearly():
     empty_file()
+    article_semantics()
     add_camera()
     parent = link(bpy.data.objects.new("rig", None))
     parent.location = (0.0, 0.0, 10.0)
@@ -296,6 +304,7 @@ def test_point_light_power_colour_exposure_and_radius_map_linearly():
 
 
 def test_non_point_lights_are_named_in_one_warning(scene):
+    article_semantics()
     for kind in ('SUN', 'SPOT', 'AREA'):
         link(bpy.data.objects.new(f"{kind.lower()} lamp", bpy.data.lights.new(kind, kind)))
 
@@ -314,13 +323,14 @@ def test_a_scene_without_light_or_objects_exports_with_warnings():
     exported, warnings = export()
 
     assert exported.spheres == () and exported.lights == () and exported.meshes == ()
-    assert any("no point light" in w for w in warnings)
+    assert any("no light" in w for w in warnings)
     assert any("nothing to render" in w for w in warnings)
 
 
 # --- materials and world ----------------------------------------------------------------------
 
 def test_blenders_default_surface_maps_close_to_the_article_look(scene):
+    article_semantics()
     add_sphere("plain")  # no material: Blender's default surface
     add_sphere("default", (3, 0, 0), material=bpy.data.materials.new("fresh"))
 
@@ -337,6 +347,7 @@ def test_blenders_default_surface_maps_close_to_the_article_look(scene):
 
 
 def test_principled_values_map_as_documented(scene):
+    article_semantics()
     metal = bpy.data.materials.new("metal")
     principled = metal.node_tree.nodes["Principled BSDF"]
     base = (0.5, 0.2, 0.05)
@@ -375,6 +386,7 @@ def test_rougher_materials_get_wider_dimmer_highlights():
 
 
 def test_custom_glint_values_are_used_as_typed(scene):
+    article_semantics()
     material = bpy.data.materials.new("typed")
     custom = material.glint
     custom.use_custom = True
@@ -392,6 +404,7 @@ def test_custom_glint_values_are_used_as_typed(scene):
 
 
 def test_a_non_principled_surface_falls_back_to_viewport_display_with_a_note(scene):
+    article_semantics()
     material = bpy.data.materials.new("diffuse only")
     tree = material.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
@@ -409,6 +422,7 @@ def test_a_non_principled_surface_falls_back_to_viewport_display_with_a_note(sce
 
 
 def test_the_world_colour_is_background_and_ambient(scene):
+    article_semantics()
     world = bpy.data.worlds.new("sky")
     background = world.node_tree.nodes["Background"]
     background.inputs["Color"].default_value = (0.2, 0.1, 0.05, 1.0)

@@ -48,7 +48,8 @@ def red_material():
 def test_a_material_preview_is_lit_and_says_nothing():
     preview_like_scene(red_material)
     graph = depsgraph()
-    assert prepare_job(graph).warnings  # a normal render names the floor and the area lights
+    # A normal render has the preview scene's two area lights (and the floor, a mesh).
+    assert len(prepare_job(graph).scene.lights) == 2
 
     job = prepare_preview_job(graph)
 

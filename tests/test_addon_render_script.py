@@ -13,8 +13,7 @@ import numpy as np
 import pytest
 
 from addon_support import (RENDER_SCRIPT, REPOSITORY, add_point_light, add_sphere, empty_file,
-                           read_image, simple_scene, to_rgba8)
-from glint.core.png import decode_png
+                           read_png, simple_scene)
 
 ARTICLE_REFERENCE = os.path.join(REPOSITORY, "tests", "data", "article_300x200.npy")
 
@@ -29,9 +28,12 @@ def save_blend(path) -> str:
     return str(path)
 
 
-def button_render():
+def button_render(tmp_path=None):
+    """The Render button's Image as Blender saves it with the scene's colour management."""
     bpy.ops.glint.render()
-    return to_rgba8(read_image(bpy.data.images["Glint Render"]))
+    path = os.path.join(str(tmp_path or bpy.app.tempdir), "button.png")
+    bpy.data.images["Glint Render"].save_render(path, scene=bpy.context.scene)
+    return read_png(path)
 
 
 def read_script_png(path) -> np.ndarray:
@@ -39,7 +41,7 @@ def read_script_png(path) -> np.ndarray:
     data = open(path, "rb").read()
     bit_depth, colour_type = data[24], data[25]  # in the IHDR chunk, which comes first
     assert (bit_depth, colour_type) == (8, 6), "not an 8-bit RGBA PNG"
-    return decode_png(data)
+    return read_png(str(path))
 
 
 def error_lines(result) -> list[str]:
@@ -130,6 +132,27 @@ def test_transparent_film_gives_coverage_alpha_and_a_transparent_background(tmp_
     np.testing.assert_array_equal(rgba, button_render())
 
 
+@pytest.mark.parametrize("view_transform", ["Standard", "AgX"])
+def test_render_py_writes_the_pixels_f12_and_the_button_give(tmp_path, view_transform):
+    scene = simple_scene()
+    bpy.data.objects["light"].location = (-4.0, -6.0, 3.0)
+    bpy.data.lights["light"].energy = 3000.0
+    scene.view_settings.view_transform = view_transform
+    blend = save_blend(tmp_path / "lit.blend")
+
+    result = run_script(blend, "--output", tmp_path / "script.png")
+
+    assert result.returncode == 0, result.stderr
+    scene.render.engine = 'GLINT'
+    scene.render.filepath = str(tmp_path / "f12.png")
+    scene.render.image_settings.file_format = 'PNG'
+    scene.render.image_settings.color_mode = 'RGBA'
+    bpy.ops.render.render(write_still=True)
+    script = read_script_png(tmp_path / "script.png")
+    np.testing.assert_array_equal(script, read_png(str(tmp_path / "f12.png")))
+    np.testing.assert_array_equal(script, button_render(tmp_path))
+
+
 def test_an_unreadable_blend_fails_with_one_line_and_leaves_the_output_alone(tmp_path):
     corrupt = tmp_path / "corrupt.blend"
     corrupt.write_bytes(b"BLENDER-v500 this is not a blend file")
@@ -166,6 +189,10 @@ BAD_ARGUMENTS = {
     "output is a directory": (["--output", "{tmp}/folder.png"], "is a directory"),
     "output not png": (["--output", "{tmp}/o.jpg"], "must name a .png"),
     "zero width": (["--output", "{tmp}/o.png", "--width", "0"], "--width"),
+    "width below Blender's minimum": (["--output", "{tmp}/o.png", "--width", "3"],
+                                      "--width: must be at least 4"),
+    "height past Blender's maximum": (["--output", "{tmp}/o.png", "--height", "100000"],
+                                      "--height: must be at most 65536"),
     "width not a number": (["--output", "{tmp}/o.png", "--width", "wide"], "--width"),
     "unknown semantics": (["--output", "{tmp}/o.png", "--semantics", "exact"], "--semantics"),
     "unknown precision": (["--output", "{tmp}/o.png", "--precision", "half"], "--precision"),

@@ -12,10 +12,9 @@ import bpy
 import numpy as np
 import pytest
 
-from addon_support import RENDER_SCRIPT, REPOSITORY, core_image, render_script, simple_scene
+from addon_support import (RENDER_SCRIPT, REPOSITORY, core_image, depsgraph, prepare_job,
+                           read_png, render_script, simple_scene)
 from exr import read_exr
-from glint.addon.utils.colour import srgb_to_linear
-from glint.core.png import decode_png
 
 FrameClaim, frame_path = render_script.FrameClaim, render_script.frame_path
 
@@ -40,7 +39,8 @@ def animated_blend(tmp_path, frames=4, size=(40, 30)):
 
 
 def png(path) -> np.ndarray:
-    return decode_png(open(path, "rb").read())
+    """(H, W, 4) uint8 of a PNG render.py wrote (Blender's encoder: read back by Blender)."""
+    return read_png(str(path))
 
 
 def test_frame_paths_follow_blenders_hash_padding():
@@ -170,7 +170,7 @@ def test_a_progress_line_on_a_terminal_and_none_in_a_pipe_or_with_quiet(tmp_path
 def test_exr_output_holds_the_scene_linear_render(tmp_path):
     scene = simple_scene()
     scene.render.image_settings.exr_codec = 'NONE'
-    expected = srgb_to_linear(core_image()[..., :3])
+    expected = prepare_job(depsgraph()).scene_linear(core_image())[..., :3]
     blend = tmp_path / "scene.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
 
@@ -180,7 +180,7 @@ def test_exr_output_holds_the_scene_linear_render(tmp_path):
     channels = read_exr(tmp_path / "out.exr")
     assert set(channels) == {"R", "G", "B", "A"}
     rgb = np.stack([channels[c] for c in "RGB"], axis=-1)
-    # Blender's float32 result of the core's float32 values, through the sRGB curve.
+    # Blender's float32 result of the job's scene-linear float32 values.
     np.testing.assert_allclose(rgb, expected, atol=1e-5)
     assert (channels["A"] == 1).all()
 

@@ -8,14 +8,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..utils.colour import premultiplied_to_scene_linear
+from ..utils.colour import render_result_pixels
 
 
-def texture_pixels(image: np.ndarray) -> np.ndarray:
-    """(h, w, 4) display values, row 0 = top -> the texture's (h * w * 4,) float32:
-    scene-linear premultiplied (what render results hold), row 0 = bottom (GPU textures', like
-    Blender's images)."""
-    return np.ascontiguousarray(premultiplied_to_scene_linear(image[::-1]), np.float32).ravel()
+def texture_pixels(image: np.ndarray, semantics: str = "article") -> np.ndarray:
+    """(h, w, 4) job values of ``semantics`` (article: display values; default: scene-linear
+    radiance), row 0 = top -> the texture's (h * w * 4,) float32: scene-linear premultiplied
+    (what render results hold), row 0 = bottom (GPU textures', like Blender's images)."""
+    return np.ascontiguousarray(render_result_pixels(image[::-1], semantics),
+                                np.float32).ravel()
 
 
 class FrameDrawer:
@@ -32,7 +33,7 @@ class FrameDrawer:
 
         if frame is not self._frame:
             height, width = frame.image.shape[:2]
-            pixels = texture_pixels(frame.image)
+            pixels = texture_pixels(frame.image, frame.semantics)
             buffer = gpu.types.Buffer('FLOAT', pixels.size, pixels)
             self._texture = gpu.types.GPUTexture((width, height), format='RGBA16F', data=buffer)
             self._frame = frame

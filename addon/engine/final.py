@@ -14,11 +14,13 @@ Blender calls ``render`` once per view layer with that layer's depsgraph, so eac
 exported with its own visibility and written to its own layer of the result
 (``begin_result(layer=...)``); a multilayer EXR holds them all.
 
-Blender expects scene-linear render results; the core's values are display values, so they
-are handed over through the inverse sRGB transfer function, and with view transform Standard
-Blender shows and saves the core's own numbers.  Render results have row 0 at the bottom.
-Tiles are handed over as they land (``TileHandOver``), so a frame costs the job's float32
-image and Blender's own buffer, plus a tile.
+Blender expects scene-linear render results: the default semantics' radiance is handed over
+unchanged (so the user's view transform, look, exposure and gamma apply to it), the article
+semantics' display values through the inverse sRGB transfer function
+(``RenderJob.scene_linear``), so that view transform Standard shows the article's numbers.
+Render results have row 0 at the bottom.  Tiles are handed over as they land
+(``TileHandOver``), so a frame costs the job's float32 image and Blender's own buffer, plus a
+tile.
 
 Scripts that want the core's numbers rather than Blender's colour-managed result (render.py)
 ask for them explicitly with ``FrameRequest`` (below).
@@ -34,7 +36,7 @@ import bpy
 import numpy as np
 
 from ...core import RenderCancelled
-from ..utils.colour import premultiplied_to_scene_linear
+from ..utils.colour import render_result_pixels
 from ..export import ExportError
 from .job import failure_message, prepare_job
 from .passes import enabled_passes, pass_warning, register_passes, write_result_with_passes
@@ -49,7 +51,7 @@ class FrameRequest:
     Python objects).  Made active with ``requesting_frames``; main thread only.
 
     frames: (RenderJob, JobResult) appended for each frame rendered (JobResult.image: the
-        display values, row 0 = top).
+        job's values, row 0 = top; ``RenderJob.scene_linear`` gives the render result's).
     should_cancel: polled with Blender's own test_break; True cancels the render (render.py
         sets it from SIGINT/SIGTERM).
     fill_render_result: False when the script writes the frame itself: the engine then
@@ -87,6 +89,9 @@ class GlintRenderEngine(bpy.types.RenderEngine):
     # The viewport's Rendered (and Material Preview) shading is Glint's own, through
     # view_update / view_draw (addon.engine.viewport), not EEVEE's.
     bl_use_eevee_viewport = False
+    # Glint reads the materials' shader nodes (``addon.export.materials``): the Shader Editor
+    # must be available to edit them.
+    bl_use_shading_nodes_custom = False
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
@@ -157,7 +162,8 @@ class GlintRenderEngine(bpy.types.RenderEngine):
         # Tiles go to Blender as they land (F12 fills in tile by tile, and a cancel keeps
         # them), unless the script asking for the frames writes it itself.
         fill = request is None or request.fill_render_result
-        tiles = TileHandOver(self, region, height, view_layer.name) if fill else None
+        tiles = TileHandOver(self, region, height, view_layer.name,
+                             job.settings.semantics) if fill else None
         result = job.run(progress=progress, should_cancel=should_cancel,
                          on_tile=tiles.hand_over if tiles is not None else None,
                          passes=bool(passes) and fill,
@@ -184,11 +190,13 @@ class TileHandOver:
     """Each tile, as it lands, into Blender's render result (``begin_result`` for the tile's
     part of the render region, ``end_result`` merges it and F12 shows it), the way Cycles hands
     over tiles.  Tiles arrive from ``RenderJob.run(on_tile=...)``: rows from the top of the
-    frame, finished display values; Blender wants premultiplied scene-linear rows from the
-    bottom, counted from the render region's corner."""
+    frame, finished job values of ``semantics``; Blender wants premultiplied scene-linear rows
+    from the bottom, counted from the render region's corner."""
 
-    def __init__(self, engine, region, frame_height: int, layer: str):
+    def __init__(self, engine, region, frame_height: int, layer: str,
+                 semantics: str = "article"):
         self.engine, self.region, self.frame_height, self.layer = engine, region, frame_height, layer
+        self.semantics = semantics
 
     def hand_over(self, tile, rgba: np.ndarray) -> None:
         y0, y1, x0, x1 = tile
@@ -199,7 +207,8 @@ class TileHandOver:
         low, high = max(bottom, ry0), min(top, ry1)
         if left >= right or low >= high:
             return
-        pixels = blender_pixels(rgba[top - high:top - low, left - x0:right - x0])
+        pixels = blender_pixels(rgba[top - high:top - low, left - x0:right - x0],
+                                self.semantics)
         result = self.engine.begin_result(left - rx0, low - ry0, right - left, high - low,
                                           layer=self.layer)
         try:
@@ -214,10 +223,11 @@ class RenderSetupError(ExportError):
     """Blender and the exported scene disagree about the frame; the message says how."""
 
 
-def blender_pixels(rows: np.ndarray) -> np.ndarray:
-    """(h, w, 4) finished display values, row 0 = top -> what Blender's render result holds:
-    a C-contiguous float32 (h, w, 4) copy, row 0 = bottom, premultiplied scene-linear."""
-    return np.ascontiguousarray(premultiplied_to_scene_linear(rows[::-1]), np.float32)
+def blender_pixels(rows: np.ndarray, semantics: str = "article") -> np.ndarray:
+    """(h, w, 4) finished job values of ``semantics``, row 0 = top -> what Blender's render
+    result holds: a C-contiguous float32 (h, w, 4) copy, row 0 = bottom, premultiplied
+    scene-linear (``render_result_pixels``)."""
+    return np.ascontiguousarray(render_result_pixels(rows[::-1], semantics), np.float32)
 
 
 def render_region(render, width: int, height: int):

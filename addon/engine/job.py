@@ -4,7 +4,9 @@
 settings, so the job holds plain data only.  ``RenderJob.run`` touches no Blender data and may
 run on any thread; it returns a ``JobResult`` whose image is
 
-* (H, W, 4) float32, row 0 = top, the core's display values (what its PNG stores);
+* (H, W, 4) float32, row 0 = top, the core's values: default semantics unclipped
+  scene-linear radiance, article semantics the article's display values (what its PNG
+  stores); ``RenderJob.scene_linear`` turns either into what Blender's render result holds;
 * Film > Transparent off: alpha 1, the background is the world colour;
 * Film > Transparent on: alpha = sphere coverage, and the background the camera rays saw is
   removed, leaving premultiplied colour (Blender's convention for render results): the core
@@ -31,6 +33,7 @@ from ...core import RenderCancelled, RenderSettings, Scene, SceneError, render
 from ...core.render import RayStats, missed_colour
 from ..export import ExportError, export_scene
 from .ignored import ignored_settings_warning
+from ..utils.colour import render_result_pixels
 
 #: Set (to anything) to have unexpected errors print their traceback to stderr as well.
 DEBUG_VARIABLE = "GLINT_DEBUG"
@@ -75,6 +78,13 @@ class RenderJob:
     @property
     def size(self) -> tuple[int, int]:
         return self.scene.camera.width, self.scene.camera.height
+
+    def scene_linear(self, image: np.ndarray) -> np.ndarray:
+        """The job's image (or a part of it) as Blender's scene-linear, premultiplied render
+        result, float32 (a copy): unchanged in default semantics, the inverse sRGB of the
+        article's display values in article semantics (so view transform Standard shows the
+        article's numbers)."""
+        return render_result_pixels(image, self.settings.semantics)
 
     @property
     def frame_bytes(self) -> int:

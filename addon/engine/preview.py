@@ -3,15 +3,14 @@ its own preview scene (``release/datafiles/preview.blend``) for the Material, Li
 properties and for thumbnails.
 
 The preview scene's sphere is a sphere mesh, which Glint renders as an exact sphere with the
-user's material; its checker floor and other shapes are not spheres, and its lights are area
-lights, which Glint does not render.  So a preview:
+user's material; its lights are area lights set up for Blender's own engines.  So a preview:
 
 * reports no warnings (they would be about Blender's preview scene, not the user's, and
   Blender renders a preview on every edit of the material: one warning each time is spam);
 * is lit by a point light of Blender's default power placed up and to the left of the
   preview camera (``PREVIEW_LIGHT_DIRECTION``, in camera space, at the distance of the
-  nearest sphere) when the preview scene has no point light of its own (a point light being
-  previewed is rendered as it is);
+  nearest sphere) instead of the preview scene's lights, unless it has a point light of its
+  own (a point light being previewed is rendered as it is, alone);
 * draws the preview's sphere-like meshes as exact spheres (``analytic_spheres``: the
   exporter keeps a mesh analytic only within a quarter pixel, and Blender's preview sphere at
   preview sizes is not; the preview is of the material, not of the tessellation);
@@ -25,7 +24,7 @@ import dataclasses
 
 import numpy as np
 
-from ...core import PointLight, Sphere
+from ...core import PointLight, Sphere, SphereLight
 from ...core.camera import camera_to_world
 from ..export.geometry import MAX_FACE_SAGITTA, fit_sphere, uniform_scales
 from .job import RenderJob, prepare_job
@@ -77,7 +76,8 @@ def prepare_preview_job(depsgraph, camera_override=None) -> RenderJob:
     spheres, a key light when the scene has no point light."""
     job = prepare_job(depsgraph, camera_override=camera_override)
     job.scene = analytic_spheres(job.scene)
-    if not job.scene.lights:
-        job.scene = dataclasses.replace(job.scene, lights=(preview_light(job.scene),))
+    points = tuple(light for light in job.scene.lights
+                   if isinstance(light, (PointLight, SphereLight)))
+    job.scene = dataclasses.replace(job.scene, lights=points or (preview_light(job.scene),))
     job.warnings = []
     return job

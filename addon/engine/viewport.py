@@ -251,14 +251,15 @@ def refinement_schedule(width: int, height: int, settings: RenderSettings,
 
 @dataclass(frozen=True, eq=False)
 class ViewportFrame:
-    """A finished pass: image (h, w, 4) float32 (row 0 = top, the job's display values),
-    the pass's index in the schedule and how many passes there are, and the rectangle of the
-    region (rows from the bottom) it covers."""
+    """A finished pass: image (h, w, 4) float32 (row 0 = top, the job's values of
+    ``semantics``: see ``RenderJob``), the pass's index in the schedule and how many passes
+    there are, and the rectangle of the region (rows from the bottom) it covers."""
 
     image: np.ndarray
     index: int
     passes: int
     rect: tuple
+    semantics: str = "article"
 
     @property
     def final(self) -> bool:
@@ -306,7 +307,8 @@ class ProgressiveRender:
             with self._lock:
                 if self._stop.is_set():
                     return
-                self.frame = ViewportFrame(image, index, len(self.schedule), self.view.rect)
+                self.frame = ViewportFrame(image, index, len(self.schedule), self.view.rect,
+                                           result.semantics)
                 self.frame_times.append(time.perf_counter() - self.started)
             if self._on_frame is not None:
                 self._on_frame(self.frame)

@@ -26,7 +26,7 @@ import numpy as np
 from ...core import SceneError
 from ...core.camera import blender_view_plane, camera_to_world
 from .errors import ExportError
-from .materials import export_material
+from .materials import export_article_material, export_material
 
 
 def instance_name(instance) -> str:
@@ -118,15 +118,17 @@ class ExportContext:
     sphere_sets: list = field(default_factory=list)    # core.SphereSet
     meshes: list = field(default_factory=list)         # core.TriangleMesh
     lights: list = field(default_factory=list)         # core lights
+    article: bool = False     # article semantics: the article's Material and PointLight
 
     @classmethod
-    def for_camera(cls, camera, judged_from=...) -> "ExportContext":
+    def for_camera(cls, camera, judged_from=..., article: bool = False) -> "ExportContext":
         """A context rendering through ``camera`` whose sphere-or-triangles rule judges from
-        ``judged_from`` (default: the same camera; None: no camera, nothing is resolved)."""
+        ``judged_from`` (default: the same camera; None: no camera, nothing is resolved);
+        article: the article semantics' materials."""
         judge = camera if judged_from is ... else judged_from
         footprint = CameraFootprint.of(judge) if judge is not None else \
             CameraFootprint.unbounded()
-        return cls(camera=camera, footprint=footprint)
+        return cls(camera=camera, footprint=footprint, article=article)
 
     def material(self, material, owner: str):
         """The core material for a bpy Material (None: Blender's default surface), converted
@@ -135,7 +137,8 @@ class ExportContext:
         key = material.name_full if material is not None else None
         if key not in self.materials:
             try:
-                core_material, note = export_material(material)
+                exporter = export_article_material if self.article else export_material
+                core_material, note = exporter(material)
             except SceneError as error:
                 raise ExportError(f"object '{owner}', material '{key}': {error}") from None
             self.materials[key] = core_material

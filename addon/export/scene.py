@@ -2,13 +2,16 @@
 
 ``export_scene`` walks ``depsgraph.object_instances``, so what Blender renders is what Glint
 gets: modifiers, parenting, constraints, drivers and collection or geometry-node instances
-are already applied, and each instance comes with its own world matrix.  It only reads
-Blender data; nothing in the .blend changes.
+are already applied, and each instance comes with its own world matrix.  When the only
+instancers are Geometry Nodes objects read in bulk (``instances.InstanceExporter.covers``),
+``depsgraph.objects`` is visited instead, so a million instances cost no Python step each.
+It only reads Blender data; nothing in the .blend changes.
 
 Visibility: a depsgraph evaluated for rendering (the render engine's) holds exactly the
 objects Blender renders.  A viewport depsgraph (``context.evaluated_depsgraph_get()``, which
 the panel's Render button uses) holds the viewport's objects, so objects and collections
-hidden for render (the camera icon, ``hide_render``) are dropped here; objects disabled in
+hidden for render (the camera icon, ``hide_render``) and instancers not shown in renders
+(``show_instancer_for_render``, e.g. a particle emitter) are dropped here; objects disabled in
 viewports are absent from it and modifiers run at their viewport settings, as Blender's own
 viewport exporters see them.
 
@@ -23,10 +26,13 @@ caches, the results, the skipped lists and the notes; ``context``):
 * Geometry Nodes instances -> ``instances.InstanceExporter``, read in bulk from the
   instancer's evaluated geometry instead of one Python step per instance;
 * LIGHT -> ``lights``; the camera -> ``camera``; materials -> ``materials`` through the
-  context's cache; the world colour here.
+  context's cache; the world -> ``world``.
 
-What is not rendered is never dropped silently: other object types, zero-scale instances and
-non-point lights are each named in one warning.
+The default semantics exports Blender's look in Cycles' units (shader nodes, every light
+type, the world's radiance, scene-linear); the article semantics keeps the article's model
+(its Material and PointLight, sRGB-encoded colours).  What is not rendered is never dropped
+silently: other object types, zero-scale instances and (article semantics) non-point lights
+are each named in one warning.
 """
 
 from __future__ import annotations
@@ -39,9 +45,11 @@ from .camera import export_camera
 from .context import ExportContext, instance_name
 from .errors import ExportError
 from .instances import InstanceExporter
-from .lights import export_point_light
+from .lights import export_article_light
+from .lights import export_light as export_cycles_light
 from .meshes import EVALUATED_AS_MESH, MeshExporter
 from .pointclouds import export_point_cloud
+from .world import world_colour
 
 #: The scene-linear space Glint's sRGB conversions assume (Blender's default; Blender 5.0
 #: lets a file choose another).
@@ -85,46 +93,61 @@ class _RenderVisibility:
         # A particle system renders its instance object even when that object itself is
         # hidden for render (the usual set-up: the source is hidden, its copies are not), as
         # F12 does; only the emitter's visibility counts.
+        original = instance.object.original
         by_particles = instance.is_instance and instance.particle_system is not None
-        if not by_particles and self._hidden(instance.object.original):
+        if not by_particles and self._hidden(original):
             return False
+        if not instance.is_instance and original.is_instancer and \
+                not original.show_instancer_for_render:
+            return False  # an emitter or instancer Blender does not render itself
         parent = instance.parent if instance.is_instance else None
         return parent is None or not self._hidden(parent.original)
 
 
-def world_colour(world) -> tuple[tuple[float, float, float], str | None]:
-    """(scene-linear RGB the world shows, note or None): the Background node's Color times
-    Strength, or the world's Viewport Display colour when it has no node tree."""
-    if world is None:
-        return (0.0, 0.0, 0.0), None
-    tree = world.node_tree
-    uses_nodes = tree is not None and (bpy.app.version >= (5, 0, 0) or world.use_nodes)
-    if not uses_nodes:
-        return tuple(world.color), None
-    output = tree.get_output_node('CYCLES') or tree.get_output_node('ALL')
-    surface = output.inputs.get("Surface") if output is not None else None
-    if surface is None or not surface.is_linked:
-        return (0.0, 0.0, 0.0), None  # Blender renders an unconnected world black too
-    node = surface.links[0].from_node
-    if node.bl_idname != "ShaderNodeBackground":
-        return tuple(world.color), (f"world '{world.name}': its Surface is not a Background "
-                                    f"node, its Viewport Display colour is used")
-    colour, strength = node.inputs["Color"], node.inputs["Strength"]
-    note = None
-    if colour.is_linked or strength.is_linked:
-        note = f"world '{world.name}': linked Background inputs count as their unlinked values"
-    return tuple(c * strength.default_value for c in colour.default_value[:3]), note
 
 
 def export_light(context, obj, matrix, name: str) -> None:
-    """A light instance -> a core light in the context, or a skipped entry."""
-    if obj.data.type != 'POINT':
-        context.skipped_lights.add(name, f"{obj.data.type.lower()} light")
-        return
+    """A light instance -> a core light in the context (``lights``: every type in Cycles'
+    units in default semantics, point lights only in the article's), or a skipped entry."""
+    exporter = export_article_light if context.article else export_cycles_light
     try:
-        context.lights.append(export_point_light(obj.data, matrix, name))
+        light = exporter(obj.data, matrix, name)
     except SceneError as error:
         raise ExportError(str(error)) from None  # the core's message names the light
+    if light is None:
+        context.skipped_lights.add(name, f"{obj.data.type.lower()} light")
+        return
+    context.lights.append(light)
+
+
+class _ObjectEntry:
+    """An evaluated object as the depsgraph walk's entry for it (the fields of
+    ``DepsgraphObjectInstance`` the exporters read), for exports that skip the walk."""
+
+    is_instance = False
+    parent = None
+    show_self = True
+
+    def __init__(self, obj):
+        self.object = obj
+        self.matrix_world = obj.matrix_world
+
+
+def _export_entry(context, meshes, instance, visible) -> None:
+    """One depsgraph entry (an object or an instance) to the exporter of its type."""
+    if not instance.show_self or not visible(instance):
+        return
+    obj = instance.object
+    kind = obj.type
+    if kind == 'MESH':
+        meshes.add(instance)
+    elif kind == 'LIGHT':
+        export_light(context, obj, [list(row) for row in instance.matrix_world],
+                     instance_name(instance))
+    elif kind == 'POINTCLOUD':
+        export_point_cloud(context, obj, instance.matrix_world, instance_name(instance))
+    elif kind not in NON_RENDERING_TYPES and kind not in EVALUATED_AS_MESH:
+        context.skip(instance_name(instance), f"{kind.lower().replace('_', ' ')} object")
 
 
 def _render_camera(depsgraph, camera_override):
@@ -149,37 +172,35 @@ def export_scene(depsgraph, camera_override=None, *, view_camera=None
     Raises ExportError, naming the culprit, when the scene cannot be rendered at all (no
     camera, a panoramic camera, invalid values).
     """
+    article = depsgraph.scene_eval.glint.semantics == 'ARTICLE'
     if view_camera is None:
         camera = export_camera(depsgraph, camera_override)
-        context = ExportContext.for_camera(camera)
+        context = ExportContext.for_camera(camera, article=article)
     else:
         context = ExportContext.for_camera(view_camera, _render_camera(depsgraph,
-                                                                       camera_override))
+                                                                       camera_override),
+                                           article=article)
     visible = _RenderVisibility(depsgraph)
     meshes = MeshExporter(context)
     bulk = InstanceExporter(context, meshes, visible)
 
-    for instance in depsgraph.object_instances:
-        if instance.is_instance and bulk.handles(instance):
-            continue
-        if not instance.show_self or not visible(instance):
-            continue
-        obj = instance.object
-        kind = obj.type
-        if kind == 'MESH':
-            meshes.add(instance)
-        elif kind == 'LIGHT':
-            export_light(context, obj, [list(row) for row in instance.matrix_world],
-                         instance_name(instance))
-        elif kind == 'POINTCLOUD':
-            export_point_cloud(context, obj, instance.matrix_world, instance_name(instance))
-        elif kind not in NON_RENDERING_TYPES and kind not in EVALUATED_AS_MESH:
-            context.skip(instance_name(instance), f"{kind.lower().replace('_', ' ')} object")
+    objects = list(depsgraph.objects)
+    if bulk.covers(objects):
+        # Nothing but bulk-read instancers makes instances: the objects themselves suffice.
+        for obj in objects:
+            entry = _ObjectEntry(obj)
+            bulk.export_instancer(entry, obj)
+            _export_entry(context, meshes, entry, visible)
+    else:
+        for instance in depsgraph.object_instances:
+            if instance.is_instance and bulk.handles(instance):
+                continue
+            _export_entry(context, meshes, instance, visible)
     meshes.finish()
 
     world = depsgraph.scene_eval.world
     colour, world_note = world_colour(world)
-    background = colour_from_blender(colour)
+    background = colour_from_blender(colour) if article else tuple(colour)
     try:
         Scene(camera=context.camera, background=background)  # checks the world's colour alone
     except SceneError as error:
@@ -189,12 +210,13 @@ def export_scene(depsgraph, camera_override=None, *, view_camera=None
 
     warnings = context.skipped_objects.warning("Glint renders meshes, spheres and point "
                                                "clouds;")
-    warnings += context.skipped_lights.warning("Glint renders point lights only;")
+    warnings += context.skipped_lights.warning("the article semantics renders point lights "
+                                               "only;")
     if not context.has_geometry:
         warnings.append("nothing to render: no sphere, mesh or point cloud; the image shows "
                         "only the background")
     if not context.lights:
-        warnings.append("no point light: only the world's ambient light shows")
+        warnings.append("no light: only the world's light shows")
     warnings += context.notes
     working_space = getattr(getattr(bpy.data, "colorspace", None), "working_space", None)
     if working_space not in (None, WORKING_SPACE):

@@ -64,7 +64,7 @@ def build_article_scene(name: str = "Glint article", *, width: int = ARTICLE_WID
     """A new Scene holding the article's spheres, light, camera and black world; returns it.
 
     Existing data is left alone.  Render settings: width x height at 100 %, view transform
-    Standard (so Blender shows the core's colours), the article's semantics, depth 3 and no
+    Standard and no dither (so Blender shows and saves the core's colours), the article's semantics, depth 3 and no
     anti-aliasing, and ``engine`` as the render engine.
     """
     scene = bpy.data.scenes.new(name)
@@ -77,6 +77,8 @@ def build_article_scene(name: str = "Glint article", *, width: int = ARTICLE_WID
     scene.view_settings.look = 'None'
     scene.view_settings.exposure = 0.0
     scene.view_settings.gamma = 1.0
+    # Blender dithers 8-bit output by default; the article's image has no noise.
+    scene.render.dither_intensity = 0.0
     scene.glint.semantics = 'ARTICLE'
     scene.glint.max_depth = ARTICLE_MAX_DEPTH
     scene.glint.anti_aliasing = 'OFF'

@@ -1,12 +1,14 @@
 """Where Glint's colours meet Blender's.
 
-The core works in the article's numbers: the values it computes are the values the PNG stores,
-i.e. sRGB-encoded display values.  Blender's colours (material base colours, the world, render
-results) are scene-linear.  The sRGB transfer function (IEC 61966-2-1, the piecewise curve
-Blender's "sRGB" display and "Standard" view use) converts between the two, so that:
+Default semantics: the core works in Blender's scene-linear colours and radiance, so
+nothing is converted either way; Blender's colour management (view transform, look,
+exposure) turns the render result into display values.
+
+Article semantics: the core works in the article's numbers, sRGB-encoded display values.
+The sRGB transfer function (``core.colour``) converts, so that:
 
 * a colour picked in Blender keeps its look: a swatch Blender shows as 0.7 red becomes the
-  core's 0.7 red (``linear_to_srgb``);
+  core's 0.7 red (``colour_from_blender``);
 * a render result handed to Blender as ``srgb_to_linear(core value)`` is displayed and saved,
   with view transform Standard, as the core's value again.
 """
@@ -15,19 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def srgb_to_linear(values):
-    """sRGB-encoded values -> linear, element-wise (array in, float64 array out)."""
-    values = np.asarray(values, np.float64)
-    return np.where(values <= 0.04045, values / 12.92,
-                    ((np.maximum(values, 0.04045) + 0.055) / 1.055) ** 2.4)
-
-
-def linear_to_srgb(values):
-    """Linear values -> sRGB-encoded, element-wise (array in, float64 array out)."""
-    values = np.asarray(values, np.float64)
-    return np.where(values <= 0.0031308, values * 12.92,
-                    1.055 * np.maximum(values, 0.0031308) ** (1 / 2.4) - 0.055)
+from ...core.colour import linear_to_srgb, srgb_to_linear  # noqa: F401  (re-exported)
 
 
 def colour_from_blender(rgb) -> tuple[float, float, float]:
@@ -48,6 +38,15 @@ def premultiplied_to_scene_linear(rgba: np.ndarray) -> np.ndarray:
     straight = np.divide(out[..., :3], alpha, out=np.zeros_like(out[..., :3]), where=covered)
     out[..., :3] = np.where(covered, srgb_to_linear(straight) * alpha, 0.0)
     return out
+
+
+def render_result_pixels(rgba: np.ndarray, semantics: str) -> np.ndarray:
+    """A job's (..., 4) premultiplied image as Blender's render results hold it, float32 (a
+    copy): the default semantics' scene-linear radiance unchanged, the article semantics'
+    display values through the inverse sRGB curve (``premultiplied_to_scene_linear``)."""
+    if semantics == "article":
+        return premultiplied_to_scene_linear(rgba)
+    return np.array(rgba, np.float32, copy=True)
 
 
 def unpremultiply(rgba: np.ndarray) -> np.ndarray:

@@ -1,11 +1,11 @@
 """Writing a render into an Image datablock.
 
-The Image is a generated float image whose colour space is 'Non-Color': Blender treats its
-buffer as data, so it converts nothing, neither for display in the Image Editor nor when the
-image is saved.  Its pixels are the core's numbers, the Image Editor shows them as the core's
-PNG does, and saving it (or ``Image.save_render`` with view transform Standard) writes the
-core's PNG.  ('Linear Rec.709' or 'sRGB' would make Blender sRGB-encode the buffer on display
-and on save, brightening it.)  The alpha mode is premultiplied, like render results.
+The Image is a generated float image holding the render result's scene-linear pixels
+(``RenderJob.scene_linear``), in the working colour space ('Linear Rec.709'), with *View as
+Render* on: the Image Editor shows it through the scene's view transform, look and exposure,
+and ``Image.save_render`` writes it through them, exactly as Blender shows and saves its own
+render result (one pipeline for F12, the Render button and render.py).  The alpha mode is
+premultiplied, like render results.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-COLOUR_SPACE = 'Non-Color'
+COLOUR_SPACE = 'Linear Rec.709'
 #: Blender's datablock names: MAX_ID_NAME (66) minus the 2-byte type code and the final NUL.
 MAX_NAME_BYTES = 63
 
@@ -61,11 +61,14 @@ def _target_image(name: str, width: int, height: int):
         image.colorspace_settings.name = COLOUR_SPACE
     if image.alpha_mode != 'PREMUL':
         image.alpha_mode = 'PREMUL'
+    if not image.use_view_as_render:
+        image.use_view_as_render = True
     return image
 
 
 def write_image(name: str, rgba: np.ndarray):
-    """Write (H, W, 4) floats (row 0 = top) into the Image ``name`` and return it.
+    """Write (H, W, 4) scene-linear premultiplied floats (row 0 = top) into the Image ``name``
+    and return it.
 
     Created if missing, resized if needed, updated in place otherwise (so editors and
     materials using it keep their reference), and shown in an open Image Editor.
