@@ -624,9 +624,12 @@ def test_each_view_layer_renders_its_own_visibility_into_its_own_layer(tmp_path)
 
 def _scaled_simple_scene(scale, offset=(0.0, 0.0, 0.0)):
     """simple_scene with a soft light, everything (objects, light radius, clip planes) moved by
-    offset and scaled by ``scale``; Blender stores these in float32."""
+    offset and scaled by ``scale``, and the light's power by scale^2 (its irradiance falls off
+    as power / d^2); Blender stores these in float32."""
     scene = simple_scene()
-    bpy.data.objects["light"].data.shadow_soft_size = 0.5 * scale
+    light = bpy.data.objects["light"].data
+    light.shadow_soft_size = 0.5 * scale
+    light.energy *= scale ** 2
     for obj in bpy.data.objects:
         obj.location = [(c + o) * scale for c, o in zip(obj.location, offset)]
         if obj.type == 'MESH':
@@ -636,11 +639,12 @@ def _scaled_simple_scene(scale, offset=(0.0, 0.0, 0.0)):
     return core_image()
 
 
-@pytest.mark.parametrize("scale", [1e-5, 1e-3, 1e10, 1e20, 1e36])
+@pytest.mark.parametrize("scale", [1e-5, 1e-3, 1e3, 1e6])
 def test_a_blender_scene_renders_the_same_at_any_position_and_scale(scale):
-    """Over the range Blender's own data allows: its camera's clip_start is at least 1e-6
-    (below 1e-5 the camera clips the scene away, in Blender too) and it stores float32, whose
-    largest value (3.4e38) bounds the large end.  Lights have no distance falloff here."""
+    """Over the range the data allows: Blender's camera clip_start is at least 1e-6 (below
+    1e-5 the camera clips the scene away, in Blender too), and the light's 1000 W x scale^2
+    must pass validation's 1e15 W (core.scene.MAX_COLOUR x 1000), which bounds the large end
+    for lights that fall off with distance."""
     reference = _scaled_simple_scene(1.0)
     image = _scaled_simple_scene(scale, offset=(100.0, -50.0, 30.0))
     moved = np.abs(image - reference).max(axis=2) > 1 / 255
