@@ -190,6 +190,16 @@ def _percentage(text: str) -> int:
     return value
 
 
+def load_choices():
+    """``core/choices.py`` (the choice lists, defined once; it imports nothing) loaded on its
+    own, so the arguments are checked before the package and Blender are."""
+    spec = importlib.util.spec_from_file_location(
+        f"{PACKAGE_NAME}_choices", os.path.join(REPOSITORY, "core", "choices.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def parse_args(argv: list[str]) -> argparse.Namespace:
     parser = _OneLineParser(prog=PROGRAM, description=__doc__.split("\n\n")[0])
     parser.add_argument("blend", nargs="?", help="scene .blend (default: the article's scene, "
@@ -207,8 +217,9 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
                              "scene has it off")
     parser.add_argument("--max-depth", type=_at_most(MAX_DEPTH), help="bounces per path")
     parser.add_argument("--frame", type=_integer, help="frame to render")
-    parser.add_argument("--semantics", choices=["default", "article"])
-    parser.add_argument("--precision", choices=["auto", "float64", "float32"])
+    choices = load_choices()
+    parser.add_argument("--semantics", choices=choices.SEMANTICS)
+    parser.add_argument("--precision", choices=choices.PRECISIONS)
     add_animation_arguments(parser)
     args = parser.parse_args(argv)
 
@@ -676,6 +687,11 @@ def main(argv: list[str] | None = None, own_process: bool = False) -> int:
             from glint.core import allocator
 
             allocator.configure()
+        if args.blend is not None:
+            # Before the file loads, so that its render engine GLINT is known (Blender reports
+            # "Engine 'GLINT' not available" otherwise); the article's scene is built after a
+            # factory reset, which the registration must follow.
+            register_glint(glint)
         scene = open_scene(args.blend)
         register_glint(glint)
         interruption.check()

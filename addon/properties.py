@@ -8,11 +8,19 @@ from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorPro
                        IntProperty, PointerProperty, StringProperty)
 
 from ..core import Material
+from ..core.choices import ANTI_ALIASING_CHOICES, PRECISION_CHOICES, SEMANTICS_CHOICES
 from ..core.scene import (MAX_COLOUR, MAX_DEPTH, MAX_LIGHT_SAMPLES, MAX_SAMPLES,
                           MAX_SHININESS)
 
 DEFAULT_IMAGE_NAME = "Glint Render"
 _ARTICLE_FLOOR = Material()  # the core's default material is the article's floor
+
+
+def enum_items(choices) -> list[tuple[str, str, str]]:
+    """EnumProperty items of one of the core's choice lists (``core.choices``): identifiers
+    are the values in upper case, as .blend files store them; ``render_settings`` lowers
+    them back."""
+    return [(value.upper(), label, description) for value, label, description in choices]
 
 
 class GlintRenderSettings(bpy.types.PropertyGroup):
@@ -21,11 +29,7 @@ class GlintRenderSettings(bpy.types.PropertyGroup):
         description="Bounces per path; the camera ray's hit counts as the first (the article "
                     "uses 3)")
     anti_aliasing: EnumProperty(
-        name="Anti-Aliasing", default='ADAPTIVE',
-        items=[('OFF', "Off", "One ray through each pixel centre, as the article does"),
-               ('FIXED', "Fixed", "Samples rays in every pixel"),
-               ('ADAPTIVE', "Adaptive",
-                "One ray per pixel, then Samples rays in pixels on an edge")])
+        name="Anti-Aliasing", default='ADAPTIVE', items=enum_items(ANTI_ALIASING_CHOICES))
     samples: IntProperty(
         name="Samples", default=16, min=1, soft_max=256, max=MAX_SAMPLES,
         description="Rays per anti-aliased pixel")
@@ -33,18 +37,9 @@ class GlintRenderSettings(bpy.types.PropertyGroup):
         name="Light Samples", default=16, min=1, soft_max=256, max=MAX_LIGHT_SAMPLES,
         description="Shadow rays per light with a radius (soft shadows, default semantics)")
     precision: EnumProperty(
-        name="Precision", default='AUTO',
-        items=[('AUTO', "Auto", "Float32 when the scene's size-to-detail ratio allows it, "
-                                "else float64"),
-               ('FLOAT64', "Float64", "Double precision"),
-               ('FLOAT32', "Float32", "Single precision: faster, may show shadow acne on "
-                                      "huge spheres")])
+        name="Precision", default='AUTO', items=enum_items(PRECISION_CHOICES))
     semantics: EnumProperty(
-        name="Semantics", default='DEFAULT',
-        items=[('DEFAULT', "Default", "The article's model with its quirks fixed: clamped "
-                                      "shading, ambient light in shadow, soft shadows, world "
-                                      "background"),
-               ('ARTICLE', "Article", "Every quirk of the article's tracer, kept exactly")])
+        name="Semantics", default='DEFAULT', items=enum_items(SEMANTICS_CHOICES))
     image_name: StringProperty(
         name="Image", default=DEFAULT_IMAGE_NAME,
         description="Image datablock the Render button writes (created if missing)")

@@ -18,9 +18,10 @@ import numpy as np
 
 from . import allocator
 from .article import article_scene, article_settings
+from .choices import ANTI_ALIASING, PARALLELISM, PRECISIONS, SEMANTICS
 from .png import atomic_file, write_png
 from .render import render
-from .scene import PARALLELISM, SceneError
+from .scene import SceneError
 
 SCENES = {"article": article_scene}
 
@@ -39,10 +40,10 @@ def parse_args(argv):
     parser.add_argument("--width", type=int, default=300)
     parser.add_argument("--height", type=int, default=200)
     parser.add_argument("--output", required=True, help="FILE.png (8-bit RGBA) or FILE.npy")
-    parser.add_argument("--semantics", choices=["article", "default"], default="article")
-    parser.add_argument("--precision", choices=["auto", "float64", "float32"], default="float64")
+    parser.add_argument("--semantics", choices=SEMANTICS, default="article")
+    parser.add_argument("--precision", choices=PRECISIONS, default="float64")
     parser.add_argument("--max-depth", type=int, default=3)
-    parser.add_argument("--anti-aliasing", choices=["off", "fixed", "adaptive"], default="off")
+    parser.add_argument("--anti-aliasing", choices=ANTI_ALIASING, default="off")
     parser.add_argument("--samples", type=int, default=16)
     parser.add_argument("--threads", type=int, default=None,
                         help="tiles rendered at once (default: one per core)")

@@ -92,7 +92,39 @@ def _screen_rays(camera: ScreenCamera, xs, ys, dtype) -> CameraRays:
     return CameraRays(eye[:, None].astype(dtype), directions.astype(dtype), 0.0, np.inf)
 
 
-def _blender_rays(camera: BlenderCamera, xs, ys, dtype) -> CameraRays:
+def has_aperture(camera) -> bool:
+    """Whether the camera is a thin lens (depth of field), not a pinhole."""
+    return (isinstance(camera, BlenderCamera) and camera.projection == "PERSP"
+            and camera.aperture_radius > 0)
+
+
+def aperture_points(camera: BlenderCamera, lens: np.ndarray) -> np.ndarray:
+    """(2, n) points on the camera's aperture (camera space x, y) for lens samples (2, n) in
+    [0, 1)^2, uniform over its area: Shirley and Chiu's concentric map onto the disc, or with
+    B >= 3 blades a regular B-gon (one of its B triangles, then a point in it)."""
+    u, v = 2.0 * lens[0] - 1.0, 2.0 * lens[1] - 1.0
+    blades = camera.aperture_blades
+    if blades >= 3:
+        corner = np.minimum(np.floor(lens[0] * blades), blades - 1)
+        a = lens[0] * blades - corner                     # reuse the fraction
+        b = lens[1]
+        root = np.sqrt(a)
+        weights = (root * (1 - b), root * b)              # uniform in the triangle
+        angle0 = camera.aperture_rotation + 2 * np.pi * corner / blades
+        angle1 = angle0 + 2 * np.pi / blades
+        x = weights[0] * np.cos(angle0) + weights[1] * np.cos(angle1)
+        y = weights[0] * np.sin(angle0) + weights[1] * np.sin(angle1)
+        return camera.aperture_radius * np.stack([x, y])
+    big = np.abs(u) > np.abs(v)
+    safe_u = np.where(u == 0, 1.0, u)
+    safe_v = np.where(v == 0, 1.0, v)
+    radius = np.where(big, u, v)
+    theta = np.where(big, (np.pi / 4) * (v / safe_u), np.pi / 2 - (np.pi / 4) * (u / safe_v))
+    theta = np.where((u == 0) & (v == 0), 0.0, theta)
+    return camera.aperture_radius * np.stack([radius * np.cos(theta), radius * np.sin(theta)])
+
+
+def _blender_rays(camera: BlenderCamera, xs, ys, dtype, lens=None) -> CameraRays:
     plane = blender_view_plane(camera)
     u = plane.offset_x + (2.0 * xs / camera.width - 1.0) * plane.half_width
     v = plane.offset_y + (2.0 * (camera.height - ys) / camera.height - 1.0) * plane.half_height
@@ -103,6 +135,19 @@ def _blender_rays(camera: BlenderCamera, xs, ys, dtype) -> CameraRays:
         return CameraRays(origins.astype(dtype), directions.astype(dtype),
                           camera.clip_start, camera.clip_end)
     local = np.stack([u, v, -np.ones_like(u)])
+    if lens is not None and has_aperture(camera):
+        # Thin lens: from a point on the aperture towards where the pinhole ray crosses the
+        # focus plane (depth focus_distance), so every ray of a pixel meets there.
+        offset = np.zeros_like(local)
+        offset[:2] = aperture_points(camera, np.asarray(lens, np.float64))
+        towards = local * camera.focus_distance - offset
+        directions, length = normalize(rotation @ towards)
+        origins = rotation @ offset + translation[:, None]
+        # The depth reached per unit of t is focus_distance / |towards|.
+        per_depth = length / camera.focus_distance
+        return CameraRays(origins.astype(dtype), directions.astype(dtype),
+                          (camera.clip_start * per_depth).astype(dtype),
+                          (camera.clip_end * per_depth).astype(dtype))
     directions, local_length = normalize(rotation @ local)
     # Clip planes are depths along -Z; a unit ray reaches depth z after z * |(u, v, -1)|.
     return CameraRays(translation[:, None].astype(dtype), directions.astype(dtype),
@@ -110,13 +155,16 @@ def _blender_rays(camera: BlenderCamera, xs, ys, dtype) -> CameraRays:
                       (camera.clip_end * local_length).astype(dtype))
 
 
-def camera_rays(camera: Camera, xs: np.ndarray, ys: np.ndarray, dtype=np.float64) -> CameraRays:
-    """Rays through image positions xs, ys (n,) (columns and rows, row 0 at the top)."""
+def camera_rays(camera: Camera, xs: np.ndarray, ys: np.ndarray, dtype=np.float64,
+                lens=None) -> CameraRays:
+    """Rays through image positions xs, ys (n,) (columns and rows, row 0 at the top).  lens:
+    (2, n) positions on the aperture in [0, 1)^2 for a thin-lens camera (``has_aperture``);
+    None (or a pinhole camera) traces from the eye."""
     xs = np.asarray(xs, np.float64)
     ys = np.asarray(ys, np.float64)
     if isinstance(camera, ScreenCamera):
         return _screen_rays(camera, xs, ys, dtype)
-    return _blender_rays(camera, xs, ys, dtype)
+    return _blender_rays(camera, xs, ys, dtype, lens)
 
 
 def eye_position(camera: Camera) -> np.ndarray:

@@ -187,7 +187,9 @@ def _camera(camera, frame: Frame):
         camera, matrix_world=tuple(tuple(row) for row in matrix),
         ortho_scale=capped(camera.ortho_scale) if ortho else camera.ortho_scale,
         clip_start=min(frame.length(camera.clip_start), MAX_MAGNITUDE / 2),
-        clip_end=capped(camera.clip_end))
+        clip_end=capped(camera.clip_end),
+        aperture_radius=capped(camera.aperture_radius),
+        focus_distance=capped(camera.focus_distance))
 
 
 def _light(light, frame: Frame):

@@ -23,12 +23,13 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .camera import camera_rays
+from .camera import camera_rays, has_aperture
 from .colour import linear_to_srgb
 from .context import RayStats, TraceContext, make_context
+from .passes import PrimaryPasses, fill_tile_passes
 from .cull import PACKET_SIZE
 from . import memory
-from .frame import canonical_scene
+from .frame import canonical_scene, scene_frame
 from .precision import choose_precision
 from .scene import RenderSettings, Scene, SceneError
 from .trace import trace_bundle
@@ -71,6 +72,7 @@ class RenderResult:
     missed_colour: np.ndarray
     semantics: str = "article"
     parallelism: str = "threads"
+    passes: Optional[PrimaryPasses] = None   # render(passes=True): see core.passes
 
     def display(self) -> np.ndarray:
         """(H, W, 4) display values in [0, 1] for an 8-bit file: the image itself in article
@@ -96,11 +98,12 @@ def _tiles(width: int, height: int, size: int):
             for y in range(0, height, size) for x in range(0, width, size)]
 
 
-def _trace_positions(ctx: TraceContext, camera, xs, ys, stats):
+def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None):
     """(rgb (n, 3), coverage (n,), signature (n,)) for sample positions xs, ys (n,); rgb
-    clipped to [0, 1] per sample in article semantics, unclipped radiance otherwise."""
+    clipped to [0, 1] per sample in article semantics, unclipped radiance otherwise; lens:
+    aperture positions (2, n) for a thin-lens camera."""
     start = time.perf_counter()
-    rays = camera_rays(camera, xs, ys, ctx.dtype)
+    rays = camera_rays(camera, xs, ys, ctx.dtype, lens)
     traced = time.perf_counter()
     result = trace_bundle(ctx, rays, stats)
     stats.seconds_camera += traced - start
@@ -146,11 +149,24 @@ def _supersample(ctx, camera, cols, rows, count, stats, stop=None):
         part = slice(first, first + pixels_per_bundle)
         xs = (cols[part, None] + offsets[None, :, 0]).ravel()
         ys = (rows[part, None] + offsets[None, :, 1]).ravel()
-        colour, hit, _ = _trace_positions(ctx, camera, xs, ys, stats)
+        lens = lens_samples(cols[part], rows[part], offsets) if has_aperture(camera) else None
+        colour, hit, _ = _trace_positions(ctx, camera, xs, ys, stats, lens)
         rgb[part] = colour.reshape(-1, count, 3).mean(axis=1)
         coverage[part] = hit.reshape(-1, count).mean(axis=1)
     stats.supersampled_pixels += len(cols)
     return rgb, coverage
+
+
+def lens_samples(cols, rows, offsets) -> np.ndarray:
+    """(2, n * count) aperture positions in [0, 1)^2 for ``count`` samples in each pixel
+    (cols, rows) (n,): the pixel offsets' sequence with its axes swapped (so a sample's lens
+    position is not its pixel position), shifted per pixel by an R2 point of the pixel's own
+    index (Cranley-Patterson rotation), so neighbouring pixels do not repeat one pattern."""
+    g = 1.32471795724474602596
+    index = (rows.astype(np.float64) * 7919.0 + cols)[:, None]
+    shift = (index * np.array([1 / g, 1 / (g * g)])) % 1.0            # (n, 2)
+    lens = (offsets[None, :, ::-1] + shift[:, None, :]) % 1.0           # (n, count, 2)
+    return lens.reshape(-1, 2).T
 
 
 def _edges(signature: np.ndarray) -> np.ndarray:
@@ -175,6 +191,8 @@ def render_tile(ctx: TraceContext, camera, tile, stop: Optional[threading.Event]
     h, w = y1 - y0, x1 - x0
     stats = RayStats(tiles=1)
     mode = ctx.settings.anti_aliasing
+    if mode == "adaptive" and has_aperture(camera):
+        mode = "fixed"  # defocus blurs every pixel, not only those on an edge
     rgba = np.empty((h, w, 4), ctx.dtype)
     cols, rows = _pixel_grid(y0, y1, x0, x1)
     if mode == "fixed":
@@ -228,7 +246,8 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
            progress: Optional[Callable[[float], None]] = None,
            should_cancel: Optional[Callable[[], bool]] = None,
            image_dtype=None, reserve_bytes: int = 0,
-           on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None) -> RenderResult:
+           on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None,
+           passes: bool = False) -> RenderResult:
     """Render ``scene``; see ``core`` for the result's layout.  image_dtype: the image's
     dtype (default: the render's precision); float32 halves a float64 render's largest array
     for callers that keep no more than float32 anyway (Blender's render results).
@@ -237,6 +256,8 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     ``progress``), with tile = (y0, y1, x0, x1) (rows from the top) and its (h, w, 4) pixels,
     a view of the image: copy what must outlive the call.  Tiles land in any order; a
     cancelled render has passed on exactly the tiles that finished.
+    passes: also fill ``RenderResult.passes`` (``core.passes``: depth, position, normal,
+    primitive and material of each pixel centre's first hit, in world units).
 
     Before anything is allocated, the render's memory is planned (``core.memory``) and a
     render that cannot fit raises memory.NotEnoughMemory, a SceneError."""
@@ -246,13 +267,17 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     if not isinstance(settings, RenderSettings):
         raise SceneError(f"settings must be a core.RenderSettings, got {type(settings).__name__}")
     allocator.configure_if_opted_in()  # only if GLINT_MALLOC_TUNING asks (core.allocator)
+    world = None if settings.semantics == "article" else scene_frame(scene)  # for passes
     scene = canonical_scene(scene, settings)  # positions and units stop mattering
     dtype = choose_precision(scene, settings.precision)
     width, height = scene.camera.width, scene.camera.height
     threads = settings.threads or os.cpu_count() or 1
     image_dtype = dtype if image_dtype is None else np.dtype(image_dtype)
+    if passes:  # the passes' arrays, beside the image
+        reserve_bytes += PrimaryPasses.BYTES_PER_PIXEL * width * height
     tiles = _tiles(width, height, settings.tile_size)
-    in_processes = _in_processes(settings, width * height, len(tiles))
+    # Passes are filled beside each tile in this process (``work``), so they keep tiles here.
+    in_processes = not passes and _in_processes(settings, width * height, len(tiles))
     memory_plan = memory.plan(scene, settings, image_dtype, threads, reserve_bytes)
     if in_processes:  # plus the shared image and each worker's interpreter and scene
         memory_plan = dataclasses.replace(memory_plan, other=memory_plan.other + workers.
@@ -264,6 +289,13 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     ctx = make_context(scene, settings, dtype)
     image = np.zeros((height, width, 4), image_dtype)
     stats = RayStats()
+    primary = PrimaryPasses.empty(width, height) if passes else None
+
+    def work(ctx, camera, tile, stop=None):
+        rgba, tile_stats = render_tile(ctx, camera, tile, stop)
+        if primary is not None:
+            fill_tile_passes(primary, ctx, camera, tile, tile_stats, world)
+        return rgba, tile_stats
 
     def finish(tile, rgba, tile_stats, done, finite=None):
         """finite: whether every value of rgba is finite, if already known (workers check
@@ -297,9 +329,9 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
         for done, tile in enumerate(tiles, 1):
             if cancelled():
                 raise RenderCancelled("render cancelled")
-            finish(tile, *render_tile(ctx, scene.camera, tile), done)
+            finish(tile, *work(ctx, scene.camera, tile), done)
         return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
-                            settings.semantics)
+                            settings.semantics, passes=primary)
 
     stop = threading.Event()
     with ThreadPoolExecutor(max_workers=threads) as pool:
@@ -313,7 +345,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
                     tile = next(queue, None)
                     if tile is None:
                         break
-                    pending[pool.submit(render_tile, ctx, scene.camera, tile, stop)] = tile
+                    pending[pool.submit(work, ctx, scene.camera, tile, stop)] = tile
                 if not pending:
                     break
                 # Wake up regularly to poll should_cancel while long tiles run.
@@ -334,4 +366,4 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
                 future.cancel()
             raise
     return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
-                        settings.semantics)
+                        settings.semantics, passes=primary)

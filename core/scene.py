@@ -27,13 +27,11 @@ from typing import Literal, Sequence, Union
 
 import numpy as np
 
+from .choices import (ANTI_ALIASING, PARALLELISM, PRECISIONS,  # noqa: F401  (defined
+                      SEMANTICS)                                # once there)
+
 Vec3 = tuple[float, float, float]
 
-SEMANTICS = ("default", "article")
-PRECISIONS = ("auto", "float64", "float32")
-ANTI_ALIASING = ("off", "fixed", "adaptive")
-#: How tiles run in parallel (``core.render``, ``core.workers``).
-PARALLELISM = ("threads", "processes")
 PROJECTIONS = ("PERSP", "ORTHO")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 AREA_SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
@@ -539,6 +537,10 @@ class BlenderCamera:
         ``int(resolution_x * percentage / 100)`` by ``int(resolution_y * percentage / 100)``.
     pixel_aspect_x, pixel_aspect_y: non-square pixels.
     Pixel (i, j) with j = 0 at the bottom has its centre at ((i + 0.5) / W, (j + 0.5) / H).
+    aperture_radius, focus_distance, aperture_blades, aperture_rotation: a thin lens
+        (perspective only; Cycles' depth of field): rays leave a disc (or, with 3 or more
+        blades, a regular polygon turned by the rotation) of that radius and meet at the
+        plane at focus_distance along the view axis; 0 radius is a pinhole.
     """
 
     matrix_world: tuple
@@ -557,6 +559,10 @@ class BlenderCamera:
     clip_end: float = 1000.0
     pixel_aspect_x: float = 1.0
     pixel_aspect_y: float = 1.0
+    aperture_radius: float = 0.0     # thin lens (perspective): 0 is a pinhole
+    focus_distance: float = 10.0
+    aperture_blades: int = 0
+    aperture_rotation: float = 0.0
 
     def __post_init__(self):
         try:
@@ -576,8 +582,13 @@ class BlenderCamera:
         for name in ("lens", "ortho_scale", "sensor_width", "sensor_height",
                      "pixel_aspect_x", "pixel_aspect_y", "clip_start"):
             _set(self, name, _positive(f"camera.{name}", getattr(self, name)))
-        for name in ("shift_x", "shift_y"):
+        for name in ("shift_x", "shift_y", "aperture_rotation"):
             _set(self, name, _finite(f"camera.{name}", getattr(self, name)))
+        _set(self, "aperture_radius", _non_negative("camera.aperture_radius",
+                                                    self.aperture_radius))
+        _set(self, "focus_distance", _positive("camera.focus_distance", self.focus_distance))
+        if self.aperture_blades != 0:
+            _count("camera.aperture_blades", self.aperture_blades, minimum=3)
         _set(self, "clip_end", _positive("camera.clip_end", self.clip_end))
         if self.clip_end <= self.clip_start:
             raise SceneError(f"camera.clip_end ({self.clip_end!r}) must be greater than "

@@ -25,14 +25,33 @@ _SIGNATURE_PRIME = np.uint64(1_000_003)
 
 
 @dataclass
+class PrimaryHits:
+    """What each camera ray hit first (render passes), read at depth 0 of the bounce loop:
+    t (n,) distance along the ray (inf: missed), primitive and material (n,) global ids (-1:
+    none), normal (3, n) unit shading normal facing the ray (0 where missed)."""
+
+    t: np.ndarray
+    primitive: np.ndarray
+    material: np.ndarray
+    normal: np.ndarray
+
+    @classmethod
+    def missed(cls, n: int, dtype) -> "PrimaryHits":
+        return cls(np.full(n, np.inf, dtype), np.full(n, -1, np.intp), np.full(n, -1, np.intp),
+                   np.zeros((3, n), dtype))
+
+
+@dataclass
 class BundleResult:
     """colour (3, n) unclipped; coverage (n,) whether the camera ray hit a sphere;
     signature (n,) uint64 hash of what the path hit (spheres and shadowing at every bounce):
-    neighbours with different signatures straddle an edge; None unless adaptive AA asks."""
+    neighbours with different signatures straddle an edge; None unless adaptive AA asks.
+    primary: PrimaryHits when asked for (``trace_bundle(record_primary=True)``), else None."""
 
     colour: np.ndarray
     coverage: np.ndarray
     signature: np.ndarray | None
+    primary: PrimaryHits | None = None
 
 
 def nearest_sphere(ctx: TraceContext, origins, directions, t_min, t_max, exclude,
@@ -61,7 +80,8 @@ def _accumulate(colour, path, values, unique: bool, whole: bool):
             colour[row] += np.bincount(path, values[row], colour.shape[1])
 
 
-def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> BundleResult:
+def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
+                 record_primary: bool = False) -> BundleResult:
     """Follow the bundle: article semantics as the article does (one mirror ray per hit, a
     scalar weight); default semantics with Blender's look (``ctx.look``) with colour weights
     and, where ``core.bsdf`` says so, several secondary rays per hit (mirror, refraction,
@@ -69,6 +89,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
     dtype = ctx.dtype
     geometry = ctx.geometry
     n = rays.directions.shape[1]
+    primary = PrimaryHits.missed(n, dtype) if record_primary else None
     colour = np.zeros((3, n), dtype)
     # Signatures feed adaptive anti-aliasing only: no work for them otherwise.
     signature = np.zeros(n, np.uint64) if ctx.settings.anti_aliasing == "adaptive" else None
@@ -110,6 +131,9 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
             # faces the other way.
             normals = normals * np.where(front, 1, -1).astype(dtype)
             cos_in = np.where(front, cos_in, -cos_in)
+        if primary is not None and depth == 0:
+            primary.t[path], primary.normal[:, path] = hits.t, normals
+            primary.primitive[path], primary.material[path] = primitive, hits.material
         exclude = None if ctx.article else geometry.exclusions(primitive, front)
         illumination, goes_on, shadow_code = shade(ctx, points, normals, directions,
                                                    hits.material, exclude, stats)
@@ -147,7 +171,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
         # Reflections leave on the side the ray came from.
         batch = geometry.spawn(points, geometric, primitive, directions, front)
         stats.reflection_rays += len(path)
-    return BundleResult(colour, coverage, signature)
+    return BundleResult(colour, coverage, signature, primary)
 
 
 def _secondary_rays(ctx, look, hits, normals, cos_in, path, weight, bounces_left, cutoff):

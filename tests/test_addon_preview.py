@@ -56,20 +56,20 @@ def test_a_material_preview_is_lit_and_says_nothing():
     assert job.warnings == []
     assert [light.name for light in job.scene.lights] == ["Glint preview light"]
     assert [sphere.name for sphere in job.scene.spheres] == ["preview_sphere"]
-    image = job.run().image
-    # The sphere covers about 27 px around the centre (radius 1 seen from 5 at 96 px, 50 mm
-    # lens): a disc of 20 px is sphere only, whatever the floor behind it shows.
-    rows, columns = np.mgrid[:96, :96]
-    sphere = (rows - 47.5) ** 2 + (columns - 47.5) ** 2 < 20 ** 2
+    result = job.run(passes=True)
+    image = result.image
+    sphere = result.passes.primitive == 0   # the preview sphere, the scene's first primitive
     # The sphere shows the user's red, lit from the upper left: its upper-left quarter is
-    # brighter than its lower-right one (ambient only there).
+    # brighter than its lower-right one (shadow side, ambient and the floor's reflection).
+    rows, cols = np.nonzero(sphere)
+    cy, cx = rows.mean(), cols.mean()
+    y, x = np.mgrid[:sphere.shape[0], :sphere.shape[1]]
     red = image[..., 0]
-    upper_left = red[sphere & (rows < 40) & (columns < 40)]
-    lower_right = red[sphere & (rows > 56) & (columns > 56)]
-    # Red, though less than twice the green: the sphere reflects the grey floor (reflection
-    # 0.5 at the default roughness).
-    assert image[sphere, 0].mean() > 1.5 * image[sphere, 1].mean()
-    assert upper_left.mean() > lower_right.mean() + 0.2
+    upper_left = red[sphere & (y < cy) & (x < cx)].mean()
+    lower_right = red[sphere & (y > cy) & (x > cx)].mean()
+    assert sphere[48, 48]
+    assert image[sphere, 0].mean() > 2 * image[sphere, 1].mean()
+    assert upper_left > lower_right + 0.15
 
 
 def test_a_point_light_being_previewed_is_the_light():

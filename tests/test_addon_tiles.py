@@ -32,13 +32,16 @@ def test_a_cancelled_f12_keeps_the_tiles_that_finished(tmp_path):
     scene.render.engine = 'GLINT'
     scene.render.resolution_x, scene.render.resolution_y = 5 * TILE, 4 * TILE
     full = rgba_f12(scene, tmp_path, "full.png")
-    polls = []
+    landed = []
 
-    def cancel_on_second_poll():
-        polls.append(True)
-        return len(polls) >= 2   # polled as tiles land: at least two have
+    def tile_landed(job, fraction):   # called as each tile lands
+        landed.append(fraction)
 
-    with requesting_frames(FrameRequest(should_cancel=cancel_on_second_poll)) as request:
+    def cancel_after_two_tiles():
+        return len(landed) >= 2
+
+    with requesting_frames(FrameRequest(should_cancel=cancel_after_two_tiles,
+                                        progress=tile_landed)) as request:
         partial = rgba_f12(scene, tmp_path, "partial.png")
 
     assert request.frames == []      # the frame never finished

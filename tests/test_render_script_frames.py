@@ -188,6 +188,8 @@ def test_exr_output_holds_the_scene_linear_render(tmp_path):
 def test_multilayer_exr_holds_every_view_layer(tmp_path):
     scene = simple_scene()
     scene.view_layers.new("Spheres only")
+    for layer in scene.view_layers:
+        layer.use_pass_z = layer.use_pass_normal = True
     scene.render.image_settings.exr_codec = 'NONE'
     blend = tmp_path / "layers.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
@@ -199,6 +201,9 @@ def test_multilayer_exr_holds_every_view_layer(tmp_path):
     channels = read_exr(tmp_path / "layers.exr")
     for layer in ("ViewLayer", "Spheres only"):
         assert {f"{layer}.Combined.{c}" for c in "RGBA"} <= set(channels)
+        assert {f"{layer}.Depth.Z"} | {f"{layer}.Normal.{c}" for c in "XYZ"} <= set(channels)
+        depth = channels[f"{layer}.Depth.Z"]
+        assert (depth < 10).any() and (depth == np.float32(1e10)).any()
     np.testing.assert_array_equal(channels["ViewLayer.Combined.R"],
                                   channels["Spheres only.Combined.R"])
 

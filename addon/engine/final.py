@@ -39,6 +39,7 @@ from ...core import RenderCancelled
 from ..utils.colour import render_result_pixels
 from ..export import ExportError
 from .job import failure_message, prepare_job
+from .passes import enabled_passes, pass_warning, register_passes, write_result_with_passes
 from .preview import prepare_preview_job
 from .viewport import ViewportEngine
 
@@ -148,25 +149,36 @@ class GlintRenderEngine(bpy.types.RenderEngine):
         def should_cancel():
             return self.test_break() or (request is not None and request.should_cancel())
 
-        # Tiles go to Blender as they land (F12 fills in tile by tile, and a cancel keeps
-        # them), unless the script asking for the frames writes it itself.
-        tiles = None
-        if request is None or request.fill_render_result:
-            tiles = TileHandOver(self, region, height, depsgraph.view_layer.name,
-                                 job.settings.semantics)
-
         def progress(fraction):
             self.update_progress(fraction)
             if request is not None and request.progress is not None:
                 request.progress(job, fraction)
 
-        # Blender's render result is a float32 frame of its own besides the job's.
+        view_layer = depsgraph.view_layer
+        passes = [] if self.is_preview else enabled_passes(view_layer)
+        missing_passes = None if self.is_preview else pass_warning(view_layer)
+        if missing_passes:
+            self.report({'WARNING'}, missing_passes)
+        # Tiles go to Blender as they land (F12 fills in tile by tile, and a cancel keeps
+        # them), unless the script asking for the frames writes it itself.
+        fill = request is None or request.fill_render_result
+        tiles = TileHandOver(self, region, height, view_layer.name,
+                             job.settings.semantics) if fill else None
         result = job.run(progress=progress, should_cancel=should_cancel,
                          on_tile=tiles.hand_over if tiles is not None else None,
-                         reserve_bytes=job.frame_bytes if tiles is not None else 0)
+                         passes=bool(passes) and fill,
+                         # Blender's render result: a float32 frame besides the job's.
+                         reserve_bytes=job.frame_bytes if fill else 0)
         self.update_stats("Glint", f"{summary}, {result.precision}")
         if request is not None:
             request.frames.append((job, result))
+        if passes and fill:
+            # The passes, with Combined again, over the whole region at once.
+            write_result_with_passes(self, result.image, result.passes, passes, job.scene,
+                                     region, view_layer.name)
+
+    def update_render_passes(self, scene=None, renderlayer=None):
+        register_passes(self, scene, renderlayer)
 
     def _fail(self, message: str) -> None:
         self.report({'ERROR'}, message)
@@ -232,12 +244,24 @@ def render_region(render, width: int, height: int):
     return (x0, y0, x1, y1) if x1 > x0 and y1 > y0 else None
 
 
+#: Panels marked for every engine that Glint does not show: Blender's type-only light panel
+#: and its node variant (Glint shows one Light panel, EEVEE's, which edits what Glint
+#: exports: type, colour, power, radius), the spot cone (Glint renders no spot lights) and
+#: light probes (Glint does not use them).
+EXCLUDED_PANEL_PREFIXES = ('DATA_PT_lightprobe', 'DATA_PT_context_lightprobe')
+EXCLUDED_PANELS = {'DATA_PT_light', 'NODE_DATA_PT_light', 'DATA_PT_spot'}
+
+
+def _excluded(name: str) -> bool:
+    return (name in EXCLUDED_PANELS or name.startswith(EXCLUDED_PANEL_PREFIXES)
+            or 'FREESTYLE' in name.upper())
+
+
 def compatible_panels():
     """Blender's panels Glint's users need, as other engines choose them: every panel marked
     for all engines ('BLENDER_RENDER': output, format, colour management, camera, ...), minus
-    what Glint does not use, plus the EEVEE panels that edit what Glint exports (material
-    slots and surface, world surface, light colour/power/radius)."""
-    excluded = {'DATA_PT_light'}  # a type-only light panel, superseded by DATA_PT_EEVEE_light
+    those that do not apply to Glint (EXCLUDED_PANELS), plus the EEVEE panels that edit what
+    Glint exports (material slots and surface, world surface, the light)."""
     included = {'EEVEE_MATERIAL_PT_context_material', 'EEVEE_MATERIAL_PT_surface',
                 'EEVEE_WORLD_PT_surface', 'DATA_PT_EEVEE_light'}
     panels = []
@@ -246,14 +270,28 @@ def compatible_panels():
         if engines is None:
             continue
         name = panel.__name__
-        if name in included or ('BLENDER_RENDER' in engines and name not in excluded
-                                and 'FREESTYLE' not in name.upper()):
+        if name in included or ('BLENDER_RENDER' in engines and not _excluded(name)):
             panels.append(panel)
     return panels
 
 
+def _own_engine_sets(panels) -> None:
+    """A panel subclass shares its parent's COMPAT_ENGINES set object unless it defines its
+    own (NODE_DATA_PT_light shares DATA_PT_light's): give each panel Glint adds itself to a
+    set of its own where that set is shared with a panel Glint leaves out, so adding Glint to
+    one does not show the other."""
+    chosen = {id(panel) for panel in panels}
+    others = {id(panel.COMPAT_ENGINES) for panel in bpy.types.Panel.__subclasses__()
+              if id(panel) not in chosen and getattr(panel, "COMPAT_ENGINES", None) is not None}
+    for panel in panels:
+        if id(panel.COMPAT_ENGINES) in others:
+            panel.COMPAT_ENGINES = set(panel.COMPAT_ENGINES)
+
+
 def register_panels():
-    for panel in compatible_panels():
+    panels = compatible_panels()
+    _own_engine_sets(panels)
+    for panel in panels:
         panel.COMPAT_ENGINES.add(GlintRenderEngine.bl_idname)
 
 

@@ -32,14 +32,20 @@ import numpy as np
 from ...core import RenderCancelled, RenderSettings, Scene, SceneError, render
 from ...core.render import RayStats, missed_colour
 from ..export import ExportError, export_scene
+from .ignored import ignored_settings_warning
 from ..utils.colour import render_result_pixels
 
 #: Set (to anything) to have unexpected errors print their traceback to stderr as well.
 DEBUG_VARIABLE = "GLINT_DEBUG"
 
 
-def render_settings(settings) -> RenderSettings:
-    """``Scene.glint`` (a GlintRenderSettings) -> core RenderSettings."""
+def render_settings(settings, render=None) -> RenderSettings:
+    """``Scene.glint`` (a GlintRenderSettings) -> core RenderSettings; ``render`` (the scene's
+    RenderSettings), if given, sets the threads: Blender's Performance > Threads, so a farm
+    node running several jobs is not oversubscribed (Auto-detect: one per core)."""
+    threads = None
+    if render is not None and render.threads_mode == 'FIXED':
+        threads = render.threads
     return RenderSettings(
         semantics=settings.semantics.lower(),
         precision=settings.precision.lower(),
@@ -47,6 +53,7 @@ def render_settings(settings) -> RenderSettings:
         anti_aliasing=settings.anti_aliasing.lower(),
         samples=settings.samples,
         light_samples=settings.light_samples,
+        threads=threads,
     )
 
 
@@ -58,6 +65,7 @@ class JobResult:
     image: np.ndarray
     precision: str
     stats: RayStats
+    passes: Optional[object] = None   # core.passes.PrimaryPasses when run(passes=True)
 
 
 @dataclass
@@ -88,12 +96,14 @@ class RenderJob:
     def run(self, progress: Optional[Callable[[float], None]] = None,
             should_cancel: Optional[Callable[[], bool]] = None,
             reserve_bytes: int = 0,
-            on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None) -> JobResult:
+            on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None,
+            passes: bool = False) -> JobResult:
         """The finished frame (module docstring).  Raises core.RenderCancelled if
         should_cancel() answers True, core.SceneError for settings the core rejects or a
         render that cannot fit in memory with ``reserve_bytes`` more (the caller's copies).
         on_tile(tile, rgba): each tile as it lands (``core.render``'s tile, rows from the top),
-        its pixels finished as the frame's will be (a copy the callee may keep)."""
+        its pixels finished as the frame's will be (a copy the callee may keep).
+        passes: also compute the render passes (``core.passes``) into JobResult.passes."""
         missed = missed_colour(self.scene, self.settings)
 
         def finished_tile(tile, rgba):
@@ -104,9 +114,10 @@ class RenderJob:
         result = render(self.scene, self.settings, progress=progress,
                         should_cancel=should_cancel, image_dtype=np.float32,
                         reserve_bytes=reserve_bytes,
-                        on_tile=finished_tile if on_tile is not None else None)
+                        on_tile=finished_tile if on_tile is not None else None,
+                        passes=passes)
         finish_image(result.image, result.missed_colour, self.transparent)
-        return JobResult(result.image, result.precision, result.stats)
+        return JobResult(result.image, result.precision, result.stats, result.passes)
 
 
 #: Rows handled at a time by whole-frame steps, so their temporaries stay small.
@@ -151,8 +162,10 @@ def prepare_job(depsgraph, camera_override=None) -> RenderJob:
     """Export the scene and read its Glint settings (main thread only).  Raises ExportError
     or core.SceneError with a message meant for the user."""
     scene, warnings = export_scene(depsgraph, camera_override)
+    warnings += ignored_settings_warning(depsgraph, camera_override)
     blender_scene = depsgraph.scene_eval
-    return RenderJob(scene=scene, settings=render_settings(blender_scene.glint),
+    return RenderJob(scene=scene,
+                     settings=render_settings(blender_scene.glint, blender_scene.render),
                      transparent=blender_scene.render.film_transparent, warnings=warnings)
 
 

@@ -11,6 +11,9 @@ user's material; its lights are area lights set up for Blender's own engines.  S
   preview camera (``PREVIEW_LIGHT_DIRECTION``, in camera space, at the distance of the
   nearest sphere) instead of the preview scene's lights, unless it has a point light of its
   own (a point light being previewed is rendered as it is, alone);
+* draws the preview's sphere-like meshes as exact spheres (``analytic_spheres``: the
+  exporter keeps a mesh analytic only within a quarter pixel, and Blender's preview sphere at
+  preview sizes is not; the preview is of the material, not of the tessellation);
 * renders with the preview scene's own Glint settings (Blender's defaults: default semantics,
   adaptive anti-aliasing), which take milliseconds at preview sizes.
 """
@@ -21,8 +24,9 @@ import dataclasses
 
 import numpy as np
 
-from ...core import PointLight, SphereLight
+from ...core import PointLight, Sphere, SphereLight
 from ...core.camera import camera_to_world
+from ..export.geometry import MAX_FACE_SAGITTA, fit_sphere, uniform_scales
 from .job import RenderJob, prepare_job
 
 #: Where the preview's key light comes from, in camera space (x right, y up, -z ahead): up
@@ -45,10 +49,33 @@ def preview_light(scene) -> PointLight:
                                  name="Glint preview light")
 
 
+def analytic_spheres(scene):
+    """``scene`` with each single-material triangle mesh whose vertices lie on a sphere and
+    whose faces follow it (``export.geometry``'s tests: fit_sphere, face sag under
+    MAX_FACE_SAGITTA of the radius) replaced by its analytic spheres, one per uniformly scaled
+    instance."""
+    spheres, meshes = list(scene.spheres), []
+    for mesh in scene.meshes:
+        fit = fit_sphere(mesh.vertices) if len(mesh.materials) == 1 else None
+        if fit is not None:
+            corners = mesh.vertices[mesh.triangles]                 # (T, 3, 3)
+            sag = fit.radius - np.linalg.norm(corners.mean(axis=1) - fit.center, axis=1)
+            scales, uniform = uniform_scales(mesh.transforms)
+            if sag.max() <= MAX_FACE_SAGITTA * fit.radius and uniform.all():
+                centres = (mesh.transforms[:, :3, :3] @ np.asarray(fit.center)
+                           + mesh.transforms[:, :3, 3])
+                spheres += [Sphere(tuple(centre), fit.radius * scale, mesh.materials[0],
+                                   mesh.name) for centre, scale in zip(centres, scales)]
+                continue
+        meshes.append(mesh)
+    return dataclasses.replace(scene, spheres=tuple(spheres), meshes=tuple(meshes))
+
+
 def prepare_preview_job(depsgraph, camera_override=None) -> RenderJob:
-    """A RenderJob for Blender's preview scene (module docstring): no warnings, a key light
-    when the scene has no point light."""
+    """A RenderJob for Blender's preview scene (module docstring): no warnings, exact
+    spheres, a key light when the scene has no point light."""
     job = prepare_job(depsgraph, camera_override=camera_override)
+    job.scene = analytic_spheres(job.scene)
     points = tuple(light for light in job.scene.lights
                    if isinstance(light, (PointLight, SphereLight)))
     job.scene = dataclasses.replace(job.scene, lights=points or (preview_light(job.scene),))

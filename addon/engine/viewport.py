@@ -1,8 +1,9 @@
 """The viewport's Rendered shading: what the 3D View shows, traced progressively.
 
-The engine's ``view_update`` / ``view_draw`` hand over to a ``ViewportSession`` (one per
-engine instance, i.e. per 3D View in Rendered mode).  Everything here except
-``ViewportView.from_context`` works on plain data, so the tests drive it headless:
+The engine's ``view_update`` / ``view_draw`` hand over to a ``ViewportEngine`` (one per
+engine instance, i.e. per 3D View in Rendered mode), which exports the scene, reports, draws
+(``addon.draw.viewport``) and keeps a ``ViewportSession``.  Everything below it works on plain
+data (Blender's matrices, core scenes), so the tests drive it headless:
 
 * ``view_camera``: a region's view and projection matrices (``RegionView3D.view_matrix`` /
   ``window_matrix``) -> a ``core.BlenderCamera`` whose rays are the rays through the region's
@@ -12,7 +13,8 @@ engine instance, i.e. per 3D View in Rendered mode).  Everything here except
 * ``camera_frame_rect``: where the scene camera's frame lies in the region (camera view),
   and so where its render border lies.
 * ``refinement_schedule``: the passes a view goes through: a coarse pass at a fraction of the
-  resolution, then full resolution at pixel centres, then the scene's anti-aliasing.
+  resolution, then full resolution at pixel centres, then the scene's anti-aliasing (a
+  4-sample pass first when that is fixed with more samples).
 * ``ProgressiveRender``: those passes on a worker thread (NumPy only, no Blender data),
   cancelled between tiles as soon as the user edits again.
 * ``ViewportSession``: re-renders only when the exported scene or the view changed.
@@ -30,12 +32,15 @@ from typing import Callable, Optional
 import numpy as np
 
 from ...core import BlenderCamera, RenderCancelled, RenderSettings, Scene, SceneError, render
+from .ignored import ignored_settings_warning
 from .job import failure_message, finish_image
 
 #: The coarse pass traces at most this many pixels (a power-of-two fraction of the view's
 #: resolution), so the first picture of a small scene comes back in a few hundredths of a
 #: second whatever the size of the viewport.
 COARSE_PIXELS = 25_000
+#: Fixed anti-aliasing with more samples than this gets a pass with this many first.
+PREVIEW_SAMPLES = 4
 #: Tiles of the viewport's passes: small, so that a cancel is honoured within a few
 #: milliseconds of tracing.
 VIEWPORT_TILE = 64
@@ -175,7 +180,8 @@ class ViewportView:
         width, height = region.width, region.height
         rect = None
         camera = scene.camera
-        if rv3d.view_perspective == 'CAMERA' and scene.render.use_border and camera is not None:
+        if (rv3d.view_perspective == 'CAMERA' and scene.render.use_border and camera is not None
+                and camera.type == 'CAMERA'):
             frame = [camera.matrix_world @ corner for corner in camera.data.view_frame(scene=scene)]
             rect = border_rect(camera_frame_rect(rv3d.perspective_matrix, frame, width, height),
                                (scene.render.border_min_x, scene.render.border_min_y,
@@ -224,7 +230,9 @@ def refinement_schedule(width: int, height: int, settings: RenderSettings,
        when the view is already small enough;
     2. the resolution (divided by ``pixel_size``, Blender's viewport Pixel Size), one ray
        through each pixel centre;
-    3. the scene's own anti-aliasing (its settings unchanged, so the last picture is what F12
+    3. with fixed anti-aliasing of more than PREVIEW_SAMPLES samples, first PREVIEW_SAMPLES
+       of them (a smooth picture for a fraction of the final pass's time);
+    4. the scene's own anti-aliasing (its settings unchanged, so the last picture is what F12
        renders of the same view); left out when anti-aliasing is off.
     """
     base = dataclasses.replace(settings, anti_aliasing="off", tile_size=VIEWPORT_TILE)
@@ -232,6 +240,9 @@ def refinement_schedule(width: int, height: int, settings: RenderSettings,
     if (width // pixel_size) * (height // pixel_size) > COARSE_PIXELS:
         passes.append(RefinementPass(coarse_divisor(width, height, pixel_size), base))
     passes.append(RefinementPass(pixel_size, base))
+    if settings.anti_aliasing == "fixed" and settings.samples > PREVIEW_SAMPLES:
+        passes.append(RefinementPass(pixel_size, dataclasses.replace(
+            settings, samples=PREVIEW_SAMPLES, tile_size=VIEWPORT_TILE)))
     if settings.anti_aliasing != "off":
         passes.append(RefinementPass(pixel_size, dataclasses.replace(
             settings, tile_size=VIEWPORT_TILE)))
@@ -406,16 +417,24 @@ def pixel_size(render, preferences=None) -> int:
     return int(value)
 
 
-def export_viewport_scene(depsgraph, preferences=None):
+def export_viewport_scene(depsgraph, preferences=None, view: Optional[ViewportView] = None):
     """(scene, settings, transparent, pixel size, warnings) for the viewport's evaluated
-    depsgraph.  Raises ExportError / SceneError like any export."""
+    depsgraph.  Raises ExportError / SceneError like any export.
+
+    The scene is exported with the view's camera (a placeholder before the first draw); the
+    exporter judges which sphere-like meshes stay analytic spheres from the scene's render
+    camera, so the viewport shows the shapes F12 renders.  The passes then trace through the
+    view whatever it becomes."""
     from ..export import export_scene
     from .job import render_settings
 
-    scene, warnings = export_scene(depsgraph, view_camera=_PLACEHOLDER_CAMERA)
+    camera = view.camera() if view is not None else _PLACEHOLDER_CAMERA
+    scene, warnings = export_scene(depsgraph, view_camera=camera)
+    warnings += ignored_settings_warning(depsgraph)
     blender_scene = depsgraph.scene_eval
-    return (scene, render_settings(blender_scene.glint), blender_scene.render.film_transparent,
-            pixel_size(blender_scene.render, preferences), warnings)
+    return (scene, render_settings(blender_scene.glint, blender_scene.render),
+            blender_scene.render.film_transparent, pixel_size(blender_scene.render, preferences),
+            warnings)
 
 
 class ViewportEngine:
@@ -440,8 +459,10 @@ class ViewportEngine:
         from ..export import ExportError
 
         try:
+            view = ViewportView.from_context(context, depsgraph.scene_eval) \
+                if getattr(context, "region_data", None) is not None else None
             scene, settings, transparent, size, warnings = export_viewport_scene(
-                depsgraph, context.preferences)
+                depsgraph, context.preferences, view)
         except (ExportError, SceneError) as error:
             self.session.stop()
             self._report(engine, 'ERROR', (str(error),))
@@ -451,9 +472,10 @@ class ViewportEngine:
 
     def view_draw(self, engine, context, depsgraph) -> None:
         scene = depsgraph.scene_eval
-        self.session.update_view(ViewportView.from_context(context, scene))
+        view = ViewportView.from_context(context, scene)
+        self.session.update_view(view)
         frame = self.session.frame
-        if frame is not None:
+        if frame is not None and view is not None:  # None: the render border is empty
             if self._drawer is None:
                 from ..draw.viewport import FrameDrawer
 
@@ -465,6 +487,12 @@ class ViewportEngine:
             watch_for_frames(self)
 
     def free(self) -> None:
+        self.session.stop()
+
+    def __del__(self):
+        # The engine holds the only reference: when Blender frees it (Rendered shading ends,
+        # the 3D View closes), this goes too and the worker stops, even where the engine's
+        # own __del__ can no longer reach its attributes.
         self.session.stop()
 
     def has_undrawn_frame(self) -> bool:

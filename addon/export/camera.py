@@ -10,6 +10,8 @@ scene without a camera.
 
 from __future__ import annotations
 
+import numpy as np
+
 from ...core import BlenderCamera, SceneError
 from .errors import ExportError
 
@@ -52,6 +54,30 @@ def export_camera(depsgraph, camera_override=None) -> BlenderCamera:
             clip_end=data.clip_end,
             pixel_aspect_x=render.pixel_aspect_x,
             pixel_aspect_y=render.pixel_aspect_y,
+            **depth_of_field(camera),
         )
     except SceneError as error:
         raise ExportError(f"camera '{camera.name}': {error}") from None
+
+
+def depth_of_field(camera) -> dict:
+    """The thin lens of a perspective camera with Depth of Field on, as Cycles reads it
+    (``blender_camera.cpp``): aperture radius = lens (mm, as metres: 1e-3 per scene unit) /
+    (2 F-stop); focus distance along the view axis to the focus object's origin, else the
+    Focus Distance; blades and rotation as set (fewer than 3 blades: a round aperture).
+    Orthographic cameras stay pinholes (their depth of field is named in a warning)."""
+    dof = camera.data.dof
+    if not dof.use_dof or camera.data.type != 'PERSP':
+        return {}
+    distance = dof.focus_distance
+    if dof.focus_object is not None:
+        matrix = camera.matrix_world
+        axis = -np.asarray([matrix[r][2] for r in range(3)], np.float64)
+        axis /= np.linalg.norm(axis)
+        offset = np.asarray(dof.focus_object.matrix_world.translation) - \
+            np.asarray(matrix.translation)
+        distance = max(float(offset @ axis), 1e-6)
+    blades = dof.aperture_blades if dof.aperture_blades >= 3 else 0
+    return dict(aperture_radius=camera.data.lens * 1e-3 / (2.0 * max(dof.aperture_fstop, 1e-5)),
+                focus_distance=distance, aperture_blades=blades,
+                aperture_rotation=dof.aperture_rotation)

@@ -90,8 +90,12 @@ class _RenderVisibility:
     def __call__(self, instance) -> bool:
         if not self.filter:
             return True
+        # A particle system renders its instance object even when that object itself is
+        # hidden for render (the usual set-up: the source is hidden, its copies are not), as
+        # F12 does; only the emitter's visibility counts.
         original = instance.object.original
-        if self._hidden(original):
+        by_particles = instance.is_instance and instance.particle_system is not None
+        if not by_particles and self._hidden(original):
             return False
         if not instance.is_instance and original.is_instancer and \
                 not original.show_instancer_for_render:

@@ -1,0 +1,43 @@
+"""Glint's choice lists, defined once: the values the core accepts and what each means.
+
+``core.scene`` validates against these, and every front end builds its choices from them:
+``python -m core`` and ``render.py`` (argparse ``choices``) and the add-on's EnumProperty items
+(identifier ``value.upper()``, so .blend files keep their stored identifiers).  This module
+imports nothing, so render.py can read it before loading the package (``load_choices``).
+
+Each list is a tuple of (value, label, description).
+"""
+
+SEMANTICS_CHOICES = (
+    ("default", "Default", "The article's model with its quirks fixed: clamped shading, ambient "
+                           "light in shadow, soft shadows, world background"),
+    ("article", "Article", "Every quirk of the article's tracer, kept exactly"),
+)
+PRECISION_CHOICES = (
+    ("auto", "Auto", "Float32 when the scene's size-to-detail ratio allows it, else float64"),
+    ("float64", "Float64", "Double precision"),
+    ("float32", "Float32", "Single precision: faster, may show shadow acne on huge spheres"),
+)
+ANTI_ALIASING_CHOICES = (
+    ("off", "Off", "One ray through each pixel centre, as the article does"),
+    ("fixed", "Fixed", "Samples rays in every pixel"),
+    ("adaptive", "Adaptive", "One ray per pixel, then Samples rays in pixels on an edge"),
+)
+
+#: How tiles run in parallel (``core.render``, ``core.workers``).
+PARALLELISM_CHOICES = (
+    ("threads", "Threads", "Tiles on a thread pool in this process"),
+    ("processes", "Processes", "Tiles in worker processes (both cores busy despite the GIL); "
+                               "falls back to threads where processes cannot start"),
+)
+
+
+def values(choices) -> tuple:
+    """The values of a choice list, in order."""
+    return tuple(value for value, _, _ in choices)
+
+
+SEMANTICS = values(SEMANTICS_CHOICES)
+PRECISIONS = values(PRECISION_CHOICES)
+ANTI_ALIASING = values(ANTI_ALIASING_CHOICES)
+PARALLELISM = values(PARALLELISM_CHOICES)

@@ -1,0 +1,131 @@
+"""Render passes: what the camera ray through each pixel's centre hit first.
+
+``render(scene, settings, passes=True)`` fills a ``PrimaryPasses`` beside the image, tile by
+tile (each tile writes only its own slice, like the image).  The values come from one extra
+trace of the tile's pixel centres at depth 1 (``trace_bundle(record_primary=True)``, which
+reads t, the sphere and the normal at the bounce loop's first hit): passes are per pixel
+centre, not averaged over anti-aliasing samples, as depth, normals and indices cannot be
+meaningfully averaged across an edge anyway.
+
+Conventions are Blender's render passes':
+* depth: distance along the camera's view axis (Blender's Depth/Z pass, as Cycles writes it),
+  ``MISSED_DEPTH`` where the ray hit nothing (Blender's value for the background);
+* position: the hit point in world space (Position pass); 0 where missed;
+* normal: the unit world-space shading normal, turned towards the camera (Normal pass);
+  0 where missed;
+* primitive: the global primitive id of what was hit (``core.arrays``: the scene's spheres,
+  then each SphereSet's, then each mesh's triangles instance by instance), -1 where missed;
+  ``primitive_sources`` maps it to the scene entry it belongs to (Object Index);
+* material: the scene's material table index of the hit's material, -1 where missed
+  (Material Index).
+
+The tracer works in the scene's canonical frame (``core.frame``); positions and depths are
+mapped back to world units here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from .camera import camera_rays, camera_to_world
+from .scene import BlenderCamera
+from .trace import trace_bundle
+
+#: Blender's Depth pass value where nothing was hit.
+MISSED_DEPTH = 1e10
+
+
+@dataclass
+class PrimaryPasses:
+    """(H, W[, 3]) float32 arrays (int32 for primitive and material), row 0 = top; see the
+    module docstring."""
+
+    depth: np.ndarray
+    position: np.ndarray
+    normal: np.ndarray
+    primitive: np.ndarray
+    material: np.ndarray
+
+    #: depth, position and normal float32 (1 + 3 + 3), primitive and material int32.
+    BYTES_PER_PIXEL = 4 * (1 + 3 + 3) + 4 + 4
+
+    @classmethod
+    def empty(cls, width: int, height: int) -> "PrimaryPasses":
+        return cls(np.full((height, width), MISSED_DEPTH, np.float32),
+                   np.zeros((height, width, 3), np.float32),
+                   np.zeros((height, width, 3), np.float32),
+                   np.full((height, width), -1, np.int32),
+                   np.full((height, width), -1, np.int32))
+
+
+def view_axis(camera) -> np.ndarray:
+    """(3,) the unit direction the camera looks along."""
+    if isinstance(camera, BlenderCamera):
+        return -camera_to_world(camera)[0][:, 2]
+    return np.array([0.0, 0.0, np.sign(camera.screen_z - camera.eye[2]) or -1.0])
+
+
+def fill_tile_passes(passes: PrimaryPasses, ctx, camera, tile, stats, world=None) -> None:
+    """Trace the pixel centres of tile (y0, y1, x0, x1) to their first hit and write that
+    tile's part of ``passes``.  camera, ctx: the render's (canonical frame); world: the
+    ``core.frame.Frame`` mapping the render's frame to the scene's (None: the same)."""
+    y0, y1, x0, x1 = tile
+    rows, cols = np.mgrid[y0:y1, x0:x1]
+    rows, cols = rows.ravel(), cols.ravel()
+    rays = camera_rays(camera, cols + 0.5, rows + 0.5, ctx.dtype)
+    first_hit_only = dataclasses.replace(ctx, settings=dataclasses.replace(ctx.settings,
+                                                                           max_depth=1))
+    hits = trace_bundle(first_hit_only, rays, stats, record_primary=True).primary
+    hit = hits.primitive >= 0
+    t = np.where(hit, hits.t, 0.0).astype(np.float64)
+    position = rays.origins + t * rays.directions            # (3, n)
+    # Perspective rays start at the eye, orthographic ones on the camera's plane: either way
+    # the view-axis depth is t times the direction's component along the axis.
+    depth = t * (view_axis(camera) @ rays.directions)
+    if world is not None:
+        position = position / world.scale + world.centre[:, None]
+        depth = depth / world.scale
+    shape = (y1 - y0, x1 - x0)
+    passes.depth[y0:y1, x0:x1] = np.where(hit, depth, MISSED_DEPTH).reshape(shape)
+    passes.position[y0:y1, x0:x1] = np.where(hit, position, 0.0).T.reshape(*shape, 3)
+    passes.normal[y0:y1, x0:x1] = hits.normal.T.reshape(*shape, 3)
+    passes.primitive[y0:y1, x0:x1] = hits.primitive.reshape(shape)
+    passes.material[y0:y1, x0:x1] = hits.material.reshape(shape)
+
+
+def primitive_sources(scene) -> np.ndarray:
+    """(P,) for each global primitive id, the index of the scene entry it belongs to, in the
+    order: ``scene.spheres`` (one entry each), ``scene.sphere_sets`` (one each), then every
+    instance of every mesh (one entry per transform), as ``entry_names`` lists them."""
+    counts = [np.ones(len(scene.spheres), np.intp)]
+    counts.append(np.array([len(s.radii) for s in scene.sphere_sets], np.intp))
+    for mesh in scene.meshes:
+        counts.append(np.full(len(mesh.transforms), len(mesh.triangles), np.intp))
+    counts = np.concatenate(counts) if counts else np.zeros(0, np.intp)
+    return np.repeat(np.arange(len(counts)), counts)
+
+
+def entry_names(scene) -> list[str]:
+    """The names of the entries ``primitive_sources`` indexes (a mesh's once per instance)."""
+    names = [s.name for s in scene.spheres] + [s.name for s in scene.sphere_sets]
+    for mesh in scene.meshes:
+        names += [mesh.name] * len(mesh.transforms)
+    return names
+
+
+def material_entries(scene) -> list:
+    """The scene's material table in ``core.arrays``' order (each material once, by identity,
+    in primitive order: spheres, sphere sets, meshes), so a pass's material id names its
+    core material."""
+    entries, seen = [], set()
+    materials = [s.material for s in scene.spheres]
+    materials += [m for s in scene.sphere_sets for m in s.materials]
+    materials += [m for mesh in scene.meshes for m in mesh.materials]
+    for material in materials:
+        if id(material) not in seen:
+            seen.add(id(material))
+            entries.append(material)
+    return entries

@@ -1,0 +1,188 @@
+"""Blender conventions: panels, the Render button exporting what F12 exports, thread settings,
+the one warning about ignored scene settings, a .blend whose engine is GLINT."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import bpy
+import numpy as np
+import pytest
+
+from addon_support import (RENDER_SCRIPT, REPOSITORY, add_sphere, depsgraph, glint, link,
+                           prepare_job, read_image, read_png, simple_scene, to_rgba8)
+from glint.addon.engine.final import compatible_panels
+
+
+def glint_panels():
+    """Blender's panels (not Glint's own) that show with the Glint engine."""
+    return {p.__name__ for p in bpy.types.Panel.__subclasses__()
+            if 'GLINT' in getattr(p, "COMPAT_ENGINES", ()) and not p.__name__.startswith("GLINT_")}
+
+
+def test_one_light_panel_and_no_panels_that_do_not_apply():
+    shown = glint_panels()
+    light_panels = {name for name in shown if name.startswith(("DATA_PT_", "NODE_DATA_PT_"))
+                    and "light" in name.lower()}
+    # EEVEE's light panel (type, colour, power, radius) is the one Light panel; the others are
+    # the light's context, custom properties and animation, as for every engine.
+    assert light_panels == {"DATA_PT_EEVEE_light", "DATA_PT_context_light",
+                            "DATA_PT_custom_props_light", "DATA_PT_light_animation"}
+    for name in ("DATA_PT_light", "NODE_DATA_PT_light", "DATA_PT_spot", "DATA_PT_lightprobe",
+                 "DATA_PT_context_lightprobe"):
+        assert name not in shown, name
+    assert not any("lightprobe" in name for name in shown)
+    # Unregistering takes Glint out of every panel it added itself to, shared sets included.
+    glint.unregister()
+    try:
+        assert not glint_panels()
+    finally:
+        glint.register()
+    assert glint_panels() == shown and all('GLINT' in p.COMPAT_ENGINES for p in compatible_panels())
+
+
+def particle_scene():
+    """simple_scene() plus a particle system whose instance object is hidden for render."""
+    scene = simple_scene()
+    source = add_sphere("source", (0.0, 0.0, -30.0), 0.2)
+    source.hide_render = True
+    emitter = add_sphere("emitter", (0.0, -2.0, 0.0), 0.5)
+    modifier = emitter.modifiers.new("particles", 'PARTICLE_SYSTEM')
+    settings = modifier.particle_system.settings
+    settings.count, settings.frame_start, settings.frame_end = 6, 1, 1
+    settings.physics_type = 'NO'
+    settings.render_type, settings.instance_object = 'OBJECT', source
+    settings.particle_size = 1.0
+    emitter.show_instancer_for_render = emitter.show_instancer_for_viewport = False
+    scene.frame_set(2)
+    return scene
+
+
+def test_the_render_button_renders_particle_instances_of_a_source_hidden_for_render(tmp_path):
+    scene = particle_scene()
+    button_scene = prepare_job(depsgraph()).scene
+    instanced = [s for s in button_scene.spheres if "instanced by" in s.name] + \
+        [s for s in button_scene.sphere_sets if "instance" in s.name]
+    assert instanced, [s.name for s in button_scene.spheres]
+    assert not any(s.name == "source" for s in button_scene.spheres)
+
+    bpy.ops.glint.render()
+    # The button's Image as Blender saves it, through the scene's colour management.
+    bpy.data.images["Glint Render"].save_render(str(tmp_path / "button.png"), scene=scene)
+    button = read_png(str(tmp_path / "button.png"))
+    scene.render.engine = 'GLINT'
+    scene.render.filepath = str(tmp_path / "f12.png")
+    scene.render.image_settings.file_format = 'PNG'
+    scene.render.image_settings.color_mode = 'RGBA'
+    bpy.ops.render.render(write_still=True)
+    f12 = read_png(str(tmp_path / "f12.png"))
+    assert np.abs(f12.astype(int) - button.astype(int)).max() <= 1
+
+
+def test_blenders_thread_setting_reaches_the_core():
+    scene = simple_scene()
+    assert prepare_job(depsgraph()).settings.threads is None      # Auto-detect: every core
+    scene.render.threads_mode, scene.render.threads = 'FIXED', 3
+    assert prepare_job(depsgraph()).settings.threads == 3
+
+
+def test_scene_settings_glint_ignores_are_named_in_one_warning():
+    scene = simple_scene()
+    assert not [w for w in prepare_job(depsgraph()).warnings if "Glint ignores" in w]
+    scene.render.use_motion_blur = True
+    scene.camera.data.dof.use_dof = True
+    bpy.data.objects["small"].is_holdout = True
+    bpy.data.objects["big"].visible_shadow = False
+
+    ignored = [w for w in prepare_job(depsgraph()).warnings if "Glint ignores" in w]
+
+    assert len(ignored) == 1
+    for phrase in ("motion blur", "depth of field (camera 'camera')", "holdout objects 'small'",
+                   "objects invisible to shadow rays 'big'"):
+        assert phrase in ignored[0], phrase
+
+
+def test_a_blend_whose_engine_is_glint_opens_without_an_engine_error(tmp_path):
+    scene = simple_scene()
+    scene.render.engine = 'GLINT'
+    blend = tmp_path / "glint.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+
+    result = subprocess.run([sys.executable, RENDER_SCRIPT, str(blend), "--output",
+                             str(tmp_path / "out.png")], capture_output=True, text=True,
+                            timeout=300, cwd=REPOSITORY)
+
+    assert result.returncode == 0, result.stderr
+    assert "not available" not in result.stdout + result.stderr
+    assert os.path.exists(tmp_path / "out.png")
+
+
+def test_each_choice_list_is_defined_once_in_the_core():
+    from glint.core import choices
+    from glint.core.__main__ import parse_args as core_parse_args
+
+    import render as render_script
+
+    settings = bpy.context.scene.glint
+    for prop, choice_list in (("semantics", choices.SEMANTICS_CHOICES),
+                              ("precision", choices.PRECISION_CHOICES),
+                              ("anti_aliasing", choices.ANTI_ALIASING_CHOICES)):
+        items = settings.bl_rna.properties[prop].enum_items
+        assert [(i.identifier, i.name, i.description) for i in items] == [
+            (value.upper(), label, text) for value, label, text in choice_list]
+    script = render_script.load_choices()
+    assert (script.SEMANTICS, script.PRECISIONS) == (choices.SEMANTICS, choices.PRECISIONS)
+    # The command lines accept exactly the core's values.
+    for value in choices.PRECISIONS:
+        assert core_parse_args(["--output", "x.png", "--precision", value]).precision == value
+    from glint.core.scene import RenderSettings, SceneError
+    for value in choices.ANTI_ALIASING:
+        RenderSettings(anti_aliasing=value)
+    try:
+        RenderSettings(anti_aliasing="sometimes")
+        raise AssertionError("accepted a value outside the list")
+    except SceneError as error:
+        assert "'off', 'fixed', 'adaptive'" in str(error)
+
+
+def test_depth_of_field_is_read_as_cycles_reads_it_and_blurs_like_cycles(tmp_path):
+    from addon_support import add_camera, add_point_light, empty_file
+
+    scene = empty_file()
+    scene.render.resolution_x, scene.render.resolution_y = 160, 80
+    scene.render.film_transparent = True
+    add_sphere("ball", (0.0, 0.0, 0.0), 1.0)
+    add_point_light()
+    cam = add_camera(location=(0.0, -10.0, 0.0))
+    target = link(bpy.data.objects.new("focus", None))
+    target.location = (0.0, -5.0, 3.0)            # 5 in front of the camera along its axis
+    dof = cam.data.dof
+    dof.use_dof, dof.focus_object, dof.aperture_fstop = True, target, 0.125
+    scene.glint.anti_aliasing, scene.glint.samples = 'FIXED', 256
+
+    exported = prepare_job(depsgraph()).scene.camera
+    assert exported.aperture_radius == pytest.approx(50e-3 / (2 * 0.125))   # 0.2
+    assert exported.focus_distance == pytest.approx(5.0, rel=1e-6)
+
+    def alpha_row(engine):
+        scene.render.engine = engine
+        scene.render.filepath = str(tmp_path / f"{engine}.png")
+        scene.render.image_settings.color_mode = 'RGBA'
+        bpy.ops.render.render(write_still=True)
+        return read_png(str(tmp_path / f"{engine}.png"))[40, :, 3] / 255.0
+
+    scene.cycles.samples, scene.cycles.use_denoising = 256, False
+    scene.cycles.pixel_filter_type, scene.render.filter_size = 'BOX', 1.0
+    glint_alpha, cycles_alpha = alpha_row('GLINT'), alpha_row('CYCLES')
+    # The ball's silhouette (depth about 10, focus at 5) spreads over a circle of confusion
+    # of radius 0.2 * |10 - 5| / 5 = 0.2, i.e. 4.4 px (a pixel there is 10 * 0.72 / 160 =
+    # 0.045 wide): both engines blur it over the same pixels.  256 samples leave about 0.03
+    # of coverage noise in each; the 32 x 16 UV sphere Cycles draws sags by under 2 % of r.
+    partial = lambda row: ((row > 0.02) & (row < 0.98)).sum()   # noqa: E731
+    print("partial pixels glint", partial(glint_alpha), "cycles", partial(cycles_alpha),
+          "max alpha difference", np.abs(glint_alpha - cycles_alpha).max())
+    assert partial(glint_alpha) >= 12   # both edges, about 7 px each (test_core_depth_of_field)
+    assert abs(partial(glint_alpha) - partial(cycles_alpha)) <= 2
+    assert np.abs(glint_alpha - cycles_alpha).max() < 0.15

@@ -1,0 +1,148 @@
+"""Render passes (Depth, Position, Normal, Object Index, Material Index) through
+update_render_passes, written by F12 into a multilayer EXR for every view layer, checked
+against the scene's geometry and against Cycles' own passes of the same scene."""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+
+from addon_support import add_camera, add_point_light, add_sphere, empty_file
+from exr import read_exr
+from glint.addon.engine.passes import pass_warning
+from glint.core.passes import MISSED_DEPTH
+
+PASSES = ("use_pass_z", "use_pass_position", "use_pass_normal", "use_pass_object_index",
+          "use_pass_material_index")
+BIG, SMALL = ((0.0, 0.0, 0.0), 1.0), ((1.2, -0.8, 0.6), 0.3)
+EYE = np.array([0.0, -6.0, 0.0])   # add_camera's default: looking along +Y
+
+
+def passes_scene(layers=("ViewLayer",)):
+    scene = empty_file()
+    scene.render.resolution_x, scene.render.resolution_y = 96, 72
+    for name, (centre, radius), index in (("big", BIG, 3), ("small", SMALL, 7)):
+        material = bpy.data.materials.new(f"{name} material")
+        material.pass_index = index + 10
+        material.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (
+            0.1 * index, 0.5, 0.2, 1.0)
+        add_sphere(name, centre, radius, material=material, segments=128, rings=64)
+        bpy.data.objects[name].pass_index = index
+    add_point_light()
+    add_camera()
+    for name in layers[1:]:
+        scene.view_layers.new(name)
+    for layer in scene.view_layers:
+        for flag in PASSES:
+            setattr(layer, flag, True)
+    settings = scene.render.image_settings
+    settings.media_type = 'MULTI_LAYER_IMAGE'
+    settings.exr_codec = 'NONE'
+    settings.color_depth = '32'
+    return scene
+
+
+def render_exr(scene, tmp_path, engine, name):
+    scene.render.engine = engine
+    scene.render.filepath = str(tmp_path / name)
+    bpy.ops.render.render(write_still=True)
+    return read_exr(tmp_path / name)
+
+
+def layer_passes(channels, layer):
+    def stack(name, ids):
+        return np.stack([channels[f"{layer}.{name}.{c}"] for c in ids], axis=-1)
+
+    return dict(depth=channels[f"{layer}.Depth.Z"], position=stack("Position", "XYZ"),
+                normal=stack("Normal", "XYZ"), object=channels[f"{layer}.Object Index.X"],
+                material=channels[f"{layer}.Material Index.X"], alpha=channels[f"{layer}.Combined.A"])
+
+
+def test_f12_writes_the_passes_of_every_view_layer_with_the_geometrys_values(tmp_path):
+    scene = passes_scene(layers=("ViewLayer", "Second"))
+    scene.render.film_transparent = True
+
+    channels = render_exr(scene, tmp_path, 'GLINT', "glint.exr")
+
+    for layer in ("ViewLayer", "Second"):
+        p = layer_passes(channels, layer)
+        for name, (centre, radius), index in (("big", BIG, 3), ("small", SMALL, 7)):
+            on = p["object"] == index
+            assert on.sum() > 20, name
+            offset = p["position"][on] - centre
+            # Hit points lie on the analytic sphere; normals are its radial directions and
+            # face the camera; depth is the distance along the view axis (+Y).
+            np.testing.assert_allclose(np.linalg.norm(offset, axis=1), radius, rtol=1e-5)
+            np.testing.assert_allclose(p["normal"][on], offset / radius, atol=1e-5)
+            assert ((p["position"][on] - EYE) @ [0, 1, 0] > 0).all()
+            np.testing.assert_allclose(p["depth"][on], p["position"][on][:, 1] - EYE[1],
+                                       rtol=1e-5)
+            assert (p["material"][on] == index + 10).all()
+        missed = p["object"] == 0
+        assert missed.any()
+        assert (p["depth"][missed] == np.float32(MISSED_DEPTH)).all()
+        assert (p["normal"][missed] == 0).all()
+        # Combined's alpha is the coverage: 1 inside each sphere, 0 where nothing was hit.
+        assert (p["alpha"][missed] < 1).all() and (p["alpha"][p["object"] > 0] > 0).all()
+
+
+def test_the_passes_agree_with_cycles(tmp_path):
+    scene = passes_scene()
+    glint = layer_passes(render_exr(scene, tmp_path, 'GLINT', "glint.exr"), "ViewLayer")
+    scene.cycles.samples = 1
+    scene.cycles.use_denoising = False
+    scene.cycles.pixel_filter_type = 'BOX'
+    scene.render.filter_size = 0.01
+    cycles = layer_passes(render_exr(scene, tmp_path, 'CYCLES', "cycles.exr"), "ViewLayer")
+
+    # Compare where both see the same object and so do the 4 neighbours (silhouettes move by
+    # up to a pixel between a tessellated and an analytic sphere, and Cycles' one sample is
+    # jittered within its pixel).
+    same = (glint["object"] == cycles["object"])
+    interior = same.copy()
+    interior[1:-1, 1:-1] &= same[:-2, 1:-1] & same[2:, 1:-1] & same[1:-1, :-2] & same[1:-1, 2:]
+    interior[[0, -1], :] = interior[:, [0, -1]] = False
+    assert (glint["object"] != cycles["object"]).mean() < 0.02
+    hit = interior & (glint["object"] > 0)
+    assert hit.sum() > 500
+    # A 128 x 64 UV sphere sags by r (1 - cos(pi / 64)) = 1.2e-3 r between vertices, and a
+    # jittered sample moves the hit by up to half a pixel (2 r / 30 px across here) times the
+    # surface's slope: 0.02 r allows both except at grazing angles, which the normal test
+    # below excludes too.
+    facing = glint["normal"][..., 1] < -0.5
+    for name, tolerance in (("depth", 0.02), ("position", 0.02), ("normal", 0.03)):
+        difference = np.abs(glint[name] - cycles[name])
+        if difference.ndim == 3:
+            difference = difference.max(axis=-1)
+        assert difference[hit & facing].max() < tolerance, name
+    np.testing.assert_array_equal(glint["object"][interior], cycles["object"][interior])
+    np.testing.assert_array_equal(glint["material"][interior], cycles["material"][interior])
+    assert (cycles["depth"][interior & (glint["object"] == 0)] >= 1e9).all()
+
+
+def test_material_ids_follow_the_cores_material_table():
+    from glint.addon.engine.job import prepare_job
+    from glint.core.arrays import scene_arrays
+    from glint.core.passes import material_entries
+
+    passes_scene()
+    scene = prepare_job(bpy.context.evaluated_depsgraph_get()).scene
+    entries = material_entries(scene)
+    table = scene_arrays(scene).materials
+    np.testing.assert_array_equal([m.diffuse for m in entries], table.diffuse)
+    assert len(entries) == len(table.diffuse) == 2
+
+
+def test_enabled_passes_glint_cannot_produce_are_named_in_one_warning():
+    scene = passes_scene()
+    layer = scene.view_layers[0]
+    assert pass_warning(layer) is None
+    layer.use_pass_mist = layer.use_pass_ambient_occlusion = True
+    layer.aovs.add().name = "dirt"
+
+    warning = pass_warning(layer)
+
+    assert warning.startswith("view layer 'ViewLayer'")
+    for label in ("Mist", "Ambient Occlusion", "AOV 'dirt'"):
+        assert label in warning
+    assert "Depth" not in warning and "Normal" not in warning
