@@ -48,9 +48,9 @@ REPOSITORY = os.path.dirname(os.path.abspath(__file__))
 PACKAGE_NAME = "glint"
 PROGRAM = "render.py"
 
-#: Limits checked before anything is loaded: Blender's resolution_x/y hard maximum, and the
+#: Limits checked before anything is loaded: Blender's resolution_x/y hard limits, and the
 #: core's (core.scene.MAX_SAMPLES, MAX_DEPTH; repeated, as the package is imported later).
-MAX_RESOLUTION = 65536
+MIN_RESOLUTION, MAX_RESOLUTION = 4, 65536
 MAX_SAMPLES = 16384
 MAX_DEPTH = 256
 
@@ -165,11 +165,13 @@ def _positive_int(text: str) -> int:
     return value
 
 
-def _at_most(maximum: int):
+def _at_most(maximum: int, minimum: int = 1):
     def parse(text: str) -> int:
         value = _positive_int(text)
         if value > maximum:
             raise argparse.ArgumentTypeError(f"must be at most {maximum}, got {value}")
+        if value < minimum:  # Blender would silently raise it
+            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
         return value
     return parse
 
@@ -195,8 +197,9 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--output", required=True,
                         help="PNG or EXR file to write; #### is replaced by the frame number, "
                              "zero-padded to the number of #")
-    parser.add_argument("--width", type=_at_most(MAX_RESOLUTION), help="resolution X in pixels")
-    parser.add_argument("--height", type=_at_most(MAX_RESOLUTION),
+    parser.add_argument("--width", type=_at_most(MAX_RESOLUTION, MIN_RESOLUTION),
+                        help="resolution X in pixels")
+    parser.add_argument("--height", type=_at_most(MAX_RESOLUTION, MIN_RESOLUTION),
                         help="resolution Y in pixels")
     parser.add_argument("--percentage", type=_percentage, help="resolution percentage")
     parser.add_argument("--samples", type=_at_most(MAX_SAMPLES),

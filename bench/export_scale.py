@@ -86,7 +86,7 @@ def run_case(case: str, count: int, repeat: int) -> dict:
     from glint.addon.export import instances
 
     if case.endswith("walked"):
-        instances.InstanceExporter._export_bulk = lambda self, instance, parent: False
+        instances.InstanceExporter._read_source = staticmethod(lambda parent: None)
     build(case, count)
     start = time.perf_counter()
     graph = bpy.context.evaluated_depsgraph_get()

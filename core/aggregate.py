@@ -204,9 +204,10 @@ class Aggregate:
                 smooth = (b0 * take(corner[0], triangle) + b1 * take(corner[1], triangle)
                           + b2 * take(corner[2], triangle))
                 shading[:, tris] = smooth * (1 / np.sqrt(dot(smooth, smooth)))
-        front = dot(directions, normals) < 0
+        cos_in = dot(directions, shading)
+        front = cos_in < 0 if shading is normals else dot(directions, normals) < 0
         return Hits(keep, primitive, t, hit_primitive, material, points, directions, normals,
-                    shading, front)
+                    shading, cos_in, front)
 
     def _nearest_spheres(self, rays: RayBatch, stats):
         n = len(rays)
@@ -491,14 +492,16 @@ class Aggregate:
         ray ignores its own primitive where it cannot hit it again (``exclusions``).
         Article rules: the article's fixed offset along the sphere's outward normal (for a
         triangle, on the side the ray leaves), no exclusion."""
-        side = np.where(leave_front, 1, -1).astype(self.dtype)
+        everywhere = bool(leave_front.all())
+        side = None if everywhere else np.where(leave_front, 1, -1).astype(self.dtype)
         if self.article:
-            if self.triangle_count:
+            if self.triangle_count and side is not None:
                 side = np.where(primitive >= self.sphere_count, side, 1).astype(self.dtype)
                 return RayBatch(points + ARTICLE_OFFSET * (normals * side), directions,
                                 source=primitive)
             return RayBatch(points + ARTICLE_OFFSET * normals, directions, source=primitive)
-        origins = points + ray_offsets(points) * (normals * side)
+        # (Multiplying by a side of 1 everywhere would change nothing: skipped.)
+        origins = points + ray_offsets(points) * (normals if side is None else normals * side)
         return RayBatch(origins, directions, exclude=self.exclusions(primitive, leave_front),
                         source=primitive)
 

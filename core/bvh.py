@@ -27,7 +27,9 @@ import numpy as np
 
 #: Primitives per leaf, children per inner node, and the least depth (in levels above the
 #: leaves) of the subtrees ("treelets") visited front to back.
-LEAF_SIZE = 4
+#: (Leaves of 2 against 4, CPU time on one thread at 320x180: 1,000 spheres 0.63 vs 0.80 s,
+#: 100,000 2.09 vs 2.07 s, 1,000,000 4.49 vs 4.66 s; leaves of 8: 1.34 s and 2.80 s.)
+LEAF_SIZE = 2
 WIDTH = 4
 TREELET_DEPTH = 3
 #: The treelets are the nodes TREELET_DEPTH levels above the leaves, or higher up while

@@ -7,12 +7,14 @@
 * tracing: per worker thread, a bundle of rays (at most ``tile_size^2`` camera rays, or one
   pixel's samples, whichever is more) at ``BYTES_PER_BUNDLE_RAY``, plus the finished tiles in
   flight;
-* the scene: ``BYTES_PER_SPHERE`` for each sphere (its arrays, clusters and the culling pairs
-  a packet can see), plus the per-origin terms of every light sample.
+* the scene: ``BYTES_PER_SPHERE`` for each sphere, loose or in a sphere set (its arrays, its
+  share of the aggregate and the (ray, node) pairs a packet can see), ``BYTES_PER_TRIANGLE``
+  for each triangle of each mesh instance, plus the per-origin terms of every light sample.
 
-The constants are measured peaks (tracemalloc, article scene and 20,000 random spheres with
-a soft light, 64 x 64 to 1024 x 1024, 1 and 2 threads), rounded up, so the plan errs on the
-side of refusing.  ``check`` compares the plan with the memory this machine has available
+The constants are measured peaks (tracemalloc; the article scene, 20,000 and 200,000 random
+spheres with a hard and a soft light, a 79,202-triangle mesh drawn 10 times; 64 x 64 to
+1024 x 1024, 1 and 2 threads: 320-1,200 bytes a sphere, 404 a triangle), rounded up, so the
+plan errs on the side of refusing.  ``check`` compares the plan with the memory this machine has available
 (``/proc/meminfo``'s MemAvailable, and a cgroup's limit if lower) and raises
 ``NotEnoughMemory`` (a SceneError: every entry point reports it as one line) saying how much
 the render needs and what to lower.
@@ -30,8 +32,10 @@ from .scene import RenderSettings, Scene, SceneError
 
 #: Peak working bytes per ray of a traced bundle (measured ~800, see the module docstring).
 BYTES_PER_BUNDLE_RAY = 1024
-#: Peak bytes per sphere with packet culling (measured 10-14 KB at 20,000 spheres).
-BYTES_PER_SPHERE = 16 * 1024
+#: Peak bytes per sphere through the aggregate (measured 320-1,200).
+BYTES_PER_SPHERE = 2 * 1024
+#: Peak bytes per triangle of a mesh instance (measured 404).
+BYTES_PER_TRIANGLE = 512
 #: Per-origin terms per sphere and light sample (float64 values a ray/sphere test reuses).
 BYTES_PER_SPHERE_TERMS = 8 * 8
 #: What the process needs besides the render (interpreter, NumPy, Blender): not planned for,
@@ -60,7 +64,7 @@ class MemoryPlan:
                       ("scene", self.scene), key=lambda item: item[1])[0]
         return {"image": "lower the resolution (or its percentage)",
                 "tracing": "lower the samples, the tile size or the threads",
-                "scene": "use fewer spheres or light samples"}[largest]
+                "scene": "use fewer spheres, triangles or light samples"}[largest]
 
 
 def plan(scene: Scene, settings: RenderSettings, image_dtype, threads: int,
@@ -72,10 +76,12 @@ def plan(scene: Scene, settings: RenderSettings, image_dtype, threads: int,
     bundle = max(settings.tile_size ** 2, samples)
     in_flight = 2 * threads * settings.tile_size ** 2 * 4 * 8
     tracing = threads * bundle * BYTES_PER_BUNDLE_RAY + in_flight
-    spheres = len(scene.spheres)
+    spheres = len(scene.spheres) + sum(len(s) for s in scene.sphere_sets)
+    triangles = sum(len(mesh) for mesh in scene.meshes)  # per instance
     light_samples = sum(settings.light_samples if light.radius > 0 else 1
                         for light in scene.lights)
-    scene_bytes = spheres * (BYTES_PER_SPHERE + (1 + light_samples) * BYTES_PER_SPHERE_TERMS)
+    scene_bytes = (spheres * (BYTES_PER_SPHERE + (1 + light_samples) * BYTES_PER_SPHERE_TERMS)
+                   + triangles * BYTES_PER_TRIANGLE)
     return MemoryPlan(image, tracing, scene_bytes, other_bytes)
 
 

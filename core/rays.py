@@ -99,7 +99,8 @@ class Hits:
     directions; normals: (3, m) unit geometric normals, on the outside (spheres) or the front
     (triangles: counter-clockwise winding); shading: (3, m) unit shading normals on the same
     side (interpolated corner normals; for spheres and flat triangles the geometric normal);
-    front: (m,) whether the ray arrived from the outside / front side.
+    cos_in: (m,) directions . shading normals; front: (m,) whether the ray arrived from the
+    outside / front side (directions . geometric normals < 0).
     """
 
     rays: np.ndarray
@@ -111,6 +112,7 @@ class Hits:
     directions: np.ndarray
     normals: np.ndarray
     shading: np.ndarray
+    cos_in: np.ndarray
     front: np.ndarray
 
     def __len__(self) -> int:

@@ -19,7 +19,7 @@ from .context import RayStats, TraceContext
 from .bsdf import scatter
 from .rays import RayBatch, SharedOrigin
 from .shading import shade
-from .vectors import dot, take
+from .vectors import take
 
 _SIGNATURE_PRIME = np.uint64(1_000_003)
 
@@ -104,8 +104,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats) -> Bundle
             path, weight = path[hits.rays], weight[..., hits.rays]
 
         points, directions, primitive = hits.points, hits.directions, hits.primitive
-        geometric, normals, front = hits.normals, hits.shading, hits.front
-        cos_in = dot(directions, normals)
+        geometric, normals, front, cos_in = hits.normals, hits.shading, hits.front, hits.cos_in
         if not ctx.article and not front.all():
             # Shade the side the ray sees: inside a sphere, behind a triangle, the normal
             # faces the other way.

@@ -353,9 +353,8 @@ def _clip_segments(a, b, plane_z, keep_below: bool):
         za, zb = -za, -zb
     inside_a, inside_b = za <= 0, zb <= 0
     alive = inside_a | inside_b
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = za / (za - zb)
     crossing = inside_a != inside_b
+    t = np.divide(za, za - zb, out=np.zeros_like(za), where=crossing)
     point = a + t[:, None] * (b - a)
     a = np.where((crossing & ~inside_a)[:, None], point, a)
     b = np.where((crossing & ~inside_b)[:, None], point, b)
@@ -369,9 +368,9 @@ def _plane_cuts(corners, plane_z):
     ends = []
     for i, j in ((0, 1), (1, 2), (2, 0)):
         a, b = corners[:, i], corners[:, j]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = side[:, i] / (side[:, i] - side[:, j])
         crosses = (side[:, i] < 0) != (side[:, j] < 0)
+        t = np.divide(side[:, i], side[:, i] - side[:, j], out=np.zeros(len(side)),
+                      where=crosses)
         ends.append((crosses, a + t[:, None] * (b - a)))
     segments = []
     for (c0, p0), (c1, p1) in ((ends[0], ends[1]), (ends[1], ends[2]), (ends[2], ends[0])):

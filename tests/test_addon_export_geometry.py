@@ -430,8 +430,8 @@ def grid_positions(count, spacing=0.6):
 def export_per_instance(monkeypatch):
     """The export with the bulk path switched off: every instance through the walk."""
     with monkeypatch.context() as patch:
-        patch.setattr(instances_module.InstanceExporter, "_export_bulk",
-                      lambda self, instance, parent: False)
+        patch.setattr(instances_module.InstanceExporter, "_read_source",
+                      staticmethod(lambda parent: None))
         return export()
 
 
@@ -487,6 +487,7 @@ def test_particles_instancing_a_sphere_become_a_sphere_set(scene):
     assert np.allclose(np.abs(grains.centers).max(axis=1), 1.0, atol=1e-4)
     np.testing.assert_allclose(grains.radii, 0.05, rtol=1e-4)
     assert [s.name for s in exported.spheres] == ["grain"]  # the object itself, far away
+    assert not exported.meshes  # the emitter is not rendered (show_instancer_for_render)
 
 
 def test_instances_of_a_hidden_instancer_are_not_exported(scene):

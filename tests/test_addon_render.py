@@ -618,3 +618,30 @@ def test_each_view_layer_renders_its_own_visibility_into_its_own_layer(tmp_path)
     np.testing.assert_allclose(layers["Everything"], linear(everything), atol=1e-6)
     np.testing.assert_allclose(layers["Without small"], linear(alone), atol=1e-6)
     assert not np.allclose(layers["Everything"], layers["Without small"], atol=1e-3)
+
+
+# --- position and unit ------------------------------------------------------------------------
+
+def _scaled_simple_scene(scale, offset=(0.0, 0.0, 0.0)):
+    """simple_scene with a soft light, everything (objects, light radius, clip planes) moved by
+    offset and scaled by ``scale``; Blender stores these in float32."""
+    scene = simple_scene()
+    bpy.data.objects["light"].data.shadow_soft_size = 0.5 * scale
+    for obj in bpy.data.objects:
+        obj.location = [(c + o) * scale for c, o in zip(obj.location, offset)]
+        if obj.type == 'MESH':
+            obj.scale = (scale,) * 3
+    camera = scene.camera.data
+    camera.clip_start, camera.clip_end = 0.1 * scale, min(100.0 * scale, 3e38)
+    return core_image()
+
+
+@pytest.mark.parametrize("scale", [1e-5, 1e-3, 1e10, 1e20, 1e36])
+def test_a_blender_scene_renders_the_same_at_any_position_and_scale(scale):
+    """Over the range Blender's own data allows: its camera's clip_start is at least 1e-6
+    (below 1e-5 the camera clips the scene away, in Blender too) and it stores float32, whose
+    largest value (3.4e38) bounds the large end.  Lights have no distance falloff here."""
+    reference = _scaled_simple_scene(1.0)
+    image = _scaled_simple_scene(scale, offset=(100.0, -50.0, 30.0))
+    moved = np.abs(image - reference).max(axis=2) > 1 / 255
+    assert moved.mean() < 0.002, f"{moved.sum()} pixels differ"

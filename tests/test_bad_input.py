@@ -214,7 +214,8 @@ def test_the_settings_hard_maximums_are_the_cores_limits():
     assert (render_script.MAX_SAMPLES, render_script.MAX_DEPTH) == (limits.MAX_SAMPLES,
                                                                     limits.MAX_DEPTH)
     resolution = bpy.types.RenderSettings.bl_rna.properties["resolution_x"]
-    assert render_script.MAX_RESOLUTION == resolution.hard_max
+    assert (render_script.MIN_RESOLUTION, render_script.MAX_RESOLUTION) == (
+        resolution.hard_min, resolution.hard_max)
 
 
 CORE_COMMAND_ERRORS = {
@@ -247,3 +248,26 @@ def test_render_script_refuses_samples_past_the_limit_in_one_line(tmp_path):
     assert result.returncode == 2
     (line,) = result.stderr.strip().splitlines()
     assert "--samples" in line and "at most 16384" in line
+
+
+def test_python_m_core_refuses_a_write_protected_output_and_writes_through_links(tmp_path):
+    kept = tmp_path / "kept.png"
+    kept.write_bytes(b"previous render")
+    kept.chmod(0o444)
+    command = [sys.executable, "-m", "core", "--width", "20", "--height", "10", "--output"]
+
+    refused = subprocess.run(command + [str(kept)], capture_output=True, text=True,
+                             cwd=REPOSITORY, timeout=120)
+    assert refused.returncode == 2
+    (line,) = refused.stderr.strip().splitlines()
+    assert "write-protected" in line and kept.read_bytes() == b"previous render"
+
+    target = tmp_path / "real.png"
+    target.write_bytes(b"previous render")
+    link = tmp_path / "link.png"
+    link.symlink_to(target)
+    written = subprocess.run(command + [str(link)], capture_output=True, text=True,
+                             cwd=REPOSITORY, timeout=120)
+    assert written.returncode == 0, written.stderr
+    assert link.is_symlink() and target.read_bytes().startswith(b"\x89PNG")
+    assert sorted(os.listdir(tmp_path)) == ["kept.png", "link.png", "real.png"]

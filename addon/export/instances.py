@@ -12,7 +12,9 @@ An instancer is read in bulk when all of its instances come from that instance p
 which holds for a MESH or POINTCLOUD object with a Geometry Nodes modifier, no particle
 systems and no vertex/face instancing, whose references are all plain meshes (no nested
 instances, collections or objects).  Its instances are then handed to the mesh exporter as
-arrays, and the depsgraph walk passes over them with one name lookup each.  Anything else
+arrays.  When every instancer of the scene is read so, the depsgraph's instances are not
+walked at all (``covers``): the export visits ``depsgraph.objects`` only; otherwise the walk
+passes over a bulk-read instancer's instances with one name look-up each.  Anything else
 (collection instances, particles, nested or object instances) goes through the walk, one
 instance at a time.
 """
@@ -24,6 +26,19 @@ from typing import Optional
 import numpy as np
 
 from .geometry import read_array
+from .meshes import EVALUATED_AS_MESH
+
+
+def _makes_instances(obj) -> bool:
+    """Whether a Geometry Nodes object's evaluated geometry yields anything but its own
+    component (instances, or another kind of geometry, which come as instances)."""
+    geometry = obj.evaluated_geometry()
+    points = geometry.instances_pointcloud()
+    if points is not None and len(points.points):
+        return True
+    own = {'MESH': 'mesh', 'POINTCLOUD': 'pointcloud'}.get(obj.type)
+    return any(getattr(geometry, kind) is not None for kind in
+               ('mesh', 'pointcloud', 'curves', 'volume', 'grease_pencil') if kind != own)
 
 
 def _plain_mesh(reference):
@@ -47,10 +62,39 @@ class InstanceExporter:
         self.context = context
         self.meshes = meshes
         self.visible = visible
+        self.sources: dict = {}  # instancer name -> (geometry, points, meshes) or None
         self.bulk: dict[str, bool] = {}   # instancer name -> its instances were read in bulk
-        # The meshes a GeometrySet hands out live only as long as the GeometrySet: keep them
-        # until the export is over.
-        self.alive: list = []
+
+    def _bulk_source(self, parent):
+        """(evaluated geometry, instance point cloud, mesh per reference) when the
+        instancer's instances can be read in bulk (module docstring), else None.  The
+        geometry is kept: the meshes it hands out live only as long as it does."""
+        name = parent.name
+        if name not in self.sources:
+            self.sources[name] = self._read_source(parent)
+        return self.sources[name]
+
+    @staticmethod
+    def _read_source(parent):
+        if parent.type not in ('MESH', 'POINTCLOUD') or parent.instance_type != 'NONE' or \
+                len(parent.particle_systems) or \
+                not any(m.type == 'NODES' for m in parent.modifiers):
+            return None
+        geometry = parent.evaluated_geometry()
+        points = geometry.instances_pointcloud()
+        if points is None or not len(points.points):
+            return None
+        # Any other kind of geometry would come as instances of the instancer too.
+        own = 'mesh' if parent.type == 'MESH' else 'pointcloud'
+        others = [kind for kind in ('mesh', 'pointcloud', 'curves', 'volume', 'grease_pencil')
+                  if kind != own and getattr(geometry, kind) is not None]
+        if others:
+            return None
+        references = geometry.instance_references()
+        meshes = [_plain_mesh(reference) for reference in references]
+        if any(mesh is None for mesh in meshes):
+            return None
+        return geometry, references, points, meshes
 
     def handles(self, instance) -> bool:
         """True if this instance (``is_instance``) was exported with its instancer's bulk."""
@@ -60,36 +104,43 @@ class InstanceExporter:
         name = parent.name
         done = self.bulk.get(name)
         if done is None:
-            done = self.bulk[name] = self._export_bulk(instance, parent)
+            done = self.bulk[name] = self.export_instancer(instance, parent)
         return done
 
-    def _export_bulk(self, instance, parent) -> bool:
-        if parent.type not in ('MESH', 'POINTCLOUD') or parent.instance_type != 'NONE' or \
-                len(parent.particle_systems) or \
-                not any(m.type == 'NODES' for m in parent.modifiers):
+    def export_instancer(self, entry, parent) -> bool:
+        """Export an instancer's instances in bulk if they can be (True), else False.  entry:
+        one of its depsgraph entries (an instance, or the instancer's own), for visibility."""
+        source = self._bulk_source(parent)
+        if source is None:
             return False
-        geometry = parent.evaluated_geometry()
-        points = geometry.instances_pointcloud()
-        if points is None or not len(points.points):
-            return False
-        references = geometry.instance_references()
-        meshes = [_plain_mesh(reference) for reference in references]
-        if any(mesh is None for mesh in meshes):
-            return False
-        self.alive.append((geometry, references))
-        if not self.visible(instance):
+        self.bulk[parent.name] = True
+        if not self.visible(entry):
             return True  # hidden with its instancer: nothing to export, nothing to warn about
+        _, _, points, meshes = source
         count = len(points.points)
         transforms = np.empty(count * 16, np.float32)
         points.attributes["instance_transform"].data.foreach_get("value", transforms)
-        local = transforms.astype(np.float64).reshape(count, 4, 4).transpose(0, 2, 1)
-        world = np.asarray(parent.matrix_world, np.float64) @ local
+        # Column-major 4 x 4 per instance: transposed, the rows.
+        local = transforms.reshape(count, 4, 4).transpose(0, 2, 1).astype(np.float64)
+        world = np.matmul(np.asarray(parent.matrix_world, np.float64), local)
         indices = self._reference_indices(points, count)
         for index, mesh in enumerate(meshes):
-            chosen = indices == index
-            if chosen.any():
-                self.meshes.add_bulk(mesh, tuple(mesh.materials), world[chosen],
-                                     f"{mesh.name} (instanced by {parent.name})")
+            chosen = indices == index if len(meshes) > 1 else slice(None)
+            self.meshes.add_bulk(mesh, tuple(mesh.materials), world[chosen],
+                                 f"{mesh.name} (instanced by {parent.name})")
+        return True
+
+    def covers(self, objects) -> bool:
+        """True when no object but bulk-read instancers makes instances, so the depsgraph's
+        instances need not be walked at all (``scene``): no collection, vertex, face or
+        particle instancing, no curve-like object (its mesh comes as an instance), and every
+        Geometry Nodes object either makes no instances or is read in bulk."""
+        for obj in objects:
+            if obj.type in EVALUATED_AS_MESH or obj.is_instancer:
+                return False
+            if any(m.type == 'NODES' for m in obj.modifiers) and \
+                    self._bulk_source(obj) is None and _makes_instances(obj):
+                return False
         return True
 
     @staticmethod

@@ -2,13 +2,16 @@
 
 ``export_scene`` walks ``depsgraph.object_instances``, so what Blender renders is what Glint
 gets: modifiers, parenting, constraints, drivers and collection or geometry-node instances
-are already applied, and each instance comes with its own world matrix.  It only reads
-Blender data; nothing in the .blend changes.
+are already applied, and each instance comes with its own world matrix.  When the only
+instancers are Geometry Nodes objects read in bulk (``instances.InstanceExporter.covers``),
+``depsgraph.objects`` is visited instead, so a million instances cost no Python step each.
+It only reads Blender data; nothing in the .blend changes.
 
 Visibility: a depsgraph evaluated for rendering (the render engine's) holds exactly the
 objects Blender renders.  A viewport depsgraph (``context.evaluated_depsgraph_get()``, which
 the panel's Render button uses) holds the viewport's objects, so objects and collections
-hidden for render (the camera icon, ``hide_render``) are dropped here; objects disabled in
+hidden for render (the camera icon, ``hide_render``) and instancers not shown in renders
+(``show_instancer_for_render``, e.g. a particle emitter) are dropped here; objects disabled in
 viewports are absent from it and modifiers run at their viewport settings, as Blender's own
 viewport exporters see them.
 
@@ -87,8 +90,12 @@ class _RenderVisibility:
     def __call__(self, instance) -> bool:
         if not self.filter:
             return True
-        if self._hidden(instance.object.original):
+        original = instance.object.original
+        if self._hidden(original):
             return False
+        if not instance.is_instance and original.is_instancer and \
+                not original.show_instancer_for_render:
+            return False  # an emitter or instancer Blender does not render itself
         parent = instance.parent if instance.is_instance else None
         return parent is None or not self._hidden(parent.original)
 
@@ -107,6 +114,36 @@ def export_light(context, obj, matrix, name: str) -> None:
         context.skipped_lights.add(name, f"{obj.data.type.lower()} light")
         return
     context.lights.append(light)
+
+
+class _ObjectEntry:
+    """An evaluated object as the depsgraph walk's entry for it (the fields of
+    ``DepsgraphObjectInstance`` the exporters read), for exports that skip the walk."""
+
+    is_instance = False
+    parent = None
+    show_self = True
+
+    def __init__(self, obj):
+        self.object = obj
+        self.matrix_world = obj.matrix_world
+
+
+def _export_entry(context, meshes, instance, visible) -> None:
+    """One depsgraph entry (an object or an instance) to the exporter of its type."""
+    if not instance.show_self or not visible(instance):
+        return
+    obj = instance.object
+    kind = obj.type
+    if kind == 'MESH':
+        meshes.add(instance)
+    elif kind == 'LIGHT':
+        export_light(context, obj, [list(row) for row in instance.matrix_world],
+                     instance_name(instance))
+    elif kind == 'POINTCLOUD':
+        export_point_cloud(context, obj, instance.matrix_world, instance_name(instance))
+    elif kind not in NON_RENDERING_TYPES and kind not in EVALUATED_AS_MESH:
+        context.skip(instance_name(instance), f"{kind.lower().replace('_', ' ')} object")
 
 
 def _render_camera(depsgraph, camera_override):
@@ -143,22 +180,18 @@ def export_scene(depsgraph, camera_override=None, *, view_camera=None
     meshes = MeshExporter(context)
     bulk = InstanceExporter(context, meshes, visible)
 
-    for instance in depsgraph.object_instances:
-        if instance.is_instance and bulk.handles(instance):
-            continue
-        if not instance.show_self or not visible(instance):
-            continue
-        obj = instance.object
-        kind = obj.type
-        if kind == 'MESH':
-            meshes.add(instance)
-        elif kind == 'LIGHT':
-            export_light(context, obj, [list(row) for row in instance.matrix_world],
-                         instance_name(instance))
-        elif kind == 'POINTCLOUD':
-            export_point_cloud(context, obj, instance.matrix_world, instance_name(instance))
-        elif kind not in NON_RENDERING_TYPES and kind not in EVALUATED_AS_MESH:
-            context.skip(instance_name(instance), f"{kind.lower().replace('_', ' ')} object")
+    objects = list(depsgraph.objects)
+    if bulk.covers(objects):
+        # Nothing but bulk-read instancers makes instances: the objects themselves suffice.
+        for obj in objects:
+            entry = _ObjectEntry(obj)
+            bulk.export_instancer(entry, obj)
+            _export_entry(context, meshes, entry, visible)
+    else:
+        for instance in depsgraph.object_instances:
+            if instance.is_instance and bulk.handles(instance):
+                continue
+            _export_entry(context, meshes, instance, visible)
     meshes.finish()
 
     world = depsgraph.scene_eval.world
