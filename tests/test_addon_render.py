@@ -626,7 +626,12 @@ def _scaled_simple_scene(scale, offset=(0.0, 0.0, 0.0)):
     """simple_scene with a soft light, everything (objects, light radius, clip planes) moved by
     offset and scaled by ``scale``; Blender stores these in float32."""
     scene = simple_scene()
-    bpy.data.objects["light"].data.shadow_soft_size = 0.5 * scale
+    # A sun: its irradiance does not depend on distances, whereas a point light's power / d^2
+    # (Cycles' units, the default semantics) would change with the scale, in Blender too.
+    light = bpy.data.objects["light"]
+    light.data.type = 'SUN'
+    light.data.energy, light.data.angle = 3.0, 0.2   # soft shadows at any scale
+    light.rotation_euler = (0.6, 0.3, 0.0)
     for obj in bpy.data.objects:
         obj.location = [(c + o) * scale for c, o in zip(obj.location, offset)]
         if obj.type == 'MESH':
@@ -640,7 +645,8 @@ def _scaled_simple_scene(scale, offset=(0.0, 0.0, 0.0)):
 def test_a_blender_scene_renders_the_same_at_any_position_and_scale(scale):
     """Over the range Blender's own data allows: its camera's clip_start is at least 1e-6
     (below 1e-5 the camera clips the scene away, in Blender too) and it stores float32, whose
-    largest value (3.4e38) bounds the large end.  Lights have no distance falloff here."""
+    largest value (3.4e38) bounds the large end.  The light is a sun, whose light has no
+    distance falloff."""
     reference = _scaled_simple_scene(1.0)
     image = _scaled_simple_scene(scale, offset=(100.0, -50.0, 30.0))
     moved = np.abs(image - reference).max(axis=2) > 1 / 255
