@@ -622,14 +622,20 @@ def test_each_view_layer_renders_its_own_visibility_into_its_own_layer(tmp_path)
 
 # --- position and unit ------------------------------------------------------------------------
 
-def _scaled_simple_scene(scale, offset=(0.0, 0.0, 0.0)):
-    """simple_scene with a soft light, everything (objects, light radius, clip planes) moved by
-    offset and scaled by ``scale``, and the light's power by scale^2 (its irradiance falls off
-    as power / d^2); Blender stores these in float32."""
+def _scaled_simple_scene(scale, offset=(0.0, 0.0, 0.0), sun=False):
+    """simple_scene with a soft light (a sun, or the point light with its power times scale^2,
+    since its irradiance falls off as power / d^2), everything (objects, light radius, clip
+    planes) moved by offset and scaled by ``scale``; Blender stores these in float32."""
     scene = simple_scene()
-    light = bpy.data.objects["light"].data
-    light.shadow_soft_size = 0.5 * scale
-    light.energy *= scale ** 2
+    light = bpy.data.objects["light"]
+    if sun:
+        # A sun's irradiance does not depend on distances: nothing to rescale.
+        light.data.type = 'SUN'
+        light.data.energy, light.data.angle = 3.0, 0.2   # soft shadows at any scale
+        light.rotation_euler = (0.6, 0.3, 0.0)
+    else:
+        light.data.shadow_soft_size = 0.5 * scale
+        light.data.energy *= scale ** 2
     for obj in bpy.data.objects:
         obj.location = [(c + o) * scale for c, o in zip(obj.location, offset)]
         if obj.type == 'MESH':
@@ -639,13 +645,15 @@ def _scaled_simple_scene(scale, offset=(0.0, 0.0, 0.0)):
     return core_image()
 
 
-@pytest.mark.parametrize("scale", [1e-5, 1e-3, 1e3, 1e6])
-def test_a_blender_scene_renders_the_same_at_any_position_and_scale(scale):
-    """Over the range the data allows: Blender's camera clip_start is at least 1e-6 (below
-    1e-5 the camera clips the scene away, in Blender too), and the light's 1000 W x scale^2
-    must pass validation's 1e15 W (core.scene.MAX_COLOUR x 1000), which bounds the large end
-    for lights that fall off with distance."""
-    reference = _scaled_simple_scene(1.0)
-    image = _scaled_simple_scene(scale, offset=(100.0, -50.0, 30.0))
+@pytest.mark.parametrize("sun, scale", [(True, s) for s in (1e-5, 1e-3, 1e10, 1e20, 1e36)]
+                         + [(False, s) for s in (1e-5, 1e-3, 1e3, 1e6)])
+def test_a_blender_scene_renders_the_same_at_any_position_and_scale(sun, scale):
+    """Over the range Blender's own data allows: its camera's clip_start is at least 1e-6
+    (below 1e-5 the camera clips the scene away, in Blender too) and it stores float32, whose
+    largest value (3.4e38) bounds the large end: a sun (no distance falloff) over all of it; a
+    point light, whose power must grow as scale^2, up to validation's 1e15 W
+    (core.scene.MAX_COLOUR x 1000)."""
+    reference = _scaled_simple_scene(1.0, sun=sun)
+    image = _scaled_simple_scene(scale, offset=(100.0, -50.0, 30.0), sun=sun)
     moved = np.abs(image - reference).max(axis=2) > 1 / 255
     assert moved.mean() < 0.002, f"{moved.sum()} pixels differ"
