@@ -47,7 +47,12 @@ def main(descriptor: int) -> None:
         setup = connection.recv()                   # builtins only: nothing imported yet
     except EOFError:
         return
-    sys.path[:] = setup["sys_path"]
+    # The parent's path entries go after this interpreter's own (its standard library and
+    # site-packages): a parent may have a folder at the front of its path (pytest puts the
+    # checkout's parent there) in which a stray inspect.py or dataclasses.py would shadow the
+    # standard library for a process that imports everything afresh.
+    own = list(sys.path)
+    sys.path[:] = own + [entry for entry in setup["sys_path"] if entry not in own]
     load_core(setup["core_name"], setup["core_folder"])
     workers = importlib.import_module(setup["core_name"] + ".workers")
     workers.worker_loop(connection, setup)

@@ -340,3 +340,23 @@ def test_a_worker_that_dies_is_a_render_error_and_is_replaced(small_renders_in_p
     assert again.parallelism == "processes" and len(workers.worker_pids()) == 2
     assert np.array_equal(again.image, core.render(scene, _settings(threads=1,
                                                                     tile_size=16)).image)
+
+
+def test_a_stray_module_at_the_front_of_the_path_does_not_break_the_workers(
+        small_renders_in_processes, monkeypatch, tmp_path):
+    """pytest puts the checkout's parent folder first on sys.path; a stray inspect.py or
+    dataclasses.py there must not shadow the standard library in a worker, which imports
+    everything afresh (the parent imported the real ones long before)."""
+    for name in ("inspect", "dataclasses"):
+        (tmp_path / f"{name}.py").write_text("raise ImportError('a stray module')\n")
+    scene = core.article_scene(64, 64)
+    reference = core.render(scene, _settings(threads=1))
+    workers.shutdown()
+    monkeypatch.setattr(workers, "unavailable_reason", None)
+    monkeypatch.setattr(sys, "path", [str(tmp_path)] + sys.path)
+
+    result = core.render(scene, _settings(threads=2, parallelism="processes"))
+
+    assert result.parallelism == "processes", workers.unavailable_reason
+    assert np.array_equal(result.image, reference.image)
+    workers.shutdown()   # later tests start workers with the ordinary path
