@@ -120,6 +120,14 @@ def add_camera(name="camera", location=(0.0, -6.0, 0.0), rotation=(math.pi / 2, 
     return obj
 
 
+def camera_and_light_file():
+    """An empty file holding only the default ``add_camera`` and ``add_point_light``."""
+    scene = empty_file()
+    add_camera()
+    add_point_light()
+    return scene
+
+
 def simple_scene():
     """Two spheres, a point light and a camera looking at them: a small but full scene.  The
     spheres are fine enough (64 x 32) to be drawn as analytic spheres in any view of it."""

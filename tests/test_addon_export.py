@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from mathutils import Matrix, Vector
 
-from addon_support import (ExportError, add_camera, add_point_light, add_sphere, core,
-                           cube_mesh, depsgraph, empty_file, export_scene, ico_sphere_mesh,
-                           link, uv_sphere_mesh)
+from addon_support import (ExportError, add_camera, add_point_light, add_sphere,
+                           camera_and_light_file, core, cube_mesh, depsgraph, empty_file,
+                           export_scene, ico_sphere_mesh, link, uv_sphere_mesh)
 from glint.addon.export.geometry import (ANALYTIC_SPHERE_PROPERTY, FLOAT32_SLACK,
                                          MAX_FACE_SAGITTA, MAX_RADIUS_SCATTER, fit_sphere,
                                          uniform_scales)
@@ -39,10 +39,7 @@ def spheres_by_name(scene):
 
 @pytest.fixture
 def scene():
-    scene = empty_file()
-    add_camera()
-    add_point_light()
-    return scene
+    return camera_and_light_file()
 
 
 # --- spheres ----------------------------------------------------------------------------------
