@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from mathutils import Matrix, Vector
 
-from addon_support import (ExportError, add_camera, add_point_light, add_sphere,
+from addon_support import (ExportError, add_camera, add_point_light, add_sphere, add_world,
                            camera_and_light_file, core, cube_mesh, depsgraph, empty_file,
                            export_scene, ico_sphere_mesh, link, uv_sphere_mesh)
 from glint.addon.export.geometry import (ANALYTIC_SPHERE_PROPERTY, FLOAT32_SLACK,
@@ -420,11 +420,7 @@ def test_a_non_principled_surface_falls_back_to_viewport_display_with_a_note(sce
 
 def test_the_world_colour_is_background_and_ambient(scene):
     article_semantics()
-    world = bpy.data.worlds.new("sky")
-    background = world.node_tree.nodes["Background"]
-    background.inputs["Color"].default_value = (0.2, 0.1, 0.05, 1.0)
-    background.inputs["Strength"].default_value = 0.5
-    bpy.context.scene.world = world
+    add_world("sky", (0.2, 0.1, 0.05), 0.5)
 
     exported, _ = export()
 
