@@ -105,6 +105,7 @@ class Aggregate:
                                                               BVH_MIN_TRIANGLES)
         # One tree over the rest, spheres and triangles together (global ids).
         self._tree = None
+        self._surface_keys = None   # built on first use (adaptive anti-aliasing only)
         self._tree_spheres = len(tree_spheres)
         if len(tree_spheres) or len(tree_triangles):
             lows, highs = [], []
@@ -122,6 +123,17 @@ class Aggregate:
 
     def __len__(self) -> int:
         return self.sphere_count + self.triangle_count
+
+    def surface_keys(self, primitive_per_ray: np.ndarray) -> np.ndarray:
+        """(n,) uint64 key of the surface each ray hit (0: none), for adaptive anti-aliasing's
+        path signatures: each sphere is a surface; triangles are grouped into surfaces by
+        ``arrays.TriangleArrays.surface`` (an object, or one flat facet of it), so that the
+        inner edges of a smooth mesh are not taken for edges in the picture."""
+        if self._surface_keys is None:
+            self._surface_keys = np.concatenate([
+                np.zeros(1, np.uint64), np.arange(1, self.sphere_count + 1, dtype=np.uint64),
+                (self.sphere_count + 1 + self.triangles.surface).astype(np.uint64)])
+        return self._surface_keys[primitive_per_ray + 1]
 
     # ---- shared origins -----------------------------------------------------------------
 

@@ -36,7 +36,9 @@ class TriangleArrays:
     """T world-space triangles: corners v0, v1, v2 (3, T); normals (3, T) unit geometric
     normals on the front side (counter-clockwise winding, kept outward for mirrored
     instances); corner_normals (3 corners, 3, T) unit shading normals, or None when every
-    triangle is flat; material (T,) indices into the scene's material table."""
+    triangle is flat; material (T,) indices into the scene's material table; surface (T,)
+    which continuous surface each triangle belongs to (``_surfaces``), so that adaptive
+    anti-aliasing finds the edges a picture shows, not every edge of the tessellation."""
 
     v0: np.ndarray
     v1: np.ndarray
@@ -44,6 +46,7 @@ class TriangleArrays:
     normals: np.ndarray
     corner_normals: np.ndarray | None
     material: np.ndarray
+    surface: np.ndarray
 
     def __len__(self) -> int:
         return self.v0.shape[1]
@@ -156,11 +159,38 @@ def _mesh_triangles(mesh, table: _MaterialTable):
     return corners, normals, smooth, materials
 
 
+def _surfaces(mesh, normals: np.ndarray, first_instance: int) -> np.ndarray:
+    """(K*T,) surface ids of one mesh's triangles, instance by instance: each instance is a
+    surface of its own; a flat-shaded mesh's facets (triangles with the same plane normal,
+    such as a quad's two halves) are surfaces too, because its shading jumps at their edges,
+    whereas a smooth mesh shades continuously across its triangles.  Ids are
+    ``instance * FACETS_PER_INSTANCE + facet``."""
+    count = len(mesh.triangles)
+    instance = first_instance + np.repeat(np.arange(len(mesh.transforms)), count)
+    facet = np.zeros(len(instance), np.int64)
+    if mesh.corner_normals is None and len(instance):
+        # Normals agreeing to about a thousandth of a radian are one plane.
+        rounded = np.round(normals * 1024).astype(np.int64)
+        keys = np.concatenate([instance[:, None], rounded], axis=1)
+        _, facet = np.unique(keys, axis=0, return_inverse=True)
+        facet = facet.reshape(-1) % FACETS_PER_INSTANCE
+    return instance * FACETS_PER_INSTANCE + facet
+
+
+#: Facet ids per instance in a surface id (a flat mesh with more distinct planes wraps around,
+#: which at worst misses an edge between two far-apart facets).
+FACETS_PER_INSTANCE = 1 << 24
+
+
 def _triangle_arrays(meshes, table: _MaterialTable) -> TriangleArrays:
     parts = [_mesh_triangles(mesh, table) for mesh in meshes]
     if not parts:
         empty = np.zeros((3, 0))
-        return TriangleArrays(empty, empty, empty, empty, None, np.zeros(0, np.intp))
+        return TriangleArrays(empty, empty, empty, empty, None, np.zeros(0, np.intp),
+                              np.zeros(0, np.int64))
+    first_instances = np.cumsum([0] + [len(mesh.transforms) for mesh in meshes])
+    surfaces = np.concatenate([_surfaces(mesh, part[1], first)
+                               for mesh, part, first in zip(meshes, parts, first_instances)])
     corners = np.concatenate([p[0] for p in parts])
     normals = np.concatenate([p[1] for p in parts])
     corner_normals = None
@@ -172,7 +202,7 @@ def _triangle_arrays(meshes, table: _MaterialTable) -> TriangleArrays:
     vertices = corners.transpose(1, 2, 0)                                      # (3, 3, T)
     return TriangleArrays(vertices[0].copy(), vertices[1].copy(), vertices[2].copy(),
                           normals.T.copy(), corner_normals,
-                          np.concatenate([p[3] for p in parts]))
+                          np.concatenate([p[3] for p in parts]), surfaces)
 
 
 def scene_arrays(scene: Scene) -> SceneArrays:

@@ -113,7 +113,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
         hits = geometry.nearest(batch, stats)
         if signature is not None:
             signature[path] = (signature[path] * _SIGNATURE_PRIME
-                               + (hits.primitive_per_ray + 1).astype(np.uint64))
+                               + geometry.surface_keys(hits.primitive_per_ray))
         if depth == 0:
             coverage = hits.primitive_per_ray >= 0
         if add_background and len(hits) < len(batch):
