@@ -1,7 +1,7 @@
 """The baseline: the article's algorithm written the obvious vectorised way.
 
 Every optimisation in Glint is measured against this, so it is plain but not wasteful:
-float64, the article's semantics and formulas (ARTICLE.md), and ONE broadcast of all rays
+float64, the article's semantics and formulas (docs/article.md), and ONE broadcast of all rays
 still going against all spheres per intersection pass.  No tiles, no culling (every ray is
 tested against every sphere), no threads.
 

@@ -1,7 +1,7 @@
 """The article's program as the article writes it: Python loops over pixels, NumPy 3-vectors.
 
 The functions and the loop body keep the article's structure and formulas line for line
-(ARTICLE.md states them); the only additions are that the scene comes from a ``core.Scene``
+(docs/article.md states them); the only additions are that the scene comes from a ``core.Scene``
 (so any scene the bench uses can be rendered) and that ``render`` can be asked for some rows
 and columns only, so that a test can check a crop of the 300 x 200 image in milliseconds.
 """

@@ -340,6 +340,16 @@ class Aggregate:
         v0, v1, v2 = (take(v, triangle) for v in self._v)
         return watertight(v0, v1, v2, origins, shear.take(r), t_min, t_max)
 
+    def _pairs_by_kind(self, prims, stats):
+        """(sphere pairs, triangle pairs): indices into a tree leaf's (ray, primitive) pairs
+        prims (E,) by the primitive's kind, each counted in stats."""
+        is_sphere = prims < self.sphere_count
+        spheres, tris = np.flatnonzero(is_sphere), np.flatnonzero(~is_sphere)
+        if stats is not None:
+            stats.sphere_tests += len(spheres)
+            stats.triangle_tests += len(tris)
+        return spheres, tris
+
     def _nearest_in_tree(self, rays: RayBatch, best_t, best, barycentrics, stats):
         """Improves best_t, best (n,) and the triangle barycentrics in place with the tree's
         primitives."""
@@ -353,21 +363,15 @@ class Aggregate:
         def visit(r, prims):
             t = np.full(len(r), np.inf, self.dtype)
             limit = reach[r].astype(self.dtype)
-            is_sphere = prims < self.sphere_count
-            spheres = np.flatnonzero(is_sphere)
+            spheres, tris = self._pairs_by_kind(prims, stats)
             if len(spheres):
                 pr = r[spheres]
-                if stats is not None:
-                    stats.sphere_tests += len(spheres)
                 roots = self._sphere_pairs(rays, pr, prims[spheres])
                 d = first_hit_distance(*roots, t_min[pr], article=self.article)
                 t[spheres] = np.where(d < limit[spheres], d, np.inf)
-            tris = np.flatnonzero(~is_sphere)
             bary = None
             if len(tris):
                 pr = r[tris]
-                if stats is not None:
-                    stats.triangle_tests += len(tris)
                 tt, b0, b1, b2, valid = self._triangle_pairs(
                     rays, shear, pr, prims[tris] - self.sphere_count, t_min[pr], limit[tris])
                 t[tris] = np.where(valid, tt, np.inf)
@@ -404,12 +408,9 @@ class Aggregate:
 
         def visit(r, prims):
             blocked = np.zeros(len(r), bool)
-            is_sphere = prims < self.sphere_count
-            spheres = np.flatnonzero(is_sphere)
+            spheres, tris = self._pairs_by_kind(prims, stats)
             if len(spheres):
                 pr = r[spheres]
-                if stats is not None:
-                    stats.sphere_tests += len(spheres)
                 t_near, t_far, valid = self._sphere_pairs(segments, pr, prims[spheres])
                 lo, hi = low[pr], high[pr]
                 if self.article:
@@ -417,11 +418,8 @@ class Aggregate:
                 else:
                     blocked[spheres] = valid & (((t_near > lo) & (t_near < hi))
                                                 | ((t_far > lo) & (t_far < hi)))
-            tris = np.flatnonzero(~is_sphere)
             if len(tris):
                 pr = r[tris]
-                if stats is not None:
-                    stats.triangle_tests += len(tris)
                 blocked[tris] = self._triangle_pairs(segments, shear, pr,
                                                      prims[tris] - self.sphere_count,
                                                      low[pr], high[pr])[4]

@@ -1,4 +1,5 @@
-"""The article's scene and settings, exactly as ARTICLE.md states them.
+"""The article's scene and settings, exactly as docs/article.md states them ("Scene",
+"Camera and screen").
 
 The article works in its own coordinates (Y up, camera looking down -Z); Glint keeps them.
 """

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .runs import rank_within_runs
+
 #: Primitives per leaf, children per inner node, and the least depth (in levels above the
 #: leaves) of the subtrees ("treelets") visited front to back.
 #: (Leaves of 2 against 4, CPU time on one thread at 320x180: 1,000 spheres 0.63 vs 0.80 s,
@@ -139,7 +141,7 @@ class BVH:
         rays, nodes, near = rays[order], nodes[order], near[order]
         first = np.r_[True, rays[1:] != rays[:-1]]
         starts = np.flatnonzero(first)
-        rank = np.arange(len(rays)) - np.repeat(starts, np.diff(np.r_[starts, len(rays)]))
+        rank = rank_within_runs(np.diff(np.r_[starts, len(rays)]))
         done_rank, size = 0, 1
         while True:
             chosen = (rank >= done_rank) & (rank < done_rank + size)

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .intersect import OriginTerms, offset_roots, origin_roots
+from .runs import rank_within_runs, run_starts
 from .vectors import dot, length, take
 
 #: Slack on cosines (about 1e-6 radians of angle) that keeps culling conservative.
@@ -37,8 +38,6 @@ REFLECTION_CELLS = 4
 SHADOW_CELLS = 64
 #: With at most this many bundle-level candidates, one dense pass beats per-packet culling.
 DENSE_CANDIDATES = 8
-#: Bundle-level candidates intersected at once in the dense pass; bounds (k, n) temporaries.
-DENSE_CHUNK = 16
 #: Upper bound on ray/sphere pairs per block of packets; bounds the (k, n) temporaries.
 BLOCK_PAIRS = 1 << 19
 #: Spheres per culling cluster, and how much larger than the median a sphere must be to get
@@ -205,8 +204,7 @@ def _packets(n, key, size):
     run_start = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
     run_length = np.diff(np.r_[run_start, n])
     pieces = -(-run_length // size)
-    starts = np.repeat(run_start, pieces) + size * (
-        np.arange(pieces.sum()) - np.repeat(np.cumsum(pieces) - pieces, pieces))
+    starts = np.repeat(run_start, pieces) + size * rank_within_runs(pieces)
     return order, starts, np.minimum(size, np.repeat(run_start + run_length, pieces) - starts)
 
 
@@ -290,21 +288,20 @@ def candidate_roots(centers, radii, clusters: SphereClusters, origins, direction
     if len(candidates) == 0:
         return
     if len(candidates) <= DENSE_CANDIDATES:
-        for first in range(0, len(candidates), DENSE_CHUNK):
-            chunk = candidates[first:first + DENSE_CHUNK]
-            if stats is not None:
-                stats.sphere_tests += n * len(chunk)
-            if shared:
-                roots = origin_roots(terms.f[chunk].T[:, :, None],
-                                     terms.c_prime[chunk][:, None],
-                                     terms.article_c[chunk][:, None], radii[chunk][:, None],
-                                     directions[:, None, :], article=textbook)
-            else:
-                roots = offset_roots(origins[:, None, :]
-                                     - centers[chunk].T.astype(dtype)[:, :, None],
-                                     directions[:, None, :],
-                                     radii[chunk].astype(dtype)[:, None], article=textbook)
-            yield DenseBlock(chunk[:, None], *roots, slice(0, n))
+        # One (k, n) pass over all of them: k <= DENSE_CANDIDATES bounds the temporaries.
+        if stats is not None:
+            stats.sphere_tests += n * len(candidates)
+        if shared:
+            roots = origin_roots(terms.f[candidates].T[:, :, None],
+                                 terms.c_prime[candidates][:, None],
+                                 terms.article_c[candidates][:, None], radii[candidates][:, None],
+                                 directions[:, None, :], article=textbook)
+        else:
+            roots = offset_roots(origins[:, None, :]
+                                 - centers[candidates].T.astype(dtype)[:, :, None],
+                                 directions[:, None, :],
+                                 radii[candidates].astype(dtype)[:, None], article=textbook)
+        yield DenseBlock(candidates[:, None], *roots, slice(0, n))
         return
 
     # Second level: packets of coherent rays, each with its own candidates; then explicit
@@ -318,7 +315,7 @@ def candidate_roots(centers, radii, clusters: SphereClusters, origins, direction
     pair_packet, pair_sphere = _packet_candidates(radii, clusters, cone,
                                                   reach[padded].max(axis=1))
     counts = np.bincount(pair_packet, minlength=len(starts))
-    first_pair = np.cumsum(counts) - counts
+    first_pair = run_starts(counts)
     # Per packet: its rays (lengths) times its candidates (counts), ray-major.
     work = lengths * counts
     block_end = np.searchsorted(np.cumsum(work), np.arange(1, work.sum() // BLOCK_PAIRS + 2)
@@ -331,14 +328,11 @@ def candidate_roots(centers, radii, clusters: SphereClusters, origins, direction
             continue
         # Rays of these packets, each repeated once per candidate of its packet.
         ray_packet = np.repeat(packets, lengths[packets])
-        ray_slot = np.arange(len(ray_packet)) - np.repeat(
-            np.cumsum(lengths[packets]) - lengths[packets], lengths[packets])
+        ray_slot = rank_within_runs(lengths[packets])
         rays = order[starts[ray_packet] + ray_slot]
         per_ray = counts[ray_packet]
         pair_owner = np.repeat(np.arange(len(rays)), per_ray)
-        pair_index = (np.repeat(first_pair[ray_packet], per_ray)
-                      + np.arange(len(pair_owner)) - np.repeat(np.cumsum(per_ray) - per_ray,
-                                                               per_ray))
+        pair_index = np.repeat(first_pair[ray_packet], per_ray) + rank_within_runs(per_ray)
         spheres = pair_sphere[pair_index]
         pair_rays = rays[pair_owner]
         if stats is not None:
@@ -351,4 +345,4 @@ def candidate_roots(centers, radii, clusters: SphereClusters, origins, direction
         else:
             roots = offset_roots(take(origins, pair_rays) - take(centers_t, spheres).astype(dtype),
                                  pair_dirs, radii[spheres].astype(dtype), article=textbook)
-        yield PairBlock(spheres, *roots, rays, pair_rays, np.cumsum(per_ray) - per_ray)
+        yield PairBlock(spheres, *roots, rays, pair_rays, run_starts(per_ray))

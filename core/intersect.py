@@ -7,7 +7,7 @@ distances along the (unit) ray where it crosses the sphere, and whether it cross
 (discriminant > 0, strictly, so tangent rays miss as in the article).  Callers pick what
 they need: the nearest hit (``core.trace``) or whether a segment is blocked (``core.shading``).
 
-Numerics (ARTICLE.md, "Numerics worth knowing").  With f = o - c and b' = f.d:
+Numerics (docs/article.md, "Numerics worth knowing").  With f = o - c and b' = f.d:
 
 * the discriminant as ``r^2 - |f - b' d|^2`` (Haines et al., Ray Tracing Gems ch. 7): the
   squared distance from the centre to the ray's line, computed as a vector, does not cancel

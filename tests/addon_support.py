@@ -120,6 +120,36 @@ def add_camera(name="camera", location=(0.0, -6.0, 0.0), rotation=(math.pi / 2, 
     return obj
 
 
+def add_world(name, colour, strength=None):
+    """A world whose Background node has ``colour`` (RGB) and, if given, ``strength``, made
+    the scene's world."""
+    world = bpy.data.worlds.new(name)
+    background = world.node_tree.nodes["Background"]
+    background.inputs["Color"].default_value = (*colour, 1.0)
+    if strength is not None:
+        background.inputs["Strength"].default_value = strength
+    bpy.context.scene.world = world
+    return world
+
+
+def animate_small_sphere(last_frame):
+    """Keys ``simple_scene``'s small sphere from x = -1 at frame 1 to x = 1 at last_frame."""
+    small = bpy.data.objects["small"]
+    small.location.x = -1.0
+    small.keyframe_insert("location", frame=1)
+    small.location.x = 1.0
+    small.keyframe_insert("location", frame=last_frame)
+    return small
+
+
+def camera_and_light_file():
+    """An empty file holding only the default ``add_camera`` and ``add_point_light``."""
+    scene = empty_file()
+    add_camera()
+    add_point_light()
+    return scene
+
+
 def simple_scene():
     """Two spheres, a point light and a camera looking at them: a small but full scene.  The
     spheres are fine enough (64 x 32) to be drawn as analytic spheres in any view of it."""

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from mathutils import Matrix, Vector
 
-from addon_support import (ExportError, add_camera, add_point_light, add_sphere, core,
-                           cube_mesh, depsgraph, empty_file, export_scene, ico_sphere_mesh,
-                           link, uv_sphere_mesh)
+from addon_support import (ExportError, add_camera, add_point_light, add_sphere, add_world,
+                           camera_and_light_file, core, cube_mesh, depsgraph, empty_file,
+                           export_scene, ico_sphere_mesh, link, uv_sphere_mesh)
 from glint.addon.export.geometry import (ANALYTIC_SPHERE_PROPERTY, FLOAT32_SLACK,
                                          MAX_FACE_SAGITTA, MAX_RADIUS_SCATTER, fit_sphere,
                                          uniform_scales)
@@ -39,10 +39,7 @@ def spheres_by_name(scene):
 
 @pytest.fixture
 def scene():
-    scene = empty_file()
-    add_camera()
-    add_point_light()
-    return scene
+    return camera_and_light_file()
 
 
 # --- spheres ----------------------------------------------------------------------------------
@@ -423,11 +420,7 @@ def test_a_non_principled_surface_falls_back_to_viewport_display_with_a_note(sce
 
 def test_the_world_colour_is_background_and_ambient(scene):
     article_semantics()
-    world = bpy.data.worlds.new("sky")
-    background = world.node_tree.nodes["Background"]
-    background.inputs["Color"].default_value = (0.2, 0.1, 0.05, 1.0)
-    background.inputs["Strength"].default_value = 0.5
-    bpy.context.scene.world = world
+    add_world("sky", (0.2, 0.1, 0.05), 0.5)
 
     exported, _ = export()
 

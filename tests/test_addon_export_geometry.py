@@ -15,8 +15,9 @@ import numpy as np
 import pytest
 from mathutils import Matrix
 
-from addon_support import (add_camera, add_point_light, add_sphere, core, cube_mesh, depsgraph,
-                           empty_file, export_scene, ico_sphere_mesh, link, uv_sphere_mesh)
+from addon_support import (add_camera, add_sphere, camera_and_light_file, core, cube_mesh,
+                           depsgraph, empty_file, export_scene, ico_sphere_mesh, link,
+                           uv_sphere_mesh)
 from glint.addon.export import instances as instances_module
 from glint.addon.export.context import CameraFootprint
 from glint.addon.export.geometry import MAX_DEVIATION_PIXELS, mesh_sphere
@@ -29,10 +30,7 @@ def export():
 
 @pytest.fixture
 def scene():
-    scene = empty_file()
-    add_camera()
-    add_point_light()
-    return scene
+    return camera_and_light_file()
 
 
 def add_mesh(name, mesh, location=(0.0, 0.0, 0.0)):

@@ -10,29 +10,23 @@ import bpy
 import numpy as np
 import pytest
 
-from addon_support import (add_camera, add_point_light, add_sphere, core, depsgraph, empty_file,
-                           export_scene, link)
+from addon_support import (add_camera, add_sphere, add_world, camera_and_light_file, core,
+                           depsgraph, empty_file, export_scene, link)
+from cycles_support import node_material
 from glint.addon.engine.final import GlintRenderEngine
 from glint.addon.export.materials import fresnel_average, layer_average
 
 
 @pytest.fixture
 def scene():
-    scene = empty_file()
-    add_camera()
-    add_point_light()
-    return scene
+    return camera_and_light_file()
 
 
 def material_with(kind, **inputs):
-    material = bpy.data.materials.new(kind)
-    tree = material.node_tree
-    tree.nodes.remove(tree.nodes["Principled BSDF"])
-    node = tree.nodes.new(kind)
-    for key, value in inputs.items():
-        node.inputs[key].default_value = (*value, 1.0) if isinstance(value, tuple) else value
-    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
-    return material, node
+    """(material, its one shader node): ``node_material`` named after the node's kind."""
+    material = node_material(kind, kind, **inputs)
+    surface = material.node_tree.nodes["Material Output"].inputs["Surface"]
+    return material, surface.links[0].from_node
 
 
 def exported_material(material):
@@ -227,11 +221,7 @@ def test_every_light_type_exports_in_cycles_units():
 
 
 def test_the_world_is_its_background_colour_times_strength_in_scene_linear(scene):
-    world = bpy.data.worlds.new("sky")
-    background = world.node_tree.nodes["Background"]
-    background.inputs["Color"].default_value = (0.2, 0.1, 0.05, 1.0)
-    background.inputs["Strength"].default_value = 3.0
-    bpy.context.scene.world = world
+    add_world("sky", (0.2, 0.1, 0.05), 3.0)
     exported, _ = export_scene(depsgraph())
     np.testing.assert_allclose(exported.background, (0.6, 0.3, 0.15), rtol=1e-6)
     np.testing.assert_allclose(exported.ambient, (0.6, 0.3, 0.15), rtol=1e-6)

@@ -9,9 +9,9 @@ import bpy
 import numpy as np
 import pytest
 
-from addon_support import (add_camera, add_point_light, add_sphere, core, core_image, cube_mesh,
-                           depsgraph, empty_file, glint, link, prepare_job, read_png,
-                           simple_scene, to_rgba8)
+from addon_support import (add_camera, add_point_light, add_sphere, add_world, animate_small_sphere,
+                           core, core_image, cube_mesh, depsgraph, empty_file, glint, link,
+                           prepare_job, read_png, simple_scene, to_rgba8)
 from glint.addon.engine.final import GlintRenderEngine, compatible_panels
 from glint.addon.engine.job import ThreadedRender
 from glint.addon.utils.image import COLOUR_SPACE, read_image
@@ -225,9 +225,7 @@ def test_a_scene_without_spheres_renders_the_background_with_a_warning():
     empty_file()
     add_camera()
     add_point_light()
-    world = bpy.data.worlds.new("grey")
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.2, 0.2, 0.2, 1)
-    bpy.context.scene.world = world
+    add_world("grey", (0.2, 0.2, 0.2))
 
     job = prepare_job(depsgraph())
     assert any("no sphere" in w for w in job.warnings)
@@ -240,9 +238,7 @@ def test_a_scene_without_spheres_renders_the_background_with_a_warning():
 def test_a_scene_without_light_renders_ambient_only_with_a_warning():
     scene = simple_scene()
     bpy.data.objects.remove(bpy.data.objects["light"])
-    world = bpy.data.worlds.new("grey")
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.5, 0.5, 0.5, 1)
-    scene.world = world
+    add_world("grey", (0.5, 0.5, 0.5))
 
     job = prepare_job(depsgraph())
     assert any("no light" in w for w in job.warnings)
@@ -373,11 +369,7 @@ def test_f12_renders_the_camera_view_of_objects_hidden_in_render(tmp_path):
 
 def test_animation_renders_every_frame(tmp_path):
     scene = simple_scene()
-    small = bpy.data.objects["small"]
-    small.location.x = -1.0
-    small.keyframe_insert("location", frame=1)
-    small.location.x = 1.0
-    small.keyframe_insert("location", frame=2)
+    animate_small_sphere(2)
     scene.frame_start, scene.frame_end = 1, 2
     scene.render.engine = 'GLINT'
     scene.render.filepath = str(tmp_path / "frame_")
@@ -393,9 +385,7 @@ def test_animation_renders_every_frame(tmp_path):
 
 def test_transparent_film_gives_coverage_alpha_and_removes_the_background(tmp_path):
     scene = simple_scene()
-    world = bpy.data.worlds.new("blue")
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.1, 0.2, 0.6, 1)
-    scene.world = world
+    add_world("blue", (0.1, 0.2, 0.6))
     scene.render.film_transparent = True
 
     render_button()

@@ -12,8 +12,8 @@ import bpy
 import numpy as np
 import pytest
 
-from addon_support import (RENDER_SCRIPT, REPOSITORY, add_point_light, add_sphere, empty_file,
-                           read_png, simple_scene)
+from addon_support import (RENDER_SCRIPT, REPOSITORY, add_point_light, add_sphere, add_world,
+                           animate_small_sphere, empty_file, read_png, simple_scene)
 
 ARTICLE_REFERENCE = os.path.join(REPOSITORY, "tests", "data", "article_300x200.npy")
 
@@ -95,11 +95,7 @@ def test_a_blend_with_options_renders_what_the_render_button_renders(tmp_path):
 
 def test_frame_option_renders_that_frame(tmp_path):
     scene = simple_scene()
-    small = bpy.data.objects["small"]
-    small.location.x = -1.0
-    small.keyframe_insert("location", frame=1)
-    small.location.x = 1.0
-    small.keyframe_insert("location", frame=10)
+    animate_small_sphere(10)
     scene.frame_set(1)
     blend = save_blend(tmp_path / "animated.blend")
 
@@ -116,9 +112,7 @@ def test_frame_option_renders_that_frame(tmp_path):
 
 def test_transparent_film_gives_coverage_alpha_and_a_transparent_background(tmp_path):
     scene = simple_scene()
-    world = bpy.data.worlds.new("sky")
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.3, 0.5, 0.9, 1)
-    scene.world = world
+    add_world("sky", (0.3, 0.5, 0.9))
     scene.render.film_transparent = True
     blend = save_blend(tmp_path / "transparent.blend")
 

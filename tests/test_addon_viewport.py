@@ -417,6 +417,17 @@ def camera_view_context(width, height, graph):
     return SimpleNamespace(region=region, region_data=rv3d, preferences=bpy.context.preferences)
 
 
+def recorded_viewport(graph, width, height):
+    """(viewport engine drawing into a RecordingDrawer, RecordingEngine, the drawer, a camera
+    view context width x height) for ``view_update`` / ``view_draw`` calls."""
+    from glint.addon.engine.viewport import ViewportEngine
+
+    engine, drawer = RecordingEngine(), RecordingDrawer()
+    viewport_engine = ViewportEngine()
+    viewport_engine._drawer = drawer
+    return viewport_engine, engine, drawer, camera_view_context(width, height, graph)
+
+
 def draw_until_final(viewport_engine, engine, context, graph, limit=2000):
     for _ in range(limit):
         viewport_engine.view_draw(engine, context, graph)
@@ -428,17 +439,13 @@ def draw_until_final(viewport_engine, engine, context, graph, limit=2000):
 
 
 def test_view_update_and_view_draw_draw_each_pass_and_warn_once():
-    from glint.addon.engine.viewport import ViewportEngine
     from addon_support import link
 
     scene = simple_scene()
     link(bpy.data.objects.new("fog", bpy.data.volumes.new("fog")))  # named in a warning
     scene.glint.anti_aliasing = 'ADAPTIVE'
     graph = depsgraph()
-    engine, drawer = RecordingEngine(), RecordingDrawer()
-    viewport_engine = ViewportEngine()
-    viewport_engine._drawer = drawer
-    context = camera_view_context(400, 300, graph)
+    viewport_engine, engine, drawer, context = recorded_viewport(graph, 400, 300)
 
     viewport_engine.view_update(engine, context, graph)
     viewport_engine.view_update(engine, context, graph)   # e.g. a selection: no new warning
@@ -455,19 +462,14 @@ def test_view_update_and_view_draw_draw_each_pass_and_warn_once():
 
 
 def test_a_camera_view_renders_only_its_render_border():
-    from glint.addon.engine.viewport import ViewportEngine
-
     scene = simple_scene()
     render = scene.render
     render.use_border = True
     render.border_min_x, render.border_max_x = 0.25, 0.75
     render.border_min_y, render.border_max_y = 0.5, 1.0
     graph = depsgraph()
-    engine, drawer = RecordingEngine(), RecordingDrawer()
-    viewport_engine = ViewportEngine()
-    viewport_engine._drawer = drawer
     # The region has the render's aspect, so the camera frame fills it.
-    context = camera_view_context(640, 480, graph)
+    viewport_engine, engine, drawer, context = recorded_viewport(graph, 640, 480)
 
     viewport_engine.view_update(engine, context, graph)
     draw_until_final(viewport_engine, engine, context, graph)
@@ -486,16 +488,11 @@ def test_a_camera_view_renders_only_its_render_border():
 
 
 def test_an_empty_render_border_draws_nothing():
-    from glint.addon.engine.viewport import ViewportEngine
-
     scene = simple_scene()
     scene.render.use_border = True
     scene.render.border_min_x = scene.render.border_max_x = 0.5
     graph = depsgraph()
-    engine, drawer = RecordingEngine(), RecordingDrawer()
-    viewport_engine = ViewportEngine()
-    viewport_engine._drawer = drawer
-    context = camera_view_context(320, 240, graph)
+    viewport_engine, engine, drawer, context = recorded_viewport(graph, 320, 240)
 
     viewport_engine.view_update(engine, context, graph)
     for _ in range(3):

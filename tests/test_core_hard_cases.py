@@ -48,7 +48,7 @@ def _relative_error(t, exact):
 def test_huge_floor_sphere_hit_distances(radius, shared, bound):
     """The article's floor (and a 1e6 one): rays from just above it, at grazing to steep angles.
     Rays sharing an origin get c' in extended precision; rays with their own origins are
-    limited by f = o - c itself, rounded at |f| ~ r (relative ~1e-12 of t, as ARTICLE.md says)."""
+    limited by f = o - c itself, rounded at |f| ~ r (relative ~1e-12 of t, docs/article.md "Numerics worth knowing")."""
     center = (0.0, -radius - 0.7, 0.0)
     sphere = core.Sphere(center, radius)
     ctx = _context((sphere,))
@@ -300,7 +300,7 @@ def test_precision_auto_picks_float64_for_the_floor_float32_for_small_scenes():
 
 
 def test_float32_floor_speckles_in_article_semantics_not_in_default():
-    """In float32 the floor's hit points are off by up to ~6e-4 (ARTICLE.md), 60x the article's
+    """In float32 the floor's hit points are off by up to ~4e-4 (docs/article.md, "Numerics worth knowing"), 40x the article's
     fixed 1e-5 shift: the article's semantics in float32 speckles the floor (measured: 296 of
     60,000 pixels off by > 0.1), which is why 'auto' keeps the floor in float64.  The default
     semantics' scaled offsets and self-exclusion keep float32 close (measured: 2 pixels)."""

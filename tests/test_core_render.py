@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import core
+from bench import baseline
 
 
 def _scene(reflection=0.5, light=(5, 5, 5), count=1, **camera):
@@ -74,6 +75,12 @@ def test_culling_skips_spheres_a_tile_cannot_see():
     # And culling changes nothing: one tile covering everything culls almost nothing.
     whole = core.render(scene, core.RenderSettings(max_depth=1, tile_size=256)).image
     assert np.array_equal(core.render(scene, settings).image, whole)
+    # Against no culling at all (the baseline tests every ray against every sphere), which the
+    # comparison above cannot show: both of its renders cull.
+    article = core.render(scene, core.article_settings(max_depth=1, tile_size=32)).image
+    unculled = baseline.render(scene, max_depth=1)
+    assert np.abs(article - unculled).max() <= 1e-9
+    assert (article[..., 3] == 1).sum() > 100
 
 
 @pytest.mark.parametrize("mode", ["off", "adaptive"])

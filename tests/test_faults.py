@@ -52,6 +52,13 @@ ADDON_FAULTS = {
 }
 
 
+def inject(monkeypatch, stage, own_stages):
+    """Make ``stage`` fail: one of ADDON_FAULTS or of the entry point's ``own_stages``
+    ({stage: (module, name, error)})."""
+    module, name, error = {**ADDON_FAULTS, **own_stages}[stage]
+    monkeypatch.setattr(module, name, _raise(error))
+
+
 def engine_output(tmp_path, name="frame.png"):
     scene = bpy.context.scene
     scene.render.engine = 'GLINT'
@@ -66,11 +73,8 @@ def test_engine_write_still_keeps_the_previous_file(tmp_path, monkeypatch, stage
     output = engine_output(tmp_path)
     bpy.ops.render.render(write_still=True)
     previous = output.read_bytes()
-    if stage == "render result":
-        monkeypatch.setattr(final, "blender_pixels", _raise(Injected("injected fault")))
-    else:
-        module, name, error = ADDON_FAULTS[stage]
-        monkeypatch.setattr(module, name, _raise(error))
+    inject(monkeypatch, stage,
+           {"render result": (final, "blender_pixels", Injected("injected fault"))})
 
     with pytest.raises(RuntimeError) as raised:
         bpy.ops.render.render(write_still=True)
@@ -126,11 +130,8 @@ def test_render_button_keeps_the_previous_image(monkeypatch, stage):
     image = bpy.data.images["Glint Render"]
     previous = read_image(image)
     bpy.data.objects["small"].location.x -= 0.5  # a new render would differ
-    if stage == "image write":
-        monkeypatch.setattr(operators, "write_image", _raise(Injected("injected fault")))
-    else:
-        module, name, error = ADDON_FAULTS[stage]
-        monkeypatch.setattr(module, name, _raise(error))
+    inject(monkeypatch, stage,
+           {"image write": (operators, "write_image", Injected("injected fault"))})
 
     with pytest.raises(RuntimeError) as raised:
         bpy.ops.glint.render()
