@@ -146,3 +146,18 @@ def test_enabled_passes_glint_cannot_produce_are_named_in_one_warning():
     for label in ("Mist", "Ambient Occlusion", "AOV 'dirt'"):
         assert label in warning
     assert "Depth" not in warning and "Normal" not in warning
+
+
+def test_enabling_passes_leaves_the_combined_image_as_it_is(tmp_path):
+    """Combined is written again beside the passes: it must get the same hand-over to Blender
+    (the default semantics' radiance unchanged), not the article's inverse sRGB."""
+    scene = passes_scene()
+    with_passes = render_exr(scene, tmp_path, 'GLINT', "with.exr")
+    for flag in PASSES:
+        setattr(scene.view_layers[0], flag, False)
+    without = render_exr(scene, tmp_path, 'GLINT', "without.exr")
+
+    for channel in "RGBA":
+        key = f"ViewLayer.Combined.{channel}"
+        np.testing.assert_array_equal(with_passes[key], without[key])
+    assert without["ViewLayer.Combined.R"].max() > 0.05   # a lit picture, not a black one

@@ -175,7 +175,7 @@ class GlintRenderEngine(bpy.types.RenderEngine):
         if passes and fill:
             # The passes, with Combined again, over the whole region at once.
             write_result_with_passes(self, result.image, result.passes, passes, job.scene,
-                                     region, view_layer.name)
+                                     region, view_layer.name, job.settings.semantics)
 
     def update_render_passes(self, scene=None, renderlayer=None):
         register_passes(self, scene, renderlayer)
@@ -193,8 +193,7 @@ class TileHandOver:
     frame, finished job values of ``semantics``; Blender wants premultiplied scene-linear rows
     from the bottom, counted from the render region's corner."""
 
-    def __init__(self, engine, region, frame_height: int, layer: str,
-                 semantics: str = "article"):
+    def __init__(self, engine, region, frame_height: int, layer: str, semantics: str):
         self.engine, self.region, self.frame_height, self.layer = engine, region, frame_height, layer
         self.semantics = semantics
 
@@ -223,7 +222,7 @@ class RenderSetupError(ExportError):
     """Blender and the exported scene disagree about the frame; the message says how."""
 
 
-def blender_pixels(rows: np.ndarray, semantics: str = "article") -> np.ndarray:
+def blender_pixels(rows: np.ndarray, semantics: str) -> np.ndarray:
     """(h, w, 4) finished job values of ``semantics``, row 0 = top -> what Blender's render
     result holds: a C-contiguous float32 (h, w, 4) copy, row 0 = bottom, premultiplied
     scene-linear (``render_result_pixels``)."""

@@ -145,14 +145,15 @@ def pass_pixels(primary, specs, object_index, material_index, sources, region) -
             for spec in specs}
 
 
-def write_result_with_passes(engine, image, primary, specs, scene, region, layer) -> None:
-    """The whole render region of ``layer`` at once: Combined (the finished image, display
-    values, rows from the top) and the enabled passes of the core scene's render."""
+def write_result_with_passes(engine, image, primary, specs, scene, region, layer,
+                             semantics: str) -> None:
+    """The whole render region of ``layer`` at once: Combined (the finished image: job values
+    of ``semantics``, rows from the top) and the enabled passes of the core scene's render."""
     from .final import blender_pixels
 
     x0, y0, x1, y1 = region
     height = image.shape[0]
-    combined = blender_pixels(image[height - y1:height - y0, x0:x1])
+    combined = blender_pixels(image[height - y1:height - y0, x0:x1], semantics)
     pixels = pass_pixels(primary, specs, *scene_pass_indices(scene),
                          primitive_sources(scene), region)
     result = engine.begin_result(0, 0, x1 - x0, y1 - y0, layer=layer)
