@@ -372,14 +372,40 @@ def write_output(path: str, image, should_cancel=None, *, scene=None, job=None) 
             # PNG stores straight alpha.
             write_png(path, image, convert=unpremultiply, should_cancel=should_cancel)
         else:
-            write_atomically(path, _colour_managed_png(scene, job.scene_linear(image)))
+            write_atomically(path, _colour_managed_png(scene, _to_blender_rows(image, job)))
     except OSError as error:
         raise RenderScriptError(f"cannot write {path}: {error.strerror or error}") from None
 
 
-def _colour_managed_png(scene, linear) -> bytes:
-    """PNG bytes of premultiplied scene-linear (H, W, 4) pixels (row 0 = top) saved by
-    Blender with ``scene``'s colour management (``write_output``)."""
+#: Rows converted at a time by ``_to_blender_rows``: bounds its temporaries (float64 for the
+#: sRGB curve) to a block instead of the frame.
+ROW_BLOCK = 256
+
+
+def _to_blender_rows(image, job):
+    """The job's (H, W, 4) float32 image (row 0 = top) turned, in place and a block of rows at
+    a time, into what Blender's render result holds (``RenderJob.scene_linear``), rows from
+    the bottom; returns it.  In place because at 8K or 16K every full-frame copy is another
+    0.5 or 4.3 GB (the image is not used after it is written)."""
+    import numpy as np
+
+    height = image.shape[0]
+    for start in range(0, height, ROW_BLOCK):
+        rows = slice(start, min(start + ROW_BLOCK, height))
+        image[rows] = job.scene_linear(image[rows])
+    half = height // 2
+    for start in range(0, half, ROW_BLOCK):   # flip the rows, swapping blocks
+        end = min(start + ROW_BLOCK, half)
+        top = image[start:end].copy()
+        image[start:end] = image[height - end:height - start][::-1]
+        image[height - end:height - start] = top[::-1]
+    return np.ascontiguousarray(image, np.float32)   # no copy for the job's float32 image
+
+
+def _colour_managed_png(scene, blender_rows) -> bytes:
+    """PNG bytes of premultiplied scene-linear (H, W, 4) pixels (row 0 = bottom, as
+    ``_to_blender_rows`` gives them) saved by Blender with ``scene``'s colour management
+    (``write_output``)."""
     import tempfile
 
     import bpy
@@ -387,7 +413,7 @@ def _colour_managed_png(scene, linear) -> bytes:
 
     from glint.addon.utils.image import COLOUR_SPACE
 
-    height, width = linear.shape[:2]
+    height, width = blender_rows.shape[:2]
     image = bpy.data.images.new(".glint render.py output", width, height, alpha=True,
                                 float_buffer=True)
     settings = scene.render.image_settings
@@ -400,7 +426,7 @@ def _colour_managed_png(scene, linear) -> bytes:
         image.colorspace_settings.name = COLOUR_SPACE
         image.alpha_mode = 'PREMUL'
         image.use_view_as_render = True
-        image.pixels.foreach_set(np.ascontiguousarray(linear[::-1], np.float32).ravel())
+        image.pixels.foreach_set(blender_rows.reshape(-1))
         if "media_type" in previous:
             settings.media_type = 'IMAGE'
         settings.file_format, settings.color_mode, settings.color_depth = 'PNG', 'RGBA', '8'

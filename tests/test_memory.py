@@ -155,3 +155,39 @@ def test_a_million_spheres_at_64x64_stay_within_their_plan():
     plan = memory.plan(scene, settings, result.image.dtype, 2)
     assert peak <= plan.total < 4e9, f"allocated {peak / 1e9:.2f} GB, planned {plan.total / 1e9:.2f}"
     assert result.image[..., 3].mean() > 0.2  # the spheres are there (a third of the frame)
+
+
+def test_render_py_hands_its_frame_to_blender_in_place():
+    """render.py's colour-managed PNG path converts the job's image to Blender's rows in place,
+    a block of rows at a time (at 8K each full-frame copy is another 0.5 GB, and the sRGB
+    curve works in float64): the same values as the whole-frame conversion, flipped, for a
+    small fraction of the image's size."""
+    if REPOSITORY not in sys.path:
+        sys.path.insert(0, REPOSITORY)
+    import render as render_script
+
+    render_script.import_glint()   # the package the add-on's colour helpers live in
+
+    class Job:  # RenderJob.scene_linear for the article semantics
+        @staticmethod
+        def scene_linear(rows):
+            from glint.addon.utils.colour import render_result_pixels
+            return render_result_pixels(rows, "article")
+
+    rng = np.random.default_rng(4)
+
+    def peak_for(height):
+        image = rng.random((height, 512, 4)).astype(np.float32)
+        image[..., :3] *= image[..., 3:]   # premultiplied
+        expected = Job.scene_linear(image)[::-1]
+        result, peak = traced_peak(lambda: render_script._to_blender_rows(image, Job))
+        assert np.shares_memory(result, image)
+        np.testing.assert_array_equal(result, expected)
+        return peak, image.nbytes
+
+    short, _ = peak_for(512)
+    tall, tall_bytes = peak_for(4096)
+    # A block of rows at a time: eight times the rows cost no more (a whole-frame conversion
+    # would cost 8x, several times the image in float64).
+    assert tall < 1.5 * short, f"{short / 1e6:.1f} MB for 512 rows, {tall / 1e6:.1f} for 4096"
+    assert tall < tall_bytes
