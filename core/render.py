@@ -56,11 +56,13 @@ class RenderResult:
     """image: (H, W, 4) in the render's precision (or the ``image_dtype`` asked for), row 0 =
     top; RGB: article semantics the article's display values clipped to [0, 1], default
     semantics unclipped scene-linear radiance (Cycles' units; Blender's colour management
-    turns it into display values); alpha = fraction of the pixel's samples whose camera ray
-    hit a sphere.  stats: RayStats.  precision: 'float64' or 'float32'.
+    turns it into display values); alpha: the mean over the pixel's samples of 1 - what
+    escaped or was held out (``RenderSettings.film``, ``core.trace``): without holdouts and
+    Transparent BSDFs, the fraction of samples whose camera ray hit something.  stats:
+    RayStats.  precision: 'float64' or 'float32'.
     missed_colour: (3,) float64, what a camera sample that hits nothing adds to its pixel's RGB
-    (the background in default semantics, black in the article's), so a caller can take the
-    background out of a pixel exactly: ``rgb - (1 - alpha) * missed_colour``.
+    (the background in default semantics, black in the article's and with film
+    'transparent').
     semantics: the semantics rendered.
     parallelism: how the tiles ran: 'threads' (the calling thread or a thread pool) or
     'processes' (``core.workers``), which can differ from the setting's (small renders, or
@@ -99,7 +101,7 @@ def _tiles(width: int, height: int, size: int):
 
 
 def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None):
-    """(rgb (n, 3), coverage (n,), signature (n,)) for sample positions xs, ys (n,); rgb
+    """(rgb (n, 3), alpha (n,), signature (n,)) for sample positions xs, ys (n,); rgb
     clipped to [0, 1] per sample in article semantics, unclipped radiance otherwise; lens:
     aperture positions (2, n) for a thin-lens camera."""
     start = time.perf_counter()
@@ -109,7 +111,7 @@ def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None):
     stats.seconds_camera += traced - start
     stats.seconds_bounces += time.perf_counter() - traced
     rgb = result.colour.T
-    return (np.clip(rgb, 0, 1) if ctx.article else rgb), result.coverage, result.signature
+    return (np.clip(rgb, 0, 1) if ctx.article else rgb), result.alpha, result.signature
 
 
 def _pixel_grid(y0, y1, x0, x1):
@@ -228,8 +230,8 @@ def render_tile(ctx: TraceContext, camera, tile, stop: Optional[threading.Event]
 def missed_colour(scene: Scene, settings: RenderSettings) -> np.ndarray:
     """(3,) what a camera sample that escapes adds to its pixel (see RenderResult): the
     tracer adds the background only in default semantics, unclipped (only the article's
-    samples are clipped, and it adds none)."""
-    if settings.semantics != "default":
+    samples are clipped, and it adds none), and not with film 'transparent'."""
+    if settings.semantics != "default" or settings.film == "transparent":
         return np.zeros(3)
     return np.asarray(scene.background, np.float64)
 

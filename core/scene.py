@@ -27,8 +27,8 @@ from typing import Literal, Sequence, Union
 
 import numpy as np
 
-from .choices import (ANTI_ALIASING, PARALLELISM, PRECISIONS,  # noqa: F401  (defined
-                      SEMANTICS)                                # once there)
+from .choices import (ANTI_ALIASING, FILMS, PARALLELISM, PRECISIONS,  # noqa: F401
+                      SEMANTICS)                                # (defined once there)
 
 Vec3 = tuple[float, float, float]
 
@@ -194,7 +194,14 @@ class SurfaceMaterial:
     ior: index of refraction (inside / outside), > 0.
     emission: emitted radiance (colour x strength), seen by camera and reflection rays.
     transparency: colour of the light passing straight through (1 - alpha, Transparent BSDF).
-    holdout: weight of a Holdout shader: renders black (and is not otherwise modelled).
+    holdout: weight h of a Holdout shader, as in Cycles: a camera ray (or one that reached
+        the surface straight through Transparent BSDFs only) makes h x its weight of the pixel
+        transparent (alpha, ``RenderSettings.film``); every ray sees the holdout part black
+        (the other lobes are scaled by 1 - h by whoever mixed them in).
+    holdout_object: the object is a holdout (Blender's Object > Visibility > Holdout, or a
+        holdout collection): camera rays (and rays straight through Transparent BSDFs) see
+        it as a holdout except for its transparency, which they pass through; every other
+        ray (mirrors, refraction, shadows) sees the material as it is.
     """
 
     diffuse: Vec3 = (0.8, 0.8, 0.8)
@@ -207,6 +214,7 @@ class SurfaceMaterial:
     emission: Vec3 = (0.0, 0.0, 0.0)
     transparency: Vec3 = (0.0, 0.0, 0.0)
     holdout: float = 0.0
+    holdout_object: bool = False
 
     #: Roughness up to which a sharp mirror (and the world seen in it) is traced.
     MIRROR_ROUGHNESS = 0.2
@@ -220,6 +228,10 @@ class SurfaceMaterial:
              _fraction(f"{where}.transmission_fresnel", self.transmission_fresnel))
         _set(self, "ior", _positive(f"{where}.ior", self.ior))
         _set(self, "holdout", _fraction(f"{where}.holdout", self.holdout))
+        if not isinstance(self.holdout_object, (bool, np.bool_)):
+            raise SceneError(f"{where}.holdout_object must be True or False, got "
+                             f"{self.holdout_object!r}")
+        _set(self, "holdout_object", bool(self.holdout_object))
         return self
 
     def __post_init__(self):
@@ -875,6 +887,13 @@ class RenderSettings:
         ``core.workers.MIN_PIXELS`` pixels; smaller renders, and places where processes
         cannot start, use threads).  Threads stay the default until processes are measured
         faster (README: "Worker processes and malloc settings").  Results never depend on it.
+    film: the image's alpha and background (default semantics; ``core.choices.FILM_CHOICES``):
+        'coverage' (the core's own image): the background where camera rays escape, alpha =
+        1 - transparency, the share of the pixel's samples that escaped (directly or straight
+        through Transparent BSDFs, weighted by what passed) or met a holdout; 'opaque'
+        (Blender's Film > Transparent off): the same colours, alpha = 1 - the holdouts' share
+        only; 'transparent' (Film > Transparent on): escaped camera rays add no background,
+        alpha as for 'coverage'.  Article semantics: alpha is the coverage ('opaque': 1).
     """
 
     semantics: Literal["default", "article"] = "default"
@@ -888,12 +907,14 @@ class RenderSettings:
     tile_size: int = 128
     threads: int | None = None
     parallelism: Literal["threads", "processes"] = "threads"
+    film: Literal["coverage", "opaque", "transparent"] = "coverage"
 
     def __post_init__(self):
         _choice("settings.semantics", self.semantics, SEMANTICS)
         _choice("settings.precision", self.precision, PRECISIONS)
         _choice("settings.anti_aliasing", self.anti_aliasing, ANTI_ALIASING)
         _choice("settings.parallelism", self.parallelism, PARALLELISM)
+        _choice("settings.film", self.film, FILMS)
         _count("settings.max_depth", self.max_depth, maximum=MAX_DEPTH)
         _count("settings.samples", self.samples, maximum=MAX_SAMPLES)
         _count("settings.light_samples", self.light_samples, maximum=MAX_LIGHT_SAMPLES)

@@ -93,15 +93,22 @@ def test_scene_settings_glint_ignores_are_named_in_one_warning():
     assert not [w for w in prepare_job(depsgraph()).warnings if "Glint ignores" in w]
     scene.render.use_motion_blur = True
     scene.camera.data.dof.use_dof = True
-    bpy.data.objects["small"].is_holdout = True
+    bpy.data.objects["small"].is_shadow_catcher = True
+    bpy.data.objects["small"].is_holdout = True   # rendered: not named
     bpy.data.objects["big"].visible_shadow = False
 
     ignored = [w for w in prepare_job(depsgraph()).warnings if "Glint ignores" in w]
 
     assert len(ignored) == 1
-    for phrase in ("motion blur", "depth of field (camera 'camera')", "holdout objects 'small'",
-                   "objects invisible to shadow rays 'big'"):
+    for phrase in ("motion blur", "depth of field (camera 'camera')",
+                   "shadow catcher objects 'small'", "objects invisible to shadow rays 'big'"):
         assert phrase in ignored[0], phrase
+    assert "holdout" not in ignored[0]
+    # The article's model has no holdouts: there they are named.
+    simple_scene().glint.semantics = 'ARTICLE'
+    bpy.data.objects["small"].is_holdout = True
+    ignored = [w for w in prepare_job(depsgraph()).warnings if "Glint ignores" in w]
+    assert "holdout objects 'small' (article semantics)" in ignored[0]
 
 
 def test_a_blend_whose_engine_is_glint_opens_without_an_engine_error(tmp_path):
