@@ -249,7 +249,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
            should_cancel: Optional[Callable[[], bool]] = None,
            image_dtype=None, reserve_bytes: int = 0,
            on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None,
-           passes: bool = False) -> RenderResult:
+           passes: "bool | PrimaryPasses" = False) -> RenderResult:
     """Render ``scene``; see ``core`` for the result's layout.  image_dtype: the image's
     dtype (default: the render's precision); float32 halves a float64 render's largest array
     for callers that keep no more than float32 anyway (Blender's render results).
@@ -259,7 +259,9 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     a view of the image: copy what must outlive the call.  Tiles land in any order; a
     cancelled render has passed on exactly the tiles that finished.
     passes: also fill ``RenderResult.passes`` (``core.passes``: depth, position, normal,
-    primitive and material of each pixel centre's first hit, in world units).
+    primitive and material of each pixel centre's first hit, in world units); a
+    PrimaryPasses of the image's size is filled in place, so ``on_tile`` can read each tile's
+    passes as the tile lands.
 
     Before anything is allocated, the render's memory is planned (``core.memory``) and a
     render that cannot fit raises memory.NotEnoughMemory, a SceneError."""
@@ -291,7 +293,13 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     ctx = make_context(scene, settings, dtype)
     image = np.zeros((height, width, 4), image_dtype)
     stats = RayStats()
-    primary = PrimaryPasses.empty(width, height) if passes else None
+    if isinstance(passes, PrimaryPasses):
+        if passes.depth.shape != (height, width):
+            raise SceneError(f"passes are {passes.depth.shape[1]}x{passes.depth.shape[0]}, "
+                             f"the image {width}x{height}")
+        primary = passes
+    else:
+        primary = PrimaryPasses.empty(width, height) if passes else None
 
     def work(ctx, camera, tile, stop=None):
         rgba, tile_stats = render_tile(ctx, camera, tile, stop)

@@ -148,11 +148,20 @@ def test_enabled_passes_glint_cannot_produce_are_named_in_one_warning():
     assert "Depth" not in warning and "Normal" not in warning
 
 
-def test_enabling_passes_leaves_the_combined_image_as_it_is(tmp_path):
-    """Combined is written again beside the passes: it must get the same hand-over to Blender
-    (the default semantics' radiance unchanged), not the article's inverse sRGB."""
+def test_enabling_passes_leaves_the_combined_image_as_it_is(tmp_path, monkeypatch):
+    """The passes go to Blender with each tile, beside Combined: Combined must get the same
+    hand-over (the default semantics' radiance unchanged, not the article's inverse sRGB),
+    and is converted and written once, not again over the whole frame after the tiles."""
+    import glint.addon.engine.final as final
+
     scene = passes_scene()
+    converted = []
+    convert = final.blender_pixels
+    monkeypatch.setattr(final, "blender_pixels",
+                        lambda rows, semantics: converted.append(rows.shape[:2])
+                        or convert(rows, semantics))
     with_passes = render_exr(scene, tmp_path, 'GLINT', "with.exr")
+    assert sum(h * w for h, w in converted) == 96 * 72
     for flag in PASSES:
         setattr(scene.view_layers[0], flag, False)
     without = render_exr(scene, tmp_path, 'GLINT', "without.exr")

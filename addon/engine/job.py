@@ -102,13 +102,14 @@ class RenderJob:
             should_cancel: Optional[Callable[[], bool]] = None,
             reserve_bytes: int = 0,
             on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None,
-            passes: bool = False) -> JobResult:
+            passes=False) -> JobResult:
         """The finished frame (module docstring).  Raises core.RenderCancelled if
         should_cancel() answers True, core.SceneError for settings the core rejects or a
         render that cannot fit in memory with ``reserve_bytes`` more (the caller's copies).
         on_tile(tile, rgba): each tile as it lands (``core.render``'s tile, rows from the top),
         its pixels finished as the frame's will be (a copy the callee may keep).
-        passes: also compute the render passes (``core.passes``) into JobResult.passes."""
+        passes: also compute the render passes (``core.passes``) into JobResult.passes (a
+        ``PrimaryPasses`` given here is filled in place, tile by tile, before on_tile)."""
         def finished_tile(tile, rgba):
             on_tile(tile, np.array(rgba, np.float32, copy=True))
 

@@ -143,26 +143,3 @@ def pass_pixels(primary, specs, object_index, material_index, sources, region) -
     }
     return {spec.name: np.ascontiguousarray(values[spec.name](), np.float32).reshape(-1)
             for spec in specs}
-
-
-def write_result_with_passes(engine, image, primary, specs, scene, region, layer,
-                             semantics: str) -> None:
-    """The whole render region of ``layer`` at once: Combined (the finished image: job values
-    of ``semantics``, rows from the top) and the enabled passes of the core scene's render."""
-    from .final import blender_pixels
-
-    x0, y0, x1, y1 = region
-    height = image.shape[0]
-    combined = blender_pixels(image[height - y1:height - y0, x0:x1], semantics)
-    pixels = pass_pixels(primary, specs, *scene_pass_indices(scene),
-                         primitive_sources(scene), region)
-    result = engine.begin_result(0, 0, x1 - x0, y1 - y0, layer=layer)
-    try:
-        passes = result.layers[0].passes
-        passes["Combined"].rect.foreach_set(combined.reshape(-1))
-        for name, values in pixels.items():
-            passes[name].rect.foreach_set(values)
-    except BaseException:
-        engine.end_result(result, cancel=True)
-        raise
-    engine.end_result(result)
