@@ -550,9 +550,10 @@ class BlenderCamera:
     pixel_aspect_x, pixel_aspect_y: non-square pixels.
     Pixel (i, j) with j = 0 at the bottom has its centre at ((i + 0.5) / W, (j + 0.5) / H).
     aperture_radius, focus_distance, aperture_blades, aperture_rotation: a thin lens
-        (perspective only; Cycles' depth of field): rays leave a disc (or, with 3 or more
-        blades, a regular polygon turned by the rotation) of that radius and meet at the
-        plane at focus_distance along the view axis; 0 radius is a pinhole.
+        (Cycles' depth of field): rays leave a disc (or, with 3 or more blades, a regular
+        polygon turned by the rotation) of that radius around the eye (orthographic: around
+        the pixel's point on the camera plane) and meet at the plane at focus_distance along
+        the view axis; 0 radius is a pinhole.
     """
 
     matrix_world: tuple
@@ -571,7 +572,7 @@ class BlenderCamera:
     clip_end: float = 1000.0
     pixel_aspect_x: float = 1.0
     pixel_aspect_y: float = 1.0
-    aperture_radius: float = 0.0     # thin lens (perspective): 0 is a pinhole
+    aperture_radius: float = 0.0     # thin lens: 0 is a pinhole
     focus_distance: float = 10.0
     aperture_blades: int = 0
     aperture_rotation: float = 0.0

@@ -1,8 +1,8 @@
 """Scene settings that change what Cycles renders and that Glint does not honour, named in one
 warning per render (``ignored_settings_warning``), so nothing is dropped silently.
 
-Glint has no motion blur, no depth of field for orthographic cameras (nor with
-anti-aliasing off, whose one ray per pixel cannot sample the lens), no anamorphic aperture,
+Glint has no motion blur, no depth of field with anti-aliasing off (whose one ray per
+pixel cannot sample the lens), no anamorphic aperture,
 shadow catchers, indirect-only collections, Freestyle, multiview, view-layer material
 overrides, per-object ray visibility or lights without shadows, and the article semantics
 has no holdouts; each of these, where the scene uses it, is listed.
@@ -41,9 +41,7 @@ def ignored_settings(depsgraph, camera_override=None) -> list[str]:
         found.append("motion blur")
     camera = camera_override if camera_override is not None else scene.camera
     if camera is not None and camera.type == 'CAMERA' and camera.data.dof.use_dof:
-        if camera.data.type != 'PERSP':
-            found.append(f"depth of field of an orthographic camera ('{camera.name}')")
-        elif scene.glint.anti_aliasing == 'OFF':
+        if scene.glint.anti_aliasing == 'OFF':
             found.append(f"depth of field (camera '{camera.name}'), which needs anti-aliasing "
                          f"samples")
         if camera.data.dof.aperture_ratio != 1.0:
