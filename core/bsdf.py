@@ -38,6 +38,7 @@ transmission is traced as sharp refraction (the blur is not modelled).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -74,6 +75,7 @@ class SurfaceArrays:
     transmission_fresnel: np.ndarray
     ior: np.ndarray
     transparency: np.ndarray
+    translucency: np.ndarray
     holdout: np.ndarray
     holdout_object: np.ndarray
     any_physical: bool
@@ -88,7 +90,8 @@ def surface_arrays(materials, dtype) -> SurfaceArrays:
                                   "alpha",
                                   "emission", "mirror", "glossy_environment", "reflection",
                                   "transmission", "transmission_fresnel", "ior",
-                                  "transparency", "holdout", "holdout_object")}
+                                  "transparency", "translucency", "holdout",
+                                  "holdout_object")}
     black = (0.0, 0.0, 0.0)
     for material in materials:
         if isinstance(material, SurfaceMaterial):
@@ -101,7 +104,8 @@ def surface_arrays(materials, dtype) -> SurfaceArrays:
                           transmission=material.transmission,
                           transmission_fresnel=material.transmission_fresnel,
                           ior=material.ior, transparency=material.transparency,
-                          holdout=material.holdout, holdout_object=material.holdout_object)
+                          translucency=material.translucency, holdout=material.holdout,
+                          holdout_object=material.holdout_object)
         else:
             assert isinstance(material, Material)
             values = dict(physical=False, diffuse=material.diffuse, f0=material.specular,
@@ -110,14 +114,16 @@ def surface_arrays(materials, dtype) -> SurfaceArrays:
                           mirror=False,
                           glossy_environment=False, reflection=material.reflection,
                           transmission=black, transmission_fresnel=0.0, ior=1.0,
-                          transparency=black, holdout=0.0, holdout_object=False)
+                          transparency=black, translucency=black, holdout=0.0,
+                          holdout_object=False)
         for name, value in values.items():
             rows[name].append(value)
     arrays = {}
     for name, values in rows.items():
         if name in ("physical", "mirror", "glossy_environment", "holdout_object"):
             arrays[name] = np.asarray(values, bool).reshape(-1)
-        elif name in ("diffuse", "f0", "f90", "emission", "transmission", "transparency"):
+        elif name in ("diffuse", "f0", "f90", "emission", "transmission", "transparency",
+                      "translucency"):
             arrays[name] = np.ascontiguousarray(np.asarray(values, np.float64).reshape(-1, 3).T,
                                                 dtype)
         else:
@@ -127,6 +133,18 @@ def surface_arrays(materials, dtype) -> SurfaceArrays:
         any_emission=bool(arrays["emission"].any()),
         any_through=bool(arrays["transmission"].any() or arrays["transparency"].any()),
         any_holdout=bool(arrays["holdout"].any() or arrays["holdout_object"].any()))
+
+
+def translucent_view(surfaces: SurfaceArrays):
+    """The lobes the light arriving through a surface meets (Translucent BSDF: a Lambertian
+    lobe of colour ``translucency`` on the back side, nothing else), for shading the back
+    hemisphere with the front's code (``core.shading``); None when no surface is translucent."""
+    if not surfaces.translucency.any():
+        return None
+    black = np.zeros_like(surfaces.diffuse)
+    return dataclasses.replace(
+        surfaces, diffuse=surfaces.translucency, f0=black, f90=black, emission=black,
+        glossy_environment=np.zeros_like(surfaces.glossy_environment), any_emission=False)
 
 
 def schlick(f0, f90, cosine):

@@ -194,6 +194,9 @@ class SurfaceMaterial:
     ior: index of refraction (inside / outside), > 0.
     emission: emitted radiance (colour x strength), seen by camera and reflection rays.
     transparency: colour of the light passing straight through (1 - alpha, Transparent BSDF).
+    translucency: diffuse transmission (Translucent BSDF): radiance translucency E / pi for
+        irradiance E arriving through the surface from the other side (its back hemisphere),
+        each light's shadow ray crossing the surface.
     holdout: weight h of a Holdout shader, as in Cycles: a camera ray (or one that reached
         the surface straight through Transparent BSDFs only) makes h x its weight of the pixel
         transparent (alpha, ``RenderSettings.film``); every ray sees the holdout part black
@@ -213,6 +216,7 @@ class SurfaceMaterial:
     ior: float = 1.5
     emission: Vec3 = (0.0, 0.0, 0.0)
     transparency: Vec3 = (0.0, 0.0, 0.0)
+    translucency: Vec3 = (0.0, 0.0, 0.0)
     holdout: float = 0.0
     holdout_object: bool = False
 
@@ -221,7 +225,7 @@ class SurfaceMaterial:
 
     def validate(self, where: str = "surface material") -> "SurfaceMaterial":
         for name in ("diffuse", "specular_f0", "specular_f90", "transmission", "emission",
-                     "transparency"):
+                     "transparency", "translucency"):
             _set(self, name, _colour(f"{where}.{name}", getattr(self, name)))
         _set(self, "roughness", _fraction(f"{where}.roughness", self.roughness))
         _set(self, "transmission_fresnel",

@@ -27,7 +27,7 @@ from .camera import CameraRays
 from .context import RayStats, TraceContext
 from .bsdf import scatter
 from .rays import RayBatch, SharedOrigin
-from .shading import shade
+from .shading import shade, shade_translucent
 from .vectors import take
 
 _SIGNATURE_PRIME = np.uint64(1_000_003)
@@ -169,6 +169,9 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
         exclude = None if ctx.article else geometry.exclusions(primitive, front)
         illumination, goes_on, shadow_code = shade(ctx, points, normals, directions,
                                                    hits.material, exclude, stats)
+        if look is not None and look.translucent is not None:
+            illumination += shade_translucent(ctx, points, normals, directions, hits.material,
+                                              geometry.exclusions(primitive, ~front), stats)
         illumination *= weight
         held_object = None
         if holdouts and camera_path.any():

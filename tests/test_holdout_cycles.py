@@ -31,9 +31,9 @@ import bpy
 import numpy as np
 import pytest
 
-from addon_support import link
-from cycles_support import (add_ball, add_light, cycles_scene, diffuse, node_material,
-                            pixel_errors, render_both, set_world, sphere_mask, surface_ratios)
+from cycles_support import (add_ball, add_light, add_plane, cycles_scene, diffuse,
+                            node_material, pixel_errors, render_both, set_world, sphere_mask,
+                            surface_ratios)
 
 ALPHA_TOLERANCE = 1e-3
 LIGHT_TOLERANCE = 0.02
@@ -119,20 +119,6 @@ def test_holdout_shader_cuts_camera_holes_and_is_black_in_mirrors_and_through_gl
     np.testing.assert_allclose(glint[sky], cycles[sky], atol=1e-5)
 
 
-def add_mirror_plane(name: str, centre, size: float, angle: float):
-    """A square smooth mirror (Glossy, roughness 0), vertical, turned ``angle`` radians about
-    Z from facing -Y (the camera): at pi / 4 it faces (1, -1, 0) and turns rays going +Y
-    towards +X."""
-    mesh = bpy.data.meshes.new(name)
-    h = size / 2
-    mesh.from_pydata([(-h, 0, -h), (h, 0, -h), (h, 0, h), (-h, 0, h)], [], [(0, 1, 2, 3)])
-    mesh.materials.append(node_material(name, "ShaderNodeBsdfGlossy", Color=(0.9, 0.9, 0.9),
-                                        Roughness=0.0))
-    obj = link(bpy.data.objects.new(name, mesh))
-    obj.location, obj.rotation_euler = centre, (0.0, 0.0, angle)
-    return obj
-
-
 @pytest.mark.parametrize("transparent", [False, True], ids=["opaque film", "transparent film"])
 @pytest.mark.parametrize("how", ["object", "collection"])
 def test_holdout_objects_cut_holes_yet_cast_shadows_and_show_in_mirrors(how, transparent):
@@ -142,7 +128,8 @@ def test_holdout_objects_cut_holes_yet_cast_shadows_and_show_in_mirrors(how, tra
     held = add_ball("held", (1.0, 1.5, 0.0), 0.6, diffuse("green", (0.2, 0.8, 0.2)))
     floor = add_ball("floor", (1.9, 3.2, -1.6), 1.1, diffuse("grey", (0.8, 0.8, 0.8)))
     # At 45 degrees on the left: camera rays reflect towards +X, onto the held ball's left.
-    add_mirror_plane("mirror", (-1.5, 1.5, 0.0), 2.0, math.pi / 4)
+    add_plane("mirror", (-1.5, 1.5, 0.0), 2.0, node_material(
+        "mirror", "ShaderNodeBsdfGlossy", Color=(0.9, 0.9, 0.9), Roughness=0.0), math.pi / 4)
     if how == "object":
         held.is_holdout = True
     else:
