@@ -278,7 +278,10 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     threads = settings.threads or os.cpu_count() or 1
     image_dtype = dtype if image_dtype is None else np.dtype(image_dtype)
     if passes:  # the passes' arrays, beside the image
-        reserve_bytes += PrimaryPasses.BYTES_PER_PIXEL * width * height
+        per_pixel = PrimaryPasses.BYTES_PER_PIXEL
+        if isinstance(passes, PrimaryPasses) and passes.emission is not None:
+            per_pixel += PrimaryPasses.EMISSION_BYTES_PER_PIXEL
+        reserve_bytes += per_pixel * width * height
     tiles = _tiles(width, height, settings.tile_size)
     # Passes are filled beside each tile in this process (``work``), so they keep tiles here.
     in_processes = not passes and _in_processes(settings, width * height, len(tiles))

@@ -62,6 +62,7 @@ class BundleResult:
     alpha: np.ndarray
     signature: np.ndarray | None
     primary: PrimaryHits | None = None
+    emission: np.ndarray | None = None   # (3, n) record_emission: see trace_bundle
 
 
 def nearest_sphere(ctx: TraceContext, origins, directions, t_min, t_max, exclude,
@@ -104,11 +105,14 @@ def _mean_channel(weight):
 
 
 def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
-                 record_primary: bool = False) -> BundleResult:
+                 record_primary: bool = False, record_emission: bool = False) -> BundleResult:
     """Follow the bundle: article semantics as the article does (one mirror ray per hit, a
     scalar weight); default semantics with Blender's look (``ctx.look``) with colour weights
     and, where ``core.bsdf`` says so, several secondary rays per hit (mirror, refraction,
-    straight through)."""
+    straight through).  record_emission: also sum, into ``BundleResult.emission``, the
+    emission the camera's path meets (module docstring: the camera ray and what it sees
+    straight through Transparent BSDFs, weighted; not what mirrors or refraction show), as
+    Cycles' Emission pass does."""
     dtype = ctx.dtype
     geometry = ctx.geometry
     n = rays.directions.shape[1]
@@ -117,6 +121,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
     # Signatures feed adaptive anti-aliasing only: no work for them otherwise.
     signature = np.zeros(n, np.uint64) if ctx.settings.anti_aliasing == "adaptive" else None
     transparency = np.zeros(n, dtype)
+    emission = np.zeros((3, n), dtype) if record_emission else None
     film = ctx.settings.film
     background = ctx.background.astype(dtype)[:, None]
     add_background = not ctx.article and background.any()
@@ -179,6 +184,12 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
                                     transparency, unique)
             if held_object is not None:
                 illumination[:, held_object] = 0
+        if emission is not None and look is not None and look.surfaces.any_emission:
+            seen = np.flatnonzero(camera_path)
+            if held_object is not None:
+                seen = np.setdiff1d(seen, held_object, assume_unique=True)
+            _accumulate(emission, path[seen], take(look.surfaces.emission, hits.material[seen])
+                        * weight[:, seen], unique, False)
         _accumulate(colour, path, illumination, unique, depth == 0 and len(path) == n)
         if signature is not None:
             signature[path] = signature[path] * _SIGNATURE_PRIME + shadow_code
@@ -214,7 +225,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
         camera_path = np.zeros(len(path), bool)  # mirror rays
         stats.reflection_rays += len(path)
     alpha = np.clip(1 - transparency, 0, 1)
-    return BundleResult(colour, alpha, signature, primary)
+    return BundleResult(colour, alpha, signature, primary, emission)
 
 
 def _hold_out(surfaces, materials, camera_path, path, weight, transparency, unique):

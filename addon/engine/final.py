@@ -165,7 +165,9 @@ class GlintRenderEngine(bpy.types.RenderEngine):
         # them), unless the script asking for the frames writes it itself.
         fill = request is None or request.fill_render_result
         # The passes, when enabled, are filled tile by tile and handed over with each tile.
-        primary = PrimaryPasses.empty(width, height) if passes and fill else None
+        primary = PrimaryPasses.empty(
+            width, height, emission=any(spec.name == "Emission" for spec in passes)
+        ) if passes and fill else None
         tiles = TileHandOver(self, region, height, view_layer.name, job.settings.semantics,
                              TilePasses.of(job.scene, passes, primary)) if fill else None
         result = job.run(progress=progress, should_cancel=should_cancel,
