@@ -127,23 +127,25 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
 @timed("seconds_shading")
 def shade_translucent(ctx: TraceContext, points, normals, directions, materials,
                       exclude_back, stats: RayStats):
-    """(3, m) radiance the translucent points pass through from their back hemisphere
-    (default semantics, ``ctx.look.translucent`` set; arguments as for ``shade``, with
-    exclude_back the primitive each segment reaching a point through its surface ignores,
-    ``Aggregate.exclusions`` of the other side): the
+    """(radiance (3, m), shadow_code (m,) uint64) the translucent points pass through from
+    their back hemisphere (default semantics, ``ctx.look.translucent`` set; arguments as for
+    ``shade``, with exclude_back the primitive each segment reaching a point through its
+    surface ignores, ``Aggregate.exclusions`` of the other side; shadow_code: which lights
+    each point sees through its surface, 0 for points that are not translucent): the
     Blender lights on the other side (shadow segments crossing the surface: a closed
     sphere's own far side blocks them, as in Cycles' direct light) and the world seen
     there, each times translucency / pi (``bsdf.translucent_view``)."""
     view = ctx.look.translucent
     colour = np.zeros_like(points)
+    shadow_code = np.zeros(points.shape[1], np.uint64)
     chosen = np.flatnonzero(view.diffuse[:, materials].max(axis=0) > 0)
     if len(chosen) == 0:
-        return colour
+        return colour, shadow_code
     where, back = take(points, chosen), -take(normals, chosen)
     material, exclude = materials[chosen], exclude_back[chosen]
-    light, _ = _shade_blender_lights(ctx, where, back, take(directions, chosen), material,
-                                     exclude, np.zeros(len(chosen), np.uint64), stats,
-                                     surfaces=view, world_terms=False)
+    light, shadow_code[chosen] = _shade_blender_lights(
+        ctx, where, back, take(directions, chosen), material, exclude,
+        np.zeros(len(chosen), np.uint64), stats, surfaces=view, world_terms=False)
     world = _column(ctx.ambient, points.dtype)
     if world.any():
         seen = 1.0
@@ -152,7 +154,7 @@ def shade_translucent(ctx: TraceContext, points, normals, directions, materials,
                                         stats)
         light += take(view.diffuse, material) * world * seen
     colour[:, chosen] = light
-    return colour
+    return colour, shadow_code
 
 
 def _column(values, dtype):

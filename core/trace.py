@@ -175,8 +175,10 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
         illumination, goes_on, shadow_code = shade(ctx, points, normals, directions,
                                                    hits.material, exclude, stats)
         if look is not None and look.translucent is not None:
-            illumination += shade_translucent(ctx, points, normals, directions, hits.material,
+            through, code = shade_translucent(ctx, points, normals, directions, hits.material,
                                               geometry.exclusions(primitive, ~front), stats)
+            illumination += through
+            shadow_code = shadow_code * _SIGNATURE_PRIME + code  # edges of light shone through
         illumination *= weight
         held_object = None
         if holdouts and camera_path.any():

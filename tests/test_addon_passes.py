@@ -219,3 +219,25 @@ def test_the_emission_pass_holds_what_the_camera_path_meets_as_in_cycles(tmp_pat
         np.testing.assert_allclose(glint[mask], cycles[mask], rtol=1e-4, atol=1e-6)
     assert cycles[sphere_mask(mirror)].max() == 0 and cycles[0:3, 0:3].max() == 0
     np.testing.assert_array_equal(glint[0:3, 0:3], 0.0)
+
+
+def test_a_render_region_holds_that_part_of_the_full_frames_passes(tmp_path):
+    """The passes go to Blender tile by tile, each cut to the render region as Combined is:
+    a cropped region's multilayer EXR holds the full frame's pixels there, in every pass."""
+    scene = passes_scene()
+    scene.render.resolution_x, scene.render.resolution_y = 300, 160   # several tiles
+    full = render_exr(scene, tmp_path, 'GLINT', "full.exr")
+    render = scene.render
+    render.use_border, render.use_crop_to_border = True, True
+    render.border_min_x, render.border_max_x = 0.3, 0.8
+    render.border_min_y, render.border_max_y = 0.25, 0.9
+    region = render_exr(scene, tmp_path, 'GLINT', "region.exr")
+
+    # Blender's pixels: x in [int(0.3 * 300), int(0.8 * 300)), rows from the bottom likewise.
+    x0, x1, y0, y1 = 90, 240, 40, 144
+    top, bottom = 160 - y1, 160 - y0
+    for name in ("Combined.R", "Combined.A", "Depth.Z", "Normal.X", "Object Index.X"):
+        key = f"ViewLayer.{name}"
+        assert region[key].shape == (y1 - y0, x1 - x0), name
+        np.testing.assert_array_equal(region[key], full[key][top:bottom, x0:x1], err_msg=name)
+    assert (region["ViewLayer.Object Index.X"] > 0).sum() > 1000
