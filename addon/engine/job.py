@@ -76,8 +76,7 @@ class JobResult:
 @dataclass
 class RenderJob:
     scene: Scene
-    settings: RenderSettings
-    transparent: bool
+    settings: RenderSettings   # its film: Film > Transparent (``render_settings``)
     warnings: list[str] = field(default_factory=list)
 
     @property
@@ -149,7 +148,7 @@ def prepare_job(depsgraph, camera_override=None) -> RenderJob:
     blender_scene = depsgraph.scene_eval
     return RenderJob(scene=scene,
                      settings=render_settings(blender_scene.glint, blender_scene.render),
-                     transparent=blender_scene.render.film_transparent, warnings=warnings)
+                     warnings=warnings)
 
 
 class ThreadedRender:
