@@ -182,3 +182,22 @@ def test_holdouts_and_the_world_through_a_transparent_bsdf(transparent):
     np.testing.assert_allclose(cycles[world, :3], np.broadcast_to(seen, (world.sum(), 3)),
                                atol=1e-4)
     np.testing.assert_allclose(glint[world, :3], cycles[world, :3], atol=1e-4)
+
+
+def test_f12_saves_the_holdout_hole_with_an_opaque_film(tmp_path):
+    """What the engine hands Blender (and Blender saves) keeps the hole: alpha 0 on the held
+    ball in the PNG, 1 on the world around it, Film > Transparent off."""
+    from addon_support import read_png
+
+    scene = cycles_scene()
+    set_world((0.3, 0.5, 0.9), 0.5)
+    held = add_ball("held", (0.0, 0.0, 0.0), 1.0, node_material("hold", "ShaderNodeHoldout"))
+    scene.render.engine = 'GLINT'
+    scene.render.image_settings.file_format = 'PNG'
+    scene.render.image_settings.color_mode = 'RGBA'
+    scene.render.filepath = str(tmp_path / "held.png")
+    bpy.ops.render.render(write_still=True)
+    alpha = read_png(str(tmp_path / "held.png"))[..., 3]
+    inside = sphere_mask(held)
+    assert inside.sum() > 50 and (alpha[inside] == 0).all()
+    assert (alpha[~sphere_mask(held, erode=-2)] == 255).all()
