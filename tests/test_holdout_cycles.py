@@ -201,3 +201,28 @@ def test_f12_saves_the_holdout_hole_with_an_opaque_film(tmp_path):
     inside = sphere_mask(held)
     assert inside.sum() > 50 and (alpha[inside] == 0).all()
     assert (alpha[~sphere_mask(held, erode=-2)] == 255).all()
+
+
+def test_a_holdout_object_keeps_its_transparency():
+    """Cycles holds out all of a holdout object but its transparency: a Principled BSDF of
+    Alpha 0.5 passes half at each of its two sides, so a quarter of the ball behind shows
+    (alpha 0.25) and three quarters are held out."""
+    scene = cycles_scene(bounces=2)
+    scene.cycles.transparent_max_bounces = 8
+    scene.cycles.min_transparent_bounces = 8    # no Russian roulette bias (see above)
+    scene.glint.max_depth = 4
+    set_world((0.3, 0.5, 0.9), 0.02)   # dim: the ball behind is lit by the light alone
+    half = bpy.data.materials.new("half")
+    principled = half.node_tree.nodes["Principled BSDF"]
+    principled.inputs["Alpha"].default_value = 0.5
+    principled.inputs["Base Color"].default_value = (0.2, 0.8, 0.2, 1.0)
+    held = add_ball("held", (0.0, -1.0, 0.0), 0.6, half)
+    held.is_holdout = True
+    add_ball("behind", (0.0, 2.0, 0.0), 1.5, diffuse("red", (0.8, 0.2, 0.1)))
+    add_light('POINT', (2.0, -4.0, 3.0), energy=1000.0, shadow_soft_size=0)
+    glint, cycles = render_both()
+
+    mask = sphere_mask(held)
+    assert_alpha(glint, cycles, mask, 0.25)
+    ratios = glint[mask, :3].mean(axis=0) / cycles[mask, :3].mean(axis=0)
+    np.testing.assert_allclose(ratios, 1.0, atol=LIGHT_TOLERANCE, err_msg=str(ratios))
