@@ -220,6 +220,9 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     choices = load_choices()
     parser.add_argument("--semantics", choices=choices.SEMANTICS)
     parser.add_argument("--precision", choices=choices.PRECISIONS)
+    parser.add_argument("--parallelism", choices=choices.PARALLELISM,
+                        help=choices.help_text(choices.PARALLELISM_CHOICES) +
+                             " (default: the scene's Glint > Performance > Parallelism)")
     add_animation_arguments(parser)
     args = parser.parse_args(argv)
 
@@ -313,6 +316,8 @@ def apply_options(scene, args) -> None:
         settings.semantics = args.semantics.upper()
     if args.precision is not None:
         settings.precision = args.precision.upper()
+    if args.parallelism is not None:
+        settings.parallelism = args.parallelism.upper()
     if args.frame is not None:
         frame = type(scene).bl_rna.properties["frame_current"]
         if not frame.hard_min <= args.frame <= frame.hard_max:

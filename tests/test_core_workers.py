@@ -90,8 +90,8 @@ def test_an_error_in_a_worker_is_raised_as_itself(small_renders_in_processes):
     with pytest.raises(ValueError) as in_process:
         render_tile(ctx, scene.camera, bad_tile)
     with pytest.raises(ValueError) as in_worker:
-        workers.render_tiles(ctx, scene.camera, [(0, 32, 0, 32), bad_tile], (64, 64, 4), 1,
-                             lambda *finished: None)
+        workers.render_tiles(ctx, scene.camera, [(0, 32, 0, 32), bad_tile], (64, 64, 4),
+                             np.float64, 1, lambda *finished: None)
     assert str(in_worker.value) == str(in_process.value)
     assert "in a render worker process" in "".join(getattr(in_worker.value, "__notes__", []))
 
@@ -309,7 +309,7 @@ def test_the_memory_plan_counts_the_workers(small_renders_in_processes, monkeypa
 
     memory = importlib.import_module("core.memory")
     scene = core.article_scene(64, 64)
-    settings = _settings(threads=2)
+    settings = _settings(threads=2, parallelism="threads")
     threaded = memory.plan(scene, settings, np.float64, 2)
     monkeypatch.setattr(memory, "available_memory",
                         lambda: threaded.total + memory.HEADROOM + 1024)

@@ -54,18 +54,23 @@ def render_settings(settings, render=None) -> RenderSettings:
         samples=settings.samples,
         light_samples=settings.light_samples,
         threads=threads,
+        parallelism=settings.parallelism.lower(),
     )
 
 
 @dataclass
 class JobResult:
     """What ``RenderJob.run`` returns: image (module docstring), the precision the core
-    rendered in ('float64' or 'float32') and its ray counts."""
+    rendered in ('float64' or 'float32') and its ray counts; parallelism: how the tiles ran
+    ('threads' or 'processes', ``core.RenderResult.parallelism``); fallback: the core's one
+    line when worker processes could not start (``core.RenderResult.fallback``), else None."""
 
     image: np.ndarray
     precision: str
     stats: RayStats
     passes: Optional[object] = None   # core.passes.PrimaryPasses when run(passes=True)
+    parallelism: str = "threads"
+    fallback: Optional[str] = None
 
 
 @dataclass
@@ -117,7 +122,8 @@ class RenderJob:
                         on_tile=finished_tile if on_tile is not None else None,
                         passes=passes)
         finish_image(result.image, result.missed_colour, self.transparent)
-        return JobResult(result.image, result.precision, result.stats, result.passes)
+        return JobResult(result.image, result.precision, result.stats, result.passes,
+                         result.parallelism, result.fallback)
 
 
 #: Rows handled at a time by whole-frame steps, so their temporaries stay small.
