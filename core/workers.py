@@ -503,7 +503,7 @@ class _Render:
         """Render ``tiles``; finish(tile, rgba, stats, done, finite) is called in this
         process for each as it lands, rgba a view of the shared image, finite whether all
         its values are finite (checked by the worker)."""
-        from .render import RenderCancelled, RenderError
+        from .render import RenderCancelled
 
         queue = iter(tiles)
         done = 0
@@ -518,10 +518,7 @@ class _Render:
                 try:
                     message = connection.recv()
                 except (EOFError, OSError):
-                    _pool.drop(worker)
-                    self.workers.remove(worker)
-                    raise RenderError(f"a render worker process died (exit code "
-                                      f"{worker.process.returncode})") from None
+                    self._died(worker)
                 kind, tile = message[0], message[1]
                 worker.in_flight.remove(tile)
                 if kind == "error":
@@ -535,14 +532,25 @@ class _Render:
             if should_cancel is not None and should_cancel():
                 raise RenderCancelled("render cancelled")
 
-    @staticmethod
-    def _feed(worker: _Worker, queue) -> None:
+    def _feed(self, worker: _Worker, queue) -> None:
         while len(worker.in_flight) < TILES_IN_FLIGHT:
             tile = next(queue, None)
             if tile is None:
                 return
-            worker.connection.send(tile)
+            try:
+                worker.connection.send(tile)
+            except OSError:         # it died after its last answer (a broken pipe)
+                self._died(worker)
             worker.in_flight.append(tile)
+
+    def _died(self, worker: _Worker):
+        """A worker went away during the render: a RenderError naming its exit code."""
+        from .render import RenderError
+
+        _pool.drop(worker)
+        self.workers.remove(worker)
+        raise RenderError(f"a render worker process died (exit code "
+                          f"{worker.process.returncode})") from None
 
     def end(self) -> None:
         """Stop running tiles at their next bundle, let every worker drop this render and

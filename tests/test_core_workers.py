@@ -360,3 +360,70 @@ def test_a_stray_module_at_the_front_of_the_path_does_not_break_the_workers(
     assert result.parallelism == "processes", workers.unavailable_reason
     assert np.array_equal(result.image, reference.image)
     workers.shutdown()   # later tests start workers with the ordinary path
+
+
+def test_an_image_the_caller_keeps_is_never_written_by_a_later_render(
+        small_renders_in_processes):
+    """Workers write straight into the result's memory (a frame every worker maps); a frame
+    is used again only once nothing refers to its image, not even a view."""
+    settings = _settings(threads=2, parallelism="processes")
+    first = core.render(core.article_scene(96, 64), settings)
+    kept_view = first.image[10:20]
+    first_copy = first.image.copy()
+    del first
+    for size in ((96, 64), (96, 64), (64, 64)):   # same and smaller frames, several times
+        other = core.render(core.article_scene(*size), _settings(
+            threads=2, parallelism="processes", semantics="article"))
+        assert other.parallelism == "processes"
+        assert not np.shares_memory(other.image, kept_view)
+    assert np.array_equal(kept_view, first_copy[10:20])
+
+
+def test_frames_are_reused_and_no_descriptor_leaks(small_renders_in_processes):
+    settings = _settings(threads=2, parallelism="processes")
+    scene = core.article_scene(96, 64)
+    result = core.render(scene, settings)
+    result = core.render(scene, settings)          # the first is alive meanwhile: 2 frames
+    descriptors = len(os.listdir("/proc/self/fd"))
+    seen = set()
+    for _ in range(6):
+        result = core.render(scene, settings)      # the previous result is alive meanwhile
+        seen |= {frame.id for frame in workers._pool.frames}
+    assert result.parallelism == "processes"
+    assert len(seen) == workers.KEPT_FRAMES == 2   # the two frames, taken in turn
+    assert len(os.listdir("/proc/self/fd")) == descriptors
+
+
+def test_an_image_outlives_shutdown(small_renders_in_processes):
+    scene = core.article_scene(96, 64)
+    result = core.render(scene, _settings(threads=2, parallelism="processes"))
+    workers.shutdown()                               # frames closed, workers gone
+    assert workers._pool.frames == []
+    reference = core.render(scene, _settings(threads=1, parallelism="threads"))
+    assert np.array_equal(result.image, reference.image)
+    result.image[:] = 0                              # still the caller's, writable
+
+
+def test_a_worker_dead_before_its_next_tile_is_sent_is_the_same_render_error(
+        small_renders_in_processes):
+    """Killed (and gone) just after its tile landed: the parent's next send to it breaks the
+    pipe, which must be the RenderError of a dead worker, not a BrokenPipeError."""
+    import importlib
+    import signal
+
+    scene = core.article_scene(160, 160)
+    settings = _settings(threads=2, parallelism="processes", tile_size=16)
+    core.render(scene, settings)                      # two workers, warm
+
+    def kill_all_on_first_tile(tile, rgba):
+        for worker in list(workers._pool.workers):
+            if worker.process.poll() is None:
+                os.kill(worker.process.pid, signal.SIGKILL)
+                worker.process.wait()
+
+    render_module = importlib.import_module("core.render")
+    with pytest.raises(render_module.RenderError,
+                       match=r"a render worker process died \(exit code -9\)"):
+        core.render(scene, settings, on_tile=kill_all_on_first_tile)
+    again = core.render(scene, settings)             # new workers take their place
+    assert again.parallelism == "processes" and len(workers.worker_pids()) == 2
