@@ -678,13 +678,15 @@ class Bench:
         """CPU seconds of one more render, in this process and in the workers."""
         from core import workers
 
-        pids = workers.worker_pids()
+        pids = workers.worker_pids() if settings.parallelism == "processes" else []
         before = cpu_seconds(), cpu_seconds(pids)
         render(scene, settings)
         after = cpu_seconds(), cpu_seconds(pids)
         if None in before + after:
             return "CPU per frame not measured (no /proc)"
         here = after[0] - before[0]
+        if not pids:
+            return f"CPU per frame {here:.2f} s (one more render)"
         there = (after[1] - after[0]) - (before[1] - before[0])
         return (f"CPU per frame {here + there:.2f} s: {here:.3f} s in this process, "
                 f"{there:.2f} s in workers (one more render)")
