@@ -718,6 +718,11 @@ def main(argv: list[str] | None = None, own_process: bool = False) -> int:
             from glint.core import allocator
 
             allocator.configure()
+        if own_process and args.frames is None:
+            # One frame, then exit: 'auto' weighs the workers' start-up (core.workers).
+            from glint.core import workers
+
+            workers.expect_one_render()
         if args.blend is not None:
             # Before the file loads, so that its render engine GLINT is known (Blender reports
             # "Engine 'GLINT' not available" otherwise); the article's scene is built after a

@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from . import allocator
+from . import allocator, workers
 from .article import article_scene, article_settings
 from .choices import (ANTI_ALIASING, PARALLELISM, PARALLELISM_CHOICES, PRECISIONS,
                       SEMANTICS, help_text)
@@ -76,6 +76,8 @@ def main(argv=None, own_process: bool = False) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     if own_process and not args.no_malloc_tuning:
         allocator.configure()
+    if own_process:  # one render, then exit: 'auto' weighs the workers' start-up
+        workers.expect_one_render()
     if signal.getsignal(signal.SIGTERM) is not signal.SIG_IGN:
         signal.signal(signal.SIGTERM, _terminate)
     try:

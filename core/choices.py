@@ -27,7 +27,9 @@ ANTI_ALIASING_CHOICES = (
 #: How tiles run in parallel (``core.render``, ``core.workers``).
 PARALLELISM_CHOICES = (
     ("auto", "Auto", "Worker processes for renders large enough that their start-up pays "
-                     "(more than one tile and thread, at least 0.3 Mpixel), threads otherwise"),
+                     "(more than one tile and thread, at least 0.3 Mpixel; in a process that "
+                     "renders once, workers already running or 8 M camera samples), threads "
+                     "otherwise"),
     ("threads", "Threads", "Tiles on a thread pool in this process"),
     ("processes", "Processes", "Tiles in worker processes (both cores busy despite the GIL); "
                                "falls back to threads where processes cannot start"),

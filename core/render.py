@@ -240,12 +240,22 @@ def missed_colour(scene: Scene, settings: RenderSettings) -> np.ndarray:
 def _in_processes(settings: RenderSettings, pixels: int, tiles: int, threads: int) -> bool:
     """Whether this render's tiles go to worker processes (``RenderSettings.parallelism``).
     A single tile or a small render stays in this process (starting a worker costs more
-    than it gains there), and 'auto' asks for more than one worker (one only moves the
-    work out of this process)."""
+    than it gains there).  'auto' asks for more than one worker (one only moves the work
+    out of this process), and in a process that renders once (``workers.one_render``) for
+    warm workers or a render heavy enough to pay for their start-up."""
     if tiles < 2 or pixels < workers.MIN_PIXELS:
         return False
-    return settings.parallelism == "processes" or (settings.parallelism == "auto"
-                                                   and threads > 1)
+    if settings.parallelism != "auto":
+        return settings.parallelism == "processes"
+    if threads < 2:
+        return False
+    per_pixel = settings.samples if settings.anti_aliasing == "fixed" else 1
+    return (not workers.one_render or workers.warm(threads)
+            or pixels * per_pixel >= workers.COLD_MIN_SAMPLES)
+
+
+def _fallback_line(reason: str) -> str:
+    return f"worker processes unavailable ({reason}): rendered on threads"
 
 
 def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
@@ -333,14 +343,19 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
         try:
             # The workers write their tiles straight into the image they share with this
             # process, which is the result (core.workers: no copy of any tile here).
-            image = workers.render_tiles(ctx, scene.camera, tiles, shape, image_dtype,
-                                         threads, land, should_cancel)
+            image, unavailable = workers.render_tiles(ctx, scene.camera, tiles, shape,
+                                                      image_dtype, threads, land,
+                                                      should_cancel)
+            if unavailable is not None:  # the workers failed after some tiles landed
+                return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
+                                    settings.semantics, parallelism="threads",
+                                    fallback=_fallback_line(unavailable))
             return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
                                 settings.semantics, parallelism="processes")
         except workers.WorkersBusy:
             pass  # another render (a viewport) has them: threads, without a word
         except workers.ProcessesUnavailable as error:
-            fallback = f"worker processes unavailable ({error}): rendered on threads"
+            fallback = _fallback_line(str(error))
         # No tile has landed yet: the same tiles on threads, below.
 
     image = np.zeros(shape, image_dtype)

@@ -876,10 +876,12 @@ class RenderSettings:
         stay in this process, where a worker's start-up would cost more than it gains), and
         fall back to threads where processes cannot start (``RenderResult.fallback`` says
         why).  'auto' takes processes where 'processes' would and ``threads`` is more than
-        one (one worker only moves the work), threads otherwise: measured on 2 cores, two
-        threads render the article's 1080p frame 0.91x as fast as one (the GIL), two
-        processes 1.75x (README: "Worker processes and malloc settings").  Results never
-        depend on it.
+        one (one worker only moves the work), except in a process that renders once
+        (``python -m core``, render.py for one frame), where a cold start must pay:
+        workers already running, or ``core.workers.COLD_MIN_SAMPLES`` camera samples.
+        Measured on 2 cores, two threads render the article's 1080p frame 0.91x as fast as
+        one (the GIL), two warm processes 1.75x (README: "Worker processes and malloc
+        settings").  Results never depend on it.
     """
 
     semantics: Literal["default", "article"] = "default"

@@ -60,6 +60,7 @@ import threading
 import time
 import traceback
 import weakref
+from collections import deque
 from multiprocessing.connection import Connection
 from multiprocessing.connection import wait as wait_for
 from multiprocessing.reduction import recv_handle, send_handle
@@ -97,6 +98,28 @@ _CORE_FOLDER = os.path.dirname(os.path.abspath(__file__))
 
 #: Why worker processes could not be used in this process (None: not known to fail).
 unavailable_reason: str | None = None
+#: How many tiles the last render on workers rendered in this process while they started.
+last_render_here = 0
+#: Set by ``expect_one_render``: this process renders once and exits (``python -m core``,
+#: render.py for one frame), so a cold start is paid for one render only.
+one_render = False
+#: With ``one_render`` and no warm workers, 'auto' takes processes only for renders of at
+#: least this many camera samples (pixels x samples per pixel), where their start-up pays:
+#: booting two workers costs about 0.6 s of CPU (measured at load 5-7), and two workers
+#: save 0.1 s a Mpixel of the article's scene on 2 free cores (README).
+COLD_MIN_SAMPLES = 8_000_000
+
+
+def expect_one_render() -> None:
+    """Say that this process renders once and exits (see ``one_render``)."""
+    global one_render
+    one_render = True
+
+
+def warm(count: int) -> bool:
+    """Whether ``count`` workers of this process are running and have served a render."""
+    return (_pool.owner == os.getpid() and len(_pool.workers) >= count
+            and all(worker.served for worker in _pool.workers[:count]))
 
 
 class ProcessesUnavailable(Exception):
@@ -271,6 +294,8 @@ class _Worker:
         self.connection = connection
         self.in_flight: list = []
         self.frames: set[int] = set()   # ids of the frames this worker has mapped
+        self.served = False              # has been ready for a render (is warm)
+        self.owes_end = False            # its last render's 'ready' and 'ended' are unread
 
     def end(self) -> None:
         """Stop the worker for good: ask, then kill if it does not go."""
@@ -453,6 +478,7 @@ class _Render:
     """One render on ``count`` of the pool's workers, into a frame's image (``_Frame``)."""
 
     def __init__(self, ctx, camera, shape, dtype, count: int):
+        self.ctx, self.camera = ctx, camera
         self.dtype = np.dtype(dtype)
         self.shape = tuple(shape)
         self.frame = _pool.frame(int(np.prod(self.shape)) * self.dtype.itemsize)
@@ -461,14 +487,21 @@ class _Render:
         self.stop[0] = 0
         self.payload = pickle.dumps((ctx, camera), protocol=5)
         self.workers = _pool.workers[:count]
+        self.pending = None          # tiles not yet sent (a deque, from ``run``)
+        self.starting = set()        # connections of the workers not yet ready
+        self.done = 0                # tiles landed
+        self.here = 0                # of those, rendered in this process
 
-    def start(self, should_cancel) -> None:
-        """Hand every worker this render and wait until all are ready."""
-        global unavailable_reason
-        from .render import RenderCancelled
-
+    def start(self) -> None:
+        """Hand every worker this render (each answers 'ready' once it has loaded it)."""
         frame = self.frame
         for worker in list(self.workers):
+            if worker.owes_end:           # the last render ended before it was ready
+                worker.owes_end = False
+                if not _wait_for_end(worker, time.monotonic() + START_TIMEOUT_SECONDS):
+                    self.workers.remove(worker)
+                    _pool._failed_to_start(worker)
+                worker.served = True
             sent = frame.id not in worker.frames
             try:
                 worker.connection.send(("render", frame.id, frame.size, self.shape,
@@ -480,63 +513,91 @@ class _Render:
             except OSError:
                 self.workers.remove(worker)
                 _pool._failed_to_start(worker)
+
+    def run(self, tiles, finish, should_cancel) -> None:
+        """Render ``tiles``; finish(tile, pixels, stats, done, finite) is called in this
+        process for each as it lands, pixels its view of the image, finite whether all its
+        values are finite.  A worker gets tiles once it is ready.  While a worker is still
+        starting (its first render: a Python, NumPy and core import, 0.25-0.5 s here), this
+        process renders tiles itself, so a cold start costs the frame nothing but the tiles
+        it did not help with."""
+        global unavailable_reason
+        from .render import RenderCancelled
+
+        self.pending = deque(tiles)
+        by_connection = {w.connection: w for w in self.workers}
+        self.starting = starting = {w.connection for w in self.workers}
+        helping = not all(w.served for w in self.workers)   # warm ones are ready at once
         deadline = time.monotonic() + START_TIMEOUT_SECONDS
-        waiting = {w.connection: w for w in self.workers}
-        while waiting:
+        while self.pending or any(w.in_flight for w in self.workers):
             if should_cancel is not None and should_cancel():
                 raise RenderCancelled("render cancelled")
-            if time.monotonic() > deadline:
+            if starting and time.monotonic() > deadline:
                 unavailable_reason = (f"worker processes did not start within "
                                       f"{START_TIMEOUT_SECONDS:g} s")
                 raise ProcessesUnavailable(unavailable_reason)
-            for connection in wait_for(list(waiting), timeout=CANCEL_POLL_SECONDS):
-                worker = waiting.pop(connection)
-                try:
-                    message = connection.recv()
-                except (EOFError, OSError):
-                    self.workers.remove(worker)
-                    _pool._failed_to_start(worker)
-                if message[0] == "error":
-                    _raise_worker_error(message)
-
-    def run(self, tiles, finish, should_cancel) -> None:
-        """Render ``tiles``; finish(tile, rgba, stats, done, finite) is called in this
-        process for each as it lands, rgba a view of the shared image, finite whether all
-        its values are finite (checked by the worker)."""
-        from .render import RenderCancelled
-
-        queue = iter(tiles)
-        done = 0
-        by_connection = {w.connection: w for w in self.workers}
-        for worker in self.workers:
-            self._feed(worker, queue)
-        while any(w.in_flight for w in self.workers):
-            ready = wait_for([w.connection for w in self.workers if w.in_flight],
-                             timeout=CANCEL_POLL_SECONDS)
+            help_now = helping and bool(starting) and bool(self.pending)
+            listen = list(starting) + [w.connection for w in self.workers if w.in_flight]
+            ready = wait_for(listen, timeout=0 if help_now else CANCEL_POLL_SECONDS)
             for connection in ready:
                 worker = by_connection[connection]
                 try:
                     message = connection.recv()
                 except (EOFError, OSError):
+                    if connection in starting:
+                        self.workers.remove(worker)
+                        _pool._failed_to_start(worker)
                     self._died(worker)
+                if connection in starting:       # ('ready',) or ('error', None, ...)
+                    starting.discard(connection)
+                    if message[0] == "error":
+                        _raise_worker_error(message)
+                    worker.served = True
+                    self._feed(worker, self.pending)
+                    continue
                 kind, tile = message[0], message[1]
                 worker.in_flight.remove(tile)
                 if kind == "error":
                     _raise_worker_error(message)
                 if kind == "cancelled":
                     raise RenderCancelled("render cancelled")
-                done += 1
+                self.done += 1
                 y0, y1, x0, x1 = tile
-                finish(tile, self.image[y0:y1, x0:x1], message[2], done, message[3])
-                self._feed(worker, queue)
+                finish(tile, self.image[y0:y1, x0:x1], message[2], self.done, message[3])
+                self._feed(worker, self.pending)
+            if help_now and not ready:
+                self.render_here(self.pending.popleft(), finish)
+
+    def render_here(self, tile, finish) -> None:
+        """One tile rendered in this process, as a thread would, into the image."""
+        from .render import render_tile
+
+        rgba, stats = render_tile(self.ctx, self.camera, tile)
+        y0, y1, x0, x1 = tile
+        finite = bool(np.isfinite(rgba).all())
+        if finite:
+            self.image[y0:y1, x0:x1] = rgba
+        self.done += 1
+        self.here += 1
+        finish(tile, self.image[y0:y1, x0:x1], stats, self.done, finite)
+
+    def finish_here(self, finish, should_cancel) -> None:
+        """The workers are gone after some tiles landed: the tiles they had and those never
+        sent, rendered in this process (as one thread would; two threads gain nothing)."""
+        from .render import RenderCancelled
+
+        for worker in self.workers:
+            self.pending.extendleft(reversed(worker.in_flight))
+            worker.in_flight.clear()
+        _pool.drop_all()    # the others started the same way: none is trusted
+        while self.pending:
             if should_cancel is not None and should_cancel():
                 raise RenderCancelled("render cancelled")
+            self.render_here(self.pending.popleft(), finish)
 
-    def _feed(self, worker: _Worker, queue) -> None:
-        while len(worker.in_flight) < TILES_IN_FLIGHT:
-            tile = next(queue, None)
-            if tile is None:
-                return
+    def _feed(self, worker: _Worker, pending: deque) -> None:
+        while len(worker.in_flight) < TILES_IN_FLIGHT and pending:
+            tile = pending.popleft()
             try:
                 worker.connection.send(tile)
             except OSError:         # it died after its last answer (a broken pipe)
@@ -567,7 +628,11 @@ class _Render:
                 self.workers.remove(worker)
         deadline = time.monotonic() + END_TIMEOUT_SECONDS
         for worker in self.workers:
-            if not _wait_for_end(worker, deadline):
+            if worker.connection in self.starting:
+                # Still starting when the frame was done: it answers 'ready' and then
+                # 'ended' once up, read at its next render's start (not waited for here).
+                worker.owes_end = True
+            elif not _wait_for_end(worker, deadline):
                 _pool.drop(worker)
             worker.in_flight.clear()
         self.stop = None
@@ -617,12 +682,15 @@ def planned_bytes(count: int, scene_bytes: int) -> int:
 
 
 def render_tiles(ctx, camera, tiles, shape, dtype, count: int, finish,
-                 should_cancel=None) -> np.ndarray:
-    """The (H, W, 4) image of ``shape`` and ``dtype`` with ``tiles`` rendered into it on
-    ``count`` worker processes; finish(tile, pixels, stats, done, finite) is called in this
-    process as each tile lands, pixels the tile's view of the image.  Raises
+                 should_cancel=None):
+    """(image, fallback): the (H, W, 4) image of ``shape`` and ``dtype`` with ``tiles``
+    rendered into it on ``count`` worker processes (and in this process while they start,
+    ``_Render.run``); finish(tile, pixels, stats, done, finite) is called in this process as
+    each tile lands, pixels the tile's view of the image.  fallback: None, or why this
+    process rendered the tiles left after the workers failed to start.  Raises
     ProcessesUnavailable, before any tile is finished, where they cannot be used (cannot
     start here; WorkersBusy: another render is using them)."""
+    global last_render_here
     if not _pool.lock.acquire(blocking=False):
         raise WorkersBusy("another render is using the worker processes")
     try:
@@ -632,14 +700,22 @@ def render_tiles(ctx, camera, tiles, shape, dtype, count: int, finish,
             _pool.drop_all()
             raise
         render = _Render(ctx, camera, shape, dtype, count)
+        fallback = None
         try:
-            render.start(should_cancel)
-            render.run(tiles, finish, should_cancel)
-            return render.image
+            try:
+                render.start()
+                render.run(tiles, finish, should_cancel)
+            except ProcessesUnavailable as error:
+                if render.done == 0:
+                    raise
+                fallback = str(error)       # tiles landed: this process does the rest
+                render.finish_here(finish, should_cancel)
+            return render.image, fallback
         except ProcessesUnavailable:
             _pool.drop_all()    # the others started the same way: none is trusted
             raise
         finally:
+            last_render_here = render.here
             render.end()
             render.image = None   # the caller's now, or gone (its frame is free again)
     finally:
