@@ -16,10 +16,10 @@ Workloads (``--only NAME``):
   processes with glibc's defaults and with ``core.allocator``'s settings: minor page faults,
   system and user time per render (``bench.allocation``).
 * parallelism: the article's scene at article-hd's size (800x450 with --quick, so that
-  processes are used) (article/float64) on 1 and 2 threads
-  and 1 and 2 worker processes (``core.workers``), images checked bit for bit against one
-  thread; the processes' start-up is paid in the warm-up, and once more, alone, in a
-  "cold" row (workers ended first).
+  processes are used), article/float64 and default/auto, on 1 and 2 threads and 1 and 2
+  worker processes (``core.workers``), images checked bit for bit against one thread, CPU
+  per frame in this process and in the workers; the processes' start-up is paid in the
+  warm-up, and once more, alone, in a "cold" row (workers ended first).
 
 For article-hd and spheres, Glint article/float64 and default/auto render once more on one
 thread for the per-phase timers (``RayStats.phases``) that the report prints.
@@ -622,7 +622,8 @@ class Bench:
                               SET_CURVE_GLINT)
 
     def parallelism_workload(self, name: str) -> None:
-        """Threads against worker processes, 1 and 2 of each, on the article's scene."""
+        """Threads against worker processes, 1 and 2 of each, on the article's scene, in
+        article/float64 and default/auto."""
         from core import workers
 
         width, height = self.plan.article_sizes["article-hd"]
@@ -630,33 +631,37 @@ class Bench:
             width, height = 800, 450
         title = f"article {width}x{height}, parallelism"
         scene = article_scene(width, height)
-        reference = None
-        for parallelism in ("threads", "processes"):
-            for count in (1, 2):
-                glint = Glint("article", "float64", threads=count, parallelism=parallelism)
-                log(f"{title}: {glint.label}")
-                result, timing, _ = self.measure_glint(("article", width, height), scene, glint)
-                row = Row(name, title, glint.label, "glint", timing, timing.median,
-                          semantics="article", precision=result.precision, glint=glint)
-                if reference is None:
-                    reference = result.image
-                    row.notes.append("the reference of this workload's images")
-                elif np.array_equal(result.image, reference):
-                    row.notes.append("image identical to 1 thread's")
-                else:
-                    raise AssertionError(f"{glint.label}: image differs from 1 thread's")
-                before = cpu_seconds(workers.worker_pids())
-                render(scene, glint.settings())
-                after = cpu_seconds(workers.worker_pids())
-                if before is not None and after is not None:
-                    row.notes.append(f"CPU per frame {after - before:.2f} s (this process and "
-                                     f"its workers, one more render)")
-                if result.parallelism != parallelism:
-                    row.notes.append(f"ran on {result.parallelism} (core.workers.MIN_PIXELS "
-                                     f"or processes unavailable)")
-                elif parallelism == "processes":
-                    row.notes.append("memory: this process only")
-                self.rows.append(row)
+        for semantics, precision in (("article", "float64"), ("default", "auto")):
+            reference = None
+            medians = {}
+            for parallelism in ("threads", "processes"):
+                for count in (1, 2):
+                    glint = Glint(semantics, precision, threads=count, parallelism=parallelism)
+                    log(f"{title}: {glint.label}")
+                    result, timing, _ = self.measure_glint(("article", width, height), scene,
+                                                           glint)
+                    row = Row(name, title, glint.label, "glint", timing, timing.median,
+                              semantics=semantics, precision=result.precision, glint=glint)
+                    medians[parallelism, count] = timing.median
+                    if reference is None:
+                        reference = result.image
+                        row.notes.append("the reference of this workload's images")
+                    elif np.array_equal(result.image, reference):
+                        row.notes.append("image identical to 1 thread's")
+                    else:
+                        raise AssertionError(f"{glint.label}: image differs from 1 thread's")
+                    row.notes.append(self._cpu_per_frame(scene, glint.settings()))
+                    if result.parallelism != parallelism:
+                        row.notes.append(f"ran on {result.parallelism} (core.workers."
+                                         f"MIN_PIXELS or processes unavailable)")
+                    elif parallelism == "processes":
+                        row.notes.append("memory: this process only")
+                    if (parallelism, count) == ("processes", 2):
+                        row.notes.append(
+                            f"{medians['processes', 1] / timing.median:.2f}x 1 process, "
+                            f"{medians['threads', 1] / timing.median:.2f}x 1 thread (medians "
+                            f"of this run)")
+                    self.rows.append(row)
         glint = Glint("article", "float64", threads=2, parallelism="processes")
         settings = glint.settings()
         workers.shutdown()
@@ -667,6 +672,24 @@ class Bench:
                              semantics="article", precision="float64", glint=glint,
                              notes=["workers started in this run" if ran == "processes"
                                     else f"ran on {ran}"]))
+
+    @staticmethod
+    def _cpu_per_frame(scene, settings) -> str:
+        """CPU seconds of one more render, in this process and in the workers."""
+        from core import workers
+
+        pids = workers.worker_pids() if settings.parallelism == "processes" else []
+        before = cpu_seconds(), cpu_seconds(pids)
+        render(scene, settings)
+        after = cpu_seconds(), cpu_seconds(pids)
+        if None in before + after:
+            return "CPU per frame not measured (no /proc)"
+        here = after[0] - before[0]
+        if not pids:
+            return f"CPU per frame {here:.2f} s (one more render)"
+        there = (after[1] - after[0]) - (before[1] - before[0])
+        return (f"CPU per frame {here + there:.2f} s: {here:.3f} s in this process, "
+                f"{there:.2f} s in workers (one more render)")
 
     def malloc_workload(self, name: str) -> None:
         """Faults and system time per render, glibc's defaults against core.allocator."""

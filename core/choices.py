@@ -26,6 +26,10 @@ ANTI_ALIASING_CHOICES = (
 
 #: How tiles run in parallel (``core.render``, ``core.workers``).
 PARALLELISM_CHOICES = (
+    ("auto", "Auto", "Worker processes for renders large enough that their start-up pays "
+                     "(more than one tile and thread, at least 0.3 Mpixel; in a process that "
+                     "renders once, workers already running or 8 M camera samples), threads "
+                     "otherwise"),
     ("threads", "Threads", "Tiles on a thread pool in this process"),
     ("processes", "Processes", "Tiles in worker processes (both cores busy despite the GIL); "
                                "falls back to threads where processes cannot start"),
@@ -41,6 +45,11 @@ FILM_CHOICES = (
     ("transparent", "Transparent", "Blender's Film > Transparent on: escaped camera rays add "
                                    "nothing; alpha as for coverage"),
 )
+
+
+def help_text(choices) -> str:
+    """A command-line option's help: each value with its description."""
+    return "; ".join(f"{value}: {description}" for value, _, description in choices)
 
 
 def values(choices) -> tuple:

@@ -75,6 +75,9 @@ class RenderResult:
     semantics: str = "article"
     parallelism: str = "threads"
     passes: Optional[PrimaryPasses] = None   # render(passes=True): see core.passes
+    #: Why tiles that were to go to worker processes ran on threads (they cannot start
+    #: here: ``core.workers.unavailable_reason``), else None; the front ends show it.
+    fallback: Optional[str] = None
 
     def display(self) -> np.ndarray:
         """(H, W, 4) display values in [0, 1] for an 8-bit file: the image itself in article
@@ -236,12 +239,25 @@ def missed_colour(scene: Scene, settings: RenderSettings) -> np.ndarray:
     return np.asarray(scene.background, np.float64)
 
 
-def _in_processes(settings: RenderSettings, pixels: int, tiles: int) -> bool:
+def _in_processes(settings: RenderSettings, pixels: int, tiles: int, threads: int) -> bool:
     """Whether this render's tiles go to worker processes (``RenderSettings.parallelism``).
-    A single tile or a small render stays in this process: starting a worker costs more
-    than it gains there."""
-    return (settings.parallelism == "processes" and tiles > 1
-            and pixels >= workers.MIN_PIXELS)
+    A single tile or a small render stays in this process (starting a worker costs more
+    than it gains there).  'auto' asks for more than one worker (one only moves the work
+    out of this process), and in a process that renders once (``workers.one_render``) for
+    warm workers or a render heavy enough to pay for their start-up."""
+    if tiles < 2 or pixels < workers.MIN_PIXELS:
+        return False
+    if settings.parallelism != "auto":
+        return settings.parallelism == "processes"
+    if threads < 2:
+        return False
+    per_pixel = settings.samples if settings.anti_aliasing == "fixed" else 1
+    return (not workers.one_render or workers.warm(threads)
+            or pixels * per_pixel >= workers.COLD_MIN_SAMPLES)
+
+
+def _fallback_line(reason: str) -> str:
+    return f"worker processes unavailable ({reason}): rendered on threads"
 
 
 def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
@@ -284,17 +300,17 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
         reserve_bytes += per_pixel * width * height
     tiles = _tiles(width, height, settings.tile_size)
     # Passes are filled beside each tile in this process (``work``), so they keep tiles here.
-    in_processes = not passes and _in_processes(settings, width * height, len(tiles))
+    in_processes = not passes and _in_processes(settings, width * height, len(tiles),
+                                                    threads)
     memory_plan = memory.plan(scene, settings, image_dtype, threads, reserve_bytes)
-    if in_processes:  # plus the shared image and each worker's interpreter and scene
+    if in_processes:  # plus each worker's interpreter and scene (the image is shared)
         memory_plan = dataclasses.replace(memory_plan, other=memory_plan.other + workers.
-                                          planned_bytes((height, width, 4), dtype, threads,
-                                                        memory_plan.scene))
+                                          planned_bytes(threads, memory_plan.scene))
     memory.check(memory_plan, width, height)
     if in_processes:
         workers.prestart(threads)  # they start while the context is built
     ctx = make_context(scene, settings, dtype)
-    image = np.zeros((height, width, 4), image_dtype)
+    shape = (height, width, 4)
     stats = RayStats()
     if isinstance(passes, PrimaryPasses):
         if passes.depth.shape != (height, width):
@@ -310,33 +326,52 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
             fill_tile_passes(primary, ctx, camera, tile, tile_stats, world)
         return rgba, tile_stats
 
-    def finish(tile, rgba, tile_stats, done, finite=None):
-        """finite: whether every value of rgba is finite, if already known (workers check
-        their own tiles, sparing the parent a pass over the image)."""
-        y0, y1, x0, x1 = tile
-        if finite is None:
-            finite = bool(np.isfinite(rgba).all())
+    def land(tile, pixels, tile_stats, done, finite):
+        """A finished tile: pixels its (h, w, 4) view of the image, finite whether the
+        values it was made from are all finite (workers check their own tiles, sparing this
+        process a pass over the image)."""
         if not finite:  # never a silently wrong picture, even from a bug
+            y0, y1, x0, x1 = tile
             raise RenderError(f"pixels {x0}-{x1 - 1} x {y0}-{y1 - 1} came out NaN or "
                               f"infinite; please report this scene")
-        image[y0:y1, x0:x1] = rgba
         stats.add(tile_stats)
         if on_tile is not None:
-            on_tile(tile, image[y0:y1, x0:x1])
+            on_tile(tile, pixels)
         if progress is not None:
             progress(done / len(tiles))
+
+    def finish(tile, rgba, tile_stats, done):
+        """A tile rendered in this process: into the image, then landed."""
+        y0, y1, x0, x1 = tile
+        finite = bool(np.isfinite(rgba).all())
+        if finite:
+            image[y0:y1, x0:x1] = rgba
+        land(tile, image[y0:y1, x0:x1], tile_stats, done, finite)
 
     def cancelled():
         return should_cancel is not None and should_cancel()
 
+    fallback = None
     if in_processes:
         try:
-            workers.render_tiles(ctx, scene.camera, tiles, image.shape, threads, finish,
-                                 should_cancel)
+            # The workers write their tiles straight into the image they share with this
+            # process, which is the result (core.workers: no copy of any tile here).
+            image, unavailable = workers.render_tiles(ctx, scene.camera, tiles, shape,
+                                                      image_dtype, threads, land,
+                                                      should_cancel)
+            if unavailable is not None:  # the workers failed after some tiles landed
+                return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
+                                    settings.semantics, parallelism="threads",
+                                    fallback=_fallback_line(unavailable))
             return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
                                 settings.semantics, parallelism="processes")
-        except workers.ProcessesUnavailable:
-            pass  # no tile has landed yet: the same tiles on threads, below
+        except workers.WorkersBusy:
+            pass  # another render (a viewport) has them: threads, without a word
+        except workers.ProcessesUnavailable as error:
+            fallback = _fallback_line(str(error))
+        # No tile has landed yet: the same tiles on threads, below.
+
+    image = np.zeros(shape, image_dtype)
 
     if threads == 1 or len(tiles) == 1:
         for done, tile in enumerate(tiles, 1):
@@ -344,7 +379,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
                 raise RenderCancelled("render cancelled")
             finish(tile, *work(ctx, scene.camera, tile), done)
         return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
-                            settings.semantics, passes=primary)
+                            settings.semantics, passes=primary, fallback=fallback)
 
     stop = threading.Event()
     with ThreadPoolExecutor(max_workers=threads) as pool:
@@ -379,4 +414,4 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
                 future.cancel()
             raise
     return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
-                        settings.semantics, passes=primary)
+                        settings.semantics, passes=primary, fallback=fallback)

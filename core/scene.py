@@ -887,11 +887,18 @@ class RenderSettings:
     tile_size: tiles are tile_size x tile_size pixels; memory per tile is bounded by it.
     threads: how many tiles render at once (None: one per core), on threads or worker
         processes as ``parallelism`` says.  Results never depend on it.
-    parallelism: 'threads' (a thread pool in this process) or 'processes' (worker
-        processes, ``core.workers``, for renders of more than one tile and at least
-        ``core.workers.MIN_PIXELS`` pixels; smaller renders, and places where processes
-        cannot start, use threads).  Threads stay the default until processes are measured
-        faster (README: "Worker processes and malloc settings").  Results never depend on it.
+    parallelism: 'auto' (the default), 'threads' (a thread pool in this process) or
+        'processes' (worker processes, ``core.workers``).  Processes render only renders of
+        more than one tile and at least ``core.workers.MIN_PIXELS`` pixels (smaller ones
+        stay in this process, where a worker's start-up would cost more than it gains), and
+        fall back to threads where processes cannot start (``RenderResult.fallback`` says
+        why).  'auto' takes processes where 'processes' would and ``threads`` is more than
+        one (one worker only moves the work), except in a process that renders once
+        (``python -m core``, render.py for one frame), where a cold start must pay:
+        workers already running, or ``core.workers.COLD_MIN_SAMPLES`` camera samples.
+        Measured on 2 cores, two threads render the article's 1080p frame 0.91x as fast as
+        one (the GIL), two warm processes 1.75x (README: "Worker processes and malloc
+        settings").  Results never depend on it.
     film: the image's alpha and background (default semantics; ``core.choices.FILM_CHOICES``):
         'coverage' (the core's own image): the background where camera rays escape, alpha =
         1 - transparency, the share of the pixel's samples that escaped (directly or straight
@@ -911,7 +918,7 @@ class RenderSettings:
     contribution_cutoff: float = 1e-6
     tile_size: int = 128
     threads: int | None = None
-    parallelism: Literal["threads", "processes"] = "threads"
+    parallelism: Literal["auto", "threads", "processes"] = "auto"
     film: Literal["coverage", "opaque", "transparent"] = "coverage"
 
     def __post_init__(self):

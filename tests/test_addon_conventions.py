@@ -135,16 +135,27 @@ def test_each_choice_list_is_defined_once_in_the_core():
     settings = bpy.context.scene.glint
     for prop, choice_list in (("semantics", choices.SEMANTICS_CHOICES),
                               ("precision", choices.PRECISION_CHOICES),
-                              ("anti_aliasing", choices.ANTI_ALIASING_CHOICES)):
+                              ("anti_aliasing", choices.ANTI_ALIASING_CHOICES),
+                              ("parallelism", choices.PARALLELISM_CHOICES)):
         items = settings.bl_rna.properties[prop].enum_items
         assert [(i.identifier, i.name, i.description) for i in items] == [
             (value.upper(), label, text) for value, label, text in choice_list]
     script = render_script.load_choices()
-    assert (script.SEMANTICS, script.PRECISIONS) == (choices.SEMANTICS, choices.PRECISIONS)
+    assert (script.SEMANTICS, script.PRECISIONS, script.PARALLELISM) == (
+        choices.SEMANTICS, choices.PRECISIONS, choices.PARALLELISM)
     # The command lines accept exactly the core's values.
     for value in choices.PRECISIONS:
         assert core_parse_args(["--output", "x.png", "--precision", value]).precision == value
+    for value in choices.PARALLELISM:
+        assert core_parse_args(["--output", "x.png", "--parallelism", value]).parallelism \
+            == value
+        assert render_script.parse_args(["--output", "x.png", "--parallelism", value]
+                                        ).parallelism == value
     from glint.core.scene import RenderSettings, SceneError
+    # One default everywhere: the core's.
+    assert core_parse_args(["--output", "x.png"]).parallelism == RenderSettings.parallelism
+    assert settings.bl_rna.properties["parallelism"].default == \
+        RenderSettings.parallelism.upper()
     for value in choices.ANTI_ALIASING:
         RenderSettings(anti_aliasing=value)
     try:

@@ -179,6 +179,8 @@ class GlintRenderEngine(bpy.types.RenderEngine):
                          # frames at 16K (14.36 GB for 4.29 GB), so 2.5 frames more.
                          reserve_bytes=5 * job.frame_bytes // 2)
         self.update_stats("Glint", f"{summary}, {result.precision}")
+        if result.fallback is not None:
+            self.report({'WARNING'}, f"Glint: {result.fallback}")
         if request is not None:
             request.frames.append((job, result))
 

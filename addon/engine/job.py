@@ -59,18 +59,23 @@ def render_settings(settings, render=None) -> RenderSettings:
         light_samples=settings.light_samples,
         threads=threads,
         film=film,
+        parallelism=settings.parallelism.lower(),
     )
 
 
 @dataclass
 class JobResult:
     """What ``RenderJob.run`` returns: image (module docstring), the precision the core
-    rendered in ('float64' or 'float32') and its ray counts."""
+    rendered in ('float64' or 'float32') and its ray counts; parallelism: how the tiles ran
+    ('threads' or 'processes', ``core.RenderResult.parallelism``); fallback: the core's one
+    line when worker processes could not start (``core.RenderResult.fallback``), else None."""
 
     image: np.ndarray
     precision: str
     stats: RayStats
     passes: Optional[object] = None   # core.passes.PrimaryPasses when run(passes=True)
+    parallelism: str = "threads"
+    fallback: Optional[str] = None
 
 
 @dataclass
@@ -117,7 +122,8 @@ class RenderJob:
                         reserve_bytes=reserve_bytes,
                         on_tile=finished_tile if on_tile is not None else None,
                         passes=passes)
-        return JobResult(result.image, result.precision, result.stats, result.passes)
+        return JobResult(result.image, result.precision, result.stats, result.passes,
+                         result.parallelism, result.fallback)
 
 
 def failure_message(error: BaseException) -> str:
