@@ -10,8 +10,8 @@ eye, a light sample), which make those rays cheaper and, for spheres, more accur
 Primitives (global ids, ``core.arrays``): analytic spheres (``core.intersect``) and
 triangles (``core.triangles``, watertight).  Behind the interface, spheres are found by
 cone culling over Morton clusters with coherent packets (``core.cull``) while the scene has
-few of them, and through a BVH with every triangle otherwise (``core.bvh``); a scene of
-four spheres builds no tree and pays nothing for triangle support.
+few of them, and through a binned-SAH BVH with every triangle otherwise (``core.bvh``); a
+scene of four spheres builds no tree and pays nothing for triangle support.
 
 Two choices are made once, when the aggregate is built: the hit rules (``article``: the
 article's, where a sphere counts only if both roots are positive, a shadow segment counts
@@ -43,8 +43,10 @@ TRIANGLE_BLOCK_PAIRS = 1 << 18
 BVH_MIN_SPHERES = 500
 #: Meshes with at most this many triangles in all are tested flat, with no tree.
 BVH_MIN_TRIANGLES = 16
-#: A primitive whose bounding radius exceeds this multiple of the median stays out of the
-#: tree (a floor would inflate every box above it); at most MAX_HUGE of them.
+#: A sphere whose radius exceeds this multiple of the median stays out of the tree (the
+#: article's floor, radius 9000, would make the root's box that size: every ray would
+#: enter it); at most MAX_HUGE of them.  Triangles all go into the tree: its SAH build
+#: keeps large ones (a backdrop) apart from small ones.
 HUGE_RATIO = 8.0
 MAX_HUGE = 64
 #: Shared-origin sphere terms for the tree's spheres only up to this many spheres (memory:
@@ -101,8 +103,11 @@ class Aggregate:
             self._tri_centers = centre
             self._tri_radii = reach * (1 + 1e-9) + 1e-12 * (1 + np.abs(centre).max(axis=0))
             self._tri_material = t.material
-            self._flat_triangles, tree_triangles = _partition(self._tri_radii,
-                                                              BVH_MIN_TRIANGLES)
+            # Every triangle goes into the tree once there are enough: the SAH build puts
+            # large ones (a backdrop) in their own subtrees.
+            if self.triangle_count > BVH_MIN_TRIANGLES:
+                self._flat_triangles, tree_triangles = (np.zeros(0, np.intp),
+                                                        np.arange(self.triangle_count))
         # One tree over the rest, spheres and triangles together (global ids).
         self._tree = None
         self._surface_keys = None   # built on first use (adaptive anti-aliasing only)
