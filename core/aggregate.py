@@ -400,7 +400,8 @@ class Aggregate:
                 for store, b in zip(barycentrics, (b0, b1, b2)):
                     store[owner[won]] = b[chosen[won]]
 
-        self._tree.traverse(origins, inverse, t_min.astype(np.float64), reach, visit, accept,
+        box_t_min = float(rays.t_min) if np.ndim(rays.t_min) == 0 else t_min.astype(np.float64)
+        self._tree.traverse(origins, inverse, box_t_min, reach, visit, accept,
                             stats=stats)
 
     def _occluded_in_tree(self, segments: RayBatch, stats) -> np.ndarray:
@@ -432,7 +433,9 @@ class Aggregate:
                 blocked &= prims != exclude[r]
             return np.where(blocked, 0.0, np.inf)
 
-        return self._tree.traverse(origins, inverse, np.maximum(low.astype(np.float64), 0.0),
+        box_t_min = (max(float(segments.t_min), 0.0) if np.ndim(segments.t_min) == 0
+                     else np.maximum(low.astype(np.float64), 0.0))
+        return self._tree.traverse(origins, inverse, box_t_min,
                                    reach, visit, any_hit=True, stats=stats)
 
     # ---- occlusion ----------------------------------------------------------------------

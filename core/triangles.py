@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .vectors import take
+
 
 @dataclass(frozen=True)
 class Shear:
@@ -53,7 +55,7 @@ class Shear:
         return cls(x, y, z)
 
     def take(self, index) -> "Shear":
-        return Shear(self.x[:, index], self.y[:, index], self.z[:, index])
+        return Shear(take(self.x, index), take(self.y, index), take(self.z, index))
 
 
 def _apply(row, p):
