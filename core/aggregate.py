@@ -30,7 +30,7 @@ from .cull import (DENSE_CANDIDATES, REFLECTION_CELLS, SHADOW_CELLS, candidate_r
                    cluster_spheres, direction_cells, reachable)
 from .intersect import OriginTerms, first_hit_distance, offset_roots, origin_roots
 from .rays import ARTICLE_OFFSET, Hits, RayBatch, RayStats, SharedOrigin, ray_offsets, timed
-from .triangles import Shear, watertight
+from .triangles import Shear, watertight, watertight_pairs
 from .vectors import dot, take
 
 #: The two ways to compute ray/sphere roots (``core.intersect``).
@@ -92,7 +92,9 @@ class Aggregate:
         self._flat_triangles = np.arange(self.triangle_count)
         if self.triangle_count:
             t = triangles
-            self._v = (cast(t.v0), cast(t.v1), cast(t.v2))
+            # The corners as rows (9, T) for the tree's pair kernel; _v are views of them.
+            self._corners = cast(np.concatenate([t.v0, t.v1, t.v2]))
+            self._v = (self._corners[0:3], self._corners[3:6], self._corners[6:9])
             self._tri_normals = cast(t.normals)
             self._tri_corner_normals = (None if t.corner_normals is None
                                         else cast(t.corner_normals))
@@ -340,10 +342,9 @@ class Aggregate:
                             self._radii_t[sphere], article=self._textbook)
 
     def _triangle_pairs(self, rays: RayBatch, shear, r, triangle, t_min, t_max):
-        origins = rays.origins.astype(self.dtype, copy=False)
-        origins = origins if origins.shape[1] == 1 else take(origins, r)
-        v0, v1, v2 = (take(v, triangle) for v in self._v)
-        return watertight(v0, v1, v2, origins, shear.take(r), t_min, t_max)
+        return watertight_pairs(self._corners, triangle,
+                                rays.origins.astype(self.dtype, copy=False), shear, r, t_min,
+                                t_max)
 
     def _pairs_by_kind(self, prims, stats):
         """(sphere pairs, triangle pairs): indices into a tree leaf's (ray, primitive) pairs
