@@ -51,6 +51,8 @@ MAX_TREELETS = 10 ** 9
 #: (``BVH.build``).
 CLUSTER_FROM = 50_000
 CLUSTER_SIZE = 4
+#: Nodes of at most this many clusters split at their Morton median, not by SAH.
+CLUSTER_MEDIAN_UP_TO = 16
 #: Bins per axis of the SAH build, and the cost of a box test relative to a primitive test
 #: (pbrt's 1/2: a wide node's box tests cost about one primitive's here too).
 BINS = 16
@@ -103,6 +105,11 @@ def _cells(sorted_codes: np.ndarray, per_cell: int) -> np.ndarray:
         if start.sum() * per_cell <= len(sorted_codes):
             return start
     return start
+
+
+def _row_max(a):
+    """(N,) the largest of each row of a (N, 3) (column by column: faster than max(axis=1))."""
+    return np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2])
 
 
 def _half_area(low, high):
@@ -176,9 +183,12 @@ def _binned_splits(c, lo, hi, segment, counts, bins):
     return cost[rows, best], index <= best[segment]
 
 
-def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF) -> BinaryTree:
+def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF,
+                     median_up_to: int = 1) -> BinaryTree:
     """A binned SAH tree over boxes low, high (P, 3), P >= 1, built a level at a time, with
-    leaves of at most ``max_leaf`` of them.
+    leaves of at most ``max_leaf`` of them.  Nodes of at most ``median_up_to`` boxes split
+    at the median of their order instead (for boxes given in Morton order, which the
+    stable partitions keep within every node: a cheap split, as good for small nodes).
 
     Each level works on the primitives of the nodes it splits, held in order (grouped by
     node) as rows of ``data`` (centre, low, high) beside their indices ``prims``; a level's
@@ -208,8 +218,8 @@ def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF
         # the bins' work stays within the primitives'); nodes of one primitive are leaves.
         best_cost = np.full(k, np.inf)
         go_left = np.zeros(len(prims), bool)
-        for bins, members in ((BINS, counts > BINS),
-                              (SMALL_BINS, (counts > 1) & (counts <= BINS))):
+        for bins, members in ((BINS, counts > max(BINS, median_up_to)),
+                              (SMALL_BINS, (counts > median_up_to) & (counts <= BINS))):
             nodes = np.flatnonzero(members)
             if len(nodes) == 0:
                 continue
@@ -242,14 +252,13 @@ def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF
         splitting = splits[segment]
         packed_starts = np.zeros(k, np.intp)
         packed_starts[parents] = run_starts(counts[parents])
-        destination = (packed_starts[segment] + within)[splitting]
-        moved = prims[splitting]
-        order[(starts[segment] + within)[splitting]] = moved
-        prims = np.empty_like(moved)
-        prims[destination] = moved
-        kept = data[splitting]
-        data = np.empty_like(kept)
-        data[destination] = kept
+        rows = np.flatnonzero(splitting)
+        moved = prims.take(rows)
+        order[(starts[segment] + within).take(rows)] = moved
+        source = np.empty_like(rows)
+        source[(packed_starts[segment] + within).take(rows)] = rows
+        prims = prims.take(source)
+        data = np.take(data, source, axis=0)
         m = len(parents)
         lefts[parents] = total + 2 * np.arange(m)
         starts = np.column_stack([starts[parents], starts[parents] + n_left[parents]]).ravel()
@@ -284,30 +293,33 @@ class BVH:
         their boxes' largest side within a factor of 4), which become the leaves: the build
         then costs a CLUSTER_SIZE-th, and the clusters are as tight as Morton leaves."""
         ids = np.asarray(ids)
-        pad = BOX_PADDING * (np.abs(low).max(axis=1) + np.abs(high).max(axis=1)
-                             + (high - low).max(axis=1))[:, None] + 1e-300
+        pad = BOX_PADDING * (_row_max(np.abs(low)) + _row_max(np.abs(high))
+                             + _row_max(high - low))[:, None] + 1e-300
         low, high = low - pad, high + pad
         if len(ids) < CLUSTER_FROM:
             tree = build_binary_sah(low, high)
             counts = tree.count[tree.left < 0]
             firsts = tree.start[tree.left < 0]
             return cls.collapse(tree, _leaf_table(ids[tree.order], firsts, counts))
-        size = np.log2(np.maximum((high - low).max(axis=1), 1e-300))
+        size = np.log2(np.maximum(_row_max(high - low), 1e-300))
         size_class = np.floor((size - size.min()) / 2).astype(np.intp)
         codes = morton_codes((low + high) / 2)
-        order = np.lexsort((codes, size_class))
-        lows, highs, size_class = low[order], high[order], size_class[order]
+        order = np.argsort(codes)
+        classes = np.minimum(size_class.take(order), np.iinfo(np.uint16).max)
+        order = order.take(np.argsort(classes.astype(np.uint16), kind="stable"))
+        lows, highs = np.take(low, order, axis=0), np.take(high, order, axis=0)
+        size_class = size_class.take(order)
         # Cluster boundaries: every CLUSTER_SIZE primitives within a run of one size class
         # in one Morton cell (cells of about CLUSTER_SIZE primitives: a cluster never
         # spans a jump of the curve).
-        run = np.flatnonzero(_cells(codes[order], CLUSTER_SIZE)
+        run = np.flatnonzero(_cells(codes.take(order), CLUSTER_SIZE)
                              | np.r_[True, size_class[1:] != size_class[:-1]])
         lengths = np.diff(np.r_[run, len(order)])
         cut = (rank_within_runs(lengths) % CLUSTER_SIZE) == 0
         firsts = np.flatnonzero(cut)
         counts = np.diff(np.r_[firsts, len(order)])
         c_low, c_high = _segment_boxes(lows, highs, firsts)
-        tree = build_binary_sah(c_low, c_high, max_leaf=1)
+        tree = build_binary_sah(c_low, c_high, max_leaf=1, median_up_to=CLUSTER_MEDIAN_UP_TO)
         leaves = _leaf_table(ids[order], firsts[tree.order], counts[tree.order])
         # Each binary leaf holds one cluster: the one at its position in the build's order.
         return cls.collapse(tree, leaves[tree.start[tree.left < 0]])
