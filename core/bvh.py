@@ -413,7 +413,8 @@ class BVH:
     def _traverse(self, first, stop, treelet, rows, t_min, t_max, visit, accept, found,
                   any_hit, stats):
         rays = np.arange(first, stop)
-        near, hit = self._slabs(self.root_box[:, None, None], rays, *rows, t_min, t_max)
+        # (A copy: the slab test works in place on boxes it is given for one ray.)
+        near, hit = self._slabs(self.root_box[:, None, None].copy(), rays, *rows, t_min, t_max)
         if stats is not None:
             stats.node_tests += len(rays)
         keep = hit[:, 0]

@@ -255,3 +255,24 @@ def test_tree_agrees_with_brute_force_on_mixed_sizes(monkeypatch, cluster_from):
         assert np.array_equal(p1, p2) and np.array_equal(t1, t2) and np.array_equal(o1, o2)
         assert (p1 >= 603).any() and ((p1 >= 0) & (p1 < 603)).any()
         assert o1.any() and not o1.all()
+
+
+def test_single_rays_leave_the_tree_as_it_was():
+    """A batch (or a last chunk) of one ray gets the same hits as the batch it came from, and
+    tracing it changes none of the tree's boxes (the slab test works in place on the boxes
+    it gathers, never on the tree's own)."""
+    scene, _ = _backdrop_and_ball()
+    ctx = make_context(scene, core.RenderSettings(), np.float64)
+    tree = ctx.geometry._tree
+    root, blocks = tree.root_box.copy(), tree.blocks.copy()
+    rng = np.random.default_rng(2)
+    origins, directions = _rays(rng, 40, np.float64)
+    origins = origins + np.array([[0], [3], [0]])
+    together = ctx.geometry.intersect(RayBatch(origins, directions), RayStats())[:2]
+    for ray in range(40):
+        one = RayBatch(origins[:, ray:ray + 1], directions[:, ray:ray + 1])
+        t, primitive, _ = ctx.geometry.intersect(one, RayStats())
+        assert t[0] == together[0][ray] and primitive[0] == together[1][ray]
+    assert np.array_equal(tree.root_box, root)
+    assert np.array_equal(tree.blocks, blocks, equal_nan=True)
+    assert (together[1] >= 0).any()
