@@ -77,7 +77,8 @@ def plan_lines(plan, quick: bool) -> list[str]:
         f"timed at {size(plan.per_pixel_article_size)} (article) and "
         f"{size(plan.per_pixel_spheres_size)} (spheres); sphere sets of "
         f"{', '.join(f'{c:,}' for c in plan.sphere_set_counts)} at "
-        f"{size(plan.sphere_set_size)}.",
+        f"{size(plan.sphere_set_size)} and {', '.join(f'{c:,}' for c in plan.sphere_set_hd[1])} "
+        f"at {size(plan.sphere_set_hd[0])}.",
         "Threads: Glint one per core; baseline and per-pixel program one (NumPy); Cycles all "
         "cores.  Memory: tracemalloc peak of the warm-up run (Python/NumPy contenders), "
         "resident-set growth of one render in a child process (Blender, marked RSS).",
@@ -126,7 +127,7 @@ def main(argv=None) -> int:
                                               "SphereSet")):
         rows = report.curve_table(bench, curve)
         if rows:
-            lines += [f"## {title}", ""] + rows + [""]
+            lines += [f"## {title}", ""] + rows + [""] + report.curve_exponents(bench, curve)
 
     os.makedirs(args.out, exist_ok=True)
     try:

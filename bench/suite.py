@@ -9,9 +9,10 @@ Workloads (``--only NAME``):
   precision 'auto' renders in float32.
 * aa-adaptive, aa-fixed16: the article's scene at 1920x1080 with anti-aliasing.
 * cost-pixels, cost-spheres: time and peak memory against pixel count (up to 7680x4320) and
-  against sphere count (1 to 10,000).
+  against sphere count (1 to 100,000 ``core.Sphere`` objects).
 * cost-sphere-sets: time and peak memory of Glint default/auto against sphere count when the
-  spheres are one ``core.SphereSet`` (1,000 to 1,000,000 at 640x360; ``bench.scenes``).
+  spheres are one ``core.SphereSet`` (1 to 1,000,000 at 640x360, and 1,000 and 1,000,000 at
+  1920x1080; ``bench.scenes``); the report fits each curve's exponent (time ~ count^k).
 * malloc: the article's scene at article-hd's size (article/float64, 1 thread) in child
   processes with glibc's defaults and with ``core.allocator``'s settings: minor page faults,
   system and user time per render (``bench.allocation``).
@@ -86,6 +87,7 @@ class Plan:
     sphere_counts: tuple
     sphere_set_size: Size          # the cost-sphere-sets curve's size and counts
     sphere_set_counts: tuple
+    sphere_set_hd: tuple           # (size, counts): the set curve's points at a large size
     baseline_max_elements: int     # rays x spheres of the baseline's one broadcast
     repeats: int
     budget: float                  # seconds of timed runs per contender after its warm-up
@@ -101,8 +103,10 @@ FULL = Plan(
     cycles16_max_pixels=1920 * 1080,
     pixel_curve=((160, 90), (320, 180), (640, 360), (1280, 720), (1920, 1080), (3840, 2160),
                  (7680, 4320)),
-    sphere_curve_size=(640, 360), sphere_counts=(1, 10, 100, 1000, 3000, 10000),
-    sphere_set_size=(640, 360), sphere_set_counts=(1_000, 100_000, 1_000_000),
+    sphere_curve_size=(640, 360), sphere_counts=(1, 10, 100, 1000, 3000, 10000, 100_000),
+    sphere_set_size=(640, 360),
+    sphere_set_counts=(1, 10, 100, 1_000, 10_000, 100_000, 1_000_000),
+    sphere_set_hd=((1920, 1080), (1_000, 1_000_000)),
     baseline_max_elements=40_000_000, repeats=3, budget=40.0)
 
 QUICK = Plan(
@@ -115,7 +119,8 @@ QUICK = Plan(
     cycles16_max_pixels=300 * 200,
     pixel_curve=((160, 90), (320, 180), (640, 360), (960, 540)),
     sphere_curve_size=(160, 90), sphere_counts=(1, 10, 100, 1000),
-    sphere_set_size=(160, 90), sphere_set_counts=(1_000, 100_000),
+    sphere_set_size=(160, 90), sphere_set_counts=(1, 100, 10_000, 100_000),
+    sphere_set_hd=((320, 180), (1_000, 100_000)),
     baseline_max_elements=5_000_000, repeats=1, budget=5.0)
 
 SCENE_WORKLOADS = ("article-small", "article-hd", "article-uhd", "spheres", "spheres-nofloor")
@@ -614,10 +619,13 @@ class Bench:
                                   scene, contender)
 
     def sphere_set_curve(self) -> None:
-        width, height = self.plan.sphere_set_size
-        for count in self.plan.sphere_set_counts:
+        """The set curve at its size, then its large-size points (a million spheres at
+        1920x1080 against a thousand)."""
+        hd_size, hd_counts = self.plan.sphere_set_hd
+        points = [(self.plan.sphere_set_size, count) for count in self.plan.sphere_set_counts]
+        for (width, height), count in points + [(hd_size, count) for count in hd_counts]:
             scene = random_sphere_set_scene(count, width, height)
-            log(f"cost-sphere-sets {count} spheres: {SET_CURVE_GLINT.label}")
+            log(f"cost-sphere-sets {count} spheres {width}x{height}: {SET_CURVE_GLINT.label}")
             self._curve_point("cost-sphere-sets", ("sphere-set", count, width, height), scene,
                               SET_CURVE_GLINT)
 
