@@ -488,6 +488,36 @@ def test_particles_instancing_a_sphere_become_a_sphere_set(scene):
     assert not exported.meshes  # the emitter is not rendered (show_instancer_for_render)
 
 
+def f12_scene():
+    """The scene Glint's render engine exports on F12 (a render depsgraph, not the
+    viewport's one ``export`` reads)."""
+    from glint.addon.engine.final import FrameRequest, requesting_frames
+
+    bpy.context.scene.render.engine = 'GLINT'
+    bpy.context.scene.render.resolution_x, bpy.context.scene.render.resolution_y = 32, 18
+    with requesting_frames(FrameRequest(fill_render_result=False)) as request:
+        bpy.ops.render.render()
+    ((job, _),) = request.frames
+    return job.scene
+
+
+def test_f12_draws_the_instances_of_an_instancer_not_rendered_itself(scene):
+    # A render depsgraph leaves a vertex instancer whose show_instancer_for_render is off out
+    # of depsgraph.objects, but yields its instances: they must be walked, not missed.
+    placement = bpy.data.meshes.new("placement")
+    placement.from_pydata([tuple(p) for p in grid_positions(8)], [], [])
+    parent = add_mesh("placement", placement)
+    parent.instance_type = 'VERTS'
+    parent.show_instancer_for_render = False
+    add_mesh("ball", uv_sphere_mesh("ball", 0.1, 64, 32)).parent = parent
+
+    (balls,) = f12_scene().sphere_sets
+
+    assert len(balls) == 8
+    np.testing.assert_allclose(np.sort(balls.centers, axis=0),
+                               np.sort(grid_positions(8), axis=0), atol=1e-6)
+
+
 def test_instances_of_a_hidden_instancer_are_not_exported(scene):
     instancer("hidden crowd", grid_positions(8), uv_sphere_mesh("ball", 0.1, 64, 32)) \
         .hide_render = True

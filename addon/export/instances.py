@@ -130,11 +130,21 @@ class InstanceExporter:
                                  f"{mesh.name} (instanced by {parent.name})")
         return True
 
-    def covers(self, objects) -> bool:
+    def covers(self, objects, layer_objects) -> bool:
         """True when no object but bulk-read instancers makes instances, so the depsgraph's
         instances need not be walked at all (``scene``): no collection, vertex, face or
         particle instancing, no curve-like object (its mesh comes as an instance), and every
-        Geometry Nodes object either makes no instances or is read in bulk."""
+        Geometry Nodes object either makes no instances or is read in bulk.
+
+        objects: ``depsgraph.objects``; layer_objects: the view layer's objects
+        (``depsgraph.view_layer_eval.objects``).  A render depsgraph leaves out of
+        ``depsgraph.objects`` an instancer not rendered itself (``show_instancer_for_render``
+        off: a particle emitter, a vertex or face instancer) while its instances render, so
+        when the view layer holds objects the depsgraph does not list, any instancer among
+        them means a walk."""
+        if len(layer_objects) != len(objects) and \
+                any(obj.is_instancer for obj in layer_objects):
+            return False
         for obj in objects:
             if obj.type in EVALUATED_AS_MESH or obj.is_instancer:
                 return False

@@ -185,7 +185,7 @@ def export_scene(depsgraph, camera_override=None, *, view_camera=None
     bulk = InstanceExporter(context, meshes, visible)
 
     objects = list(depsgraph.objects)
-    if bulk.covers(objects):
+    if bulk.covers(objects, depsgraph.view_layer_eval.objects):
         # Nothing but bulk-read instancers makes instances: the objects themselves suffice.
         for obj in objects:
             entry = _ObjectEntry(obj)
