@@ -512,10 +512,13 @@ def test_f12_draws_the_instances_of_an_instancer_not_rendered_itself(scene):
     add_mesh("ball", uv_sphere_mesh("ball", 0.1, 64, 32)).parent = parent
 
     (balls,) = f12_scene().sphere_sets
+    button, _ = export()  # the viewport's depsgraph, as the Render button exports
 
     assert len(balls) == 8
     np.testing.assert_allclose(np.sort(balls.centers, axis=0),
                                np.sort(grid_positions(8), axis=0), atol=1e-6)
+    # The viewport shows the instanced original too; renders (and the button) do not.
+    assert [len(s) for s in button.sphere_sets] == [8] and not button.spheres
 
 
 def test_instances_of_a_hidden_instancer_are_not_exported(scene):

@@ -69,6 +69,11 @@ def _collections_hidden_for_render() -> set:
     return hidden
 
 
+#: A child of an object instancing these is hidden in renders (Blender's depsgraph hides
+#: the original in render mode, ``deg_object_hide_original``), shown in viewports.
+INSTANCING_PARENTS = ('VERTS', 'FACES')
+
+
 class _RenderVisibility:
     """Whether an instance of a viewport depsgraph would be rendered (see module docstring)."""
 
@@ -100,6 +105,9 @@ class _RenderVisibility:
         if not instance.is_instance and original.is_instancer and \
                 not original.show_instancer_for_render:
             return False  # an emitter or instancer Blender does not render itself
+        if not instance.is_instance and original.parent is not None and \
+                original.parent.instance_type in INSTANCING_PARENTS:
+            return False  # instanced by its parent's vertices or faces: only the copies render
         parent = instance.parent if instance.is_instance else None
         return parent is None or not self._hidden(parent.original)
 
