@@ -462,6 +462,75 @@ def test_geometry_nodes_mesh_instances_share_one_triangle_mesh(scene, monkeypatc
     np.testing.assert_allclose(key(boxes.transforms), key(walked.transforms), atol=1e-5)
 
 
+def two_mesh_instancer(name, positions):
+    """Geometry Nodes instancing a fine UV sphere on even vertices and a cube on odd ones
+    (Pick Instance of a Geometry to Instance of both)."""
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata([tuple(p) for p in positions], [], [])
+    obj = add_mesh(name, mesh)
+
+    def build(tree, geometry_in, geometry_out):
+        nodes, links = tree.nodes, tree.links
+        sphere = nodes.new("GeometryNodeMeshUVSphere")
+        sphere.inputs["Segments"].default_value, sphere.inputs["Rings"].default_value = 64, 32
+        sphere.inputs["Radius"].default_value = 0.1
+        smooth = nodes.new("GeometryNodeSetShadeSmooth")
+        links.new(sphere.outputs[0], smooth.inputs[0])
+        cube = nodes.new("GeometryNodeMeshCube")
+        cube.inputs["Size"].default_value = (0.2, 0.2, 0.2)
+        both = nodes.new("GeometryNodeGeometryToInstance")
+        links.new(cube.outputs[0], both.inputs[0])  # a multi-input socket: last linked first
+        links.new(smooth.outputs[0], both.inputs[0])
+        parity = nodes.new("ShaderNodeMath")
+        parity.operation = 'MODULO'
+        parity.inputs[1].default_value = 2.0
+        links.new(nodes.new("GeometryNodeInputIndex").outputs[0], parity.inputs[0])
+        place = nodes.new("GeometryNodeInstanceOnPoints")
+        place.inputs["Pick Instance"].default_value = True
+        links.new(geometry_in, place.inputs["Points"])
+        links.new(both.outputs[0], place.inputs["Instance"])
+        links.new(parity.outputs[0], place.inputs["Instance Index"])
+        links.new(place.outputs[0], geometry_out)
+
+    geometry_nodes(obj, build)
+    return obj
+
+
+def test_walked_instances_equal_the_full_path_taken_for_every_instance(scene, monkeypatch):
+    # InstanceWalk works out how to export each (instancer, object, mesh) once and reuses
+    # it; the reference takes the full path (visibility, type, MeshUse) for every instance.
+    # Two meshes instanced through one temporary object (Geometry Nodes), vertex instances.
+    positions = grid_positions(12, 1.0)
+    two_mesh_instancer("mixed", positions)
+    placement = bpy.data.meshes.new("placement")
+    placement.from_pydata([tuple(p + 5.0) for p in grid_positions(5)], [], [])
+    parent = add_mesh("placement", placement)
+    parent.instance_type = 'VERTS'
+    add_mesh("ball", uv_sphere_mesh("ball", 0.1, 64, 32)).parent = parent
+
+    walked, _ = export_per_instance(monkeypatch)
+    with monkeypatch.context() as patch:
+        patch.setattr(instances_module.InstanceWalk, "_plan",
+                      lambda self, instance, obj: self.WHOLE)
+        reference, _ = export_per_instance(monkeypatch)
+
+    def shapes(exported):
+        return (sorted((len(s), tuple(np.sort(s.centers, axis=0).ravel().round(5)))
+                       for s in exported.sphere_sets),
+                sorted((m.name, len(m.triangles), tuple(np.sort(
+                    m.transforms.reshape(len(m.transforms), -1), axis=0).ravel().round(5)))
+                       for m in exported.meshes),
+                sorted(s.name for s in exported.spheres))
+
+    assert shapes(walked) == shapes(reference)
+    # Six spheres and six cubes from the instancer (not all of them the first mesh it
+    # met), five vertex instances; the instanced original ball is not drawn.
+    assert sorted(len(s) for s in walked.sphere_sets) == [5, 6]
+    (cubes,) = walked.meshes
+    assert len(cubes.transforms) == 6 and len(cubes.triangles) == 12
+    assert not walked.spheres
+
+
 def test_particles_instancing_a_sphere_become_a_sphere_set(scene):
     emitter = add_mesh("emitter", cube_mesh("emitter", 2.0))
     ball = bpy.data.objects.new("grain", uv_sphere_mesh("grain", 0.05, 64, 32))

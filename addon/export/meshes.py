@@ -114,6 +114,23 @@ class MeshUse:
         return matrices, names, forced
 
 
+@dataclass(frozen=True)
+class MeshPlacement:
+    """What every instance of one (original object, evaluated mesh, instancer) shares: the
+    instance walk (``instances.InstanceWalk``) works it out once and then only adds
+    matrices."""
+
+    use: MeshUse
+    forced: bool
+    name: Optional[str]           # the object's name for its own geometry, else None
+
+    def add(self, matrix_world) -> None:
+        use = self.use
+        use.matrices.append(bytes(matrix_world))
+        use.names.append(self.name)
+        use.forced.append(self.forced)
+
+
 def own_geometry(instance) -> bool:
     """Whether an instance is a scene object's own geometry (exported under its name) rather
     than one of many instances (exported within a set): a curve, text, surface or metaball
@@ -142,6 +159,11 @@ class MeshExporter:
         """One MESH instance of the depsgraph walk.  Per instance this costs two pointer
         reads, a dictionary look-up and a 64-byte copy of the matrix (matrix_world lives only
         until the walk moves on)."""
+        self.placement(instance).add(instance.matrix_world)
+
+    def placement(self, instance) -> "MeshPlacement":
+        """Where the instances of this instance's (original object, evaluated mesh) go: its
+        MeshUse, the object's glint_analytic_sphere and the name it is exported under."""
         obj = instance.object
         key = (obj.original.as_pointer(), obj.data.as_pointer())
         known = self.objects.get(key)
@@ -153,9 +175,7 @@ class MeshExporter:
                 use = self.uses[use_key] = MeshUse(instance_name(instance), obj.data, materials)
             known = self.objects[key] = (use, forces_sphere(obj))
         use, forced = known
-        use.matrices.append(bytes(instance.matrix_world))
-        use.names.append(obj.name if own_geometry(instance) else None)
-        use.forced.append(forced)
+        return MeshPlacement(use, forced, obj.name if own_geometry(instance) else None)
 
     def add_bulk(self, mesh, materials: tuple, matrices: np.ndarray, display_name: str) -> None:
         """Instances of one evaluated mesh given as (K, 4, 4) world matrices (instances read

@@ -44,7 +44,7 @@ from ..utils.colour import colour_from_blender
 from .camera import export_camera
 from .context import ExportContext, instance_name
 from .errors import ExportError
-from .instances import InstanceExporter
+from .instances import InstanceExporter, InstanceWalk
 from .lights import export_article_light
 from .lights import export_light as export_cycles_light
 from .meshes import EVALUATED_AS_MESH, MeshExporter
@@ -200,10 +200,14 @@ def export_scene(depsgraph, camera_override=None, *, view_camera=None
             bulk.export_instancer(entry, obj)
             _export_entry(context, meshes, entry, visible)
     else:
+        walk = InstanceWalk(bulk, meshes, visible,
+                            lambda entry: _export_entry(context, meshes, entry, visible),
+                            particles_matter=visible.filter)
         for instance in depsgraph.object_instances:
-            if instance.is_instance and bulk.handles(instance):
-                continue
-            _export_entry(context, meshes, instance, visible)
+            if instance.is_instance:
+                walk(instance)
+            else:
+                _export_entry(context, meshes, instance, visible)
     meshes.finish()
 
     world = depsgraph.scene_eval.world
