@@ -25,8 +25,9 @@ trace).  Glint: anti-aliasing off (one camera ray per pixel), its other settings
 defaults (default semantics, precision auto, depth 3, one thread per core); Cycles: CPU, 1
 sample, no adaptive sampling, no denoising, its default light paths.  Each is timed as
 ``bench.measure`` times every contender: one warm-up, then the median of up to ``--repeats``
-runs within ``--budget`` seconds.  Then Glint's share is split: ``export_scene`` on the
-evaluated (viewport) depsgraph, and ``core.render`` of what it exported, each timed once.
+runs within ``--budget`` seconds.  Glint's F12s are split as they run (``GlintSplit``):
+the export (``prepare_job``) and the core's render (``RenderJob.run``), medians over the
+timed runs; the rest is Blender's (depsgraph evaluation, the render result).
 
 Similarity: Pearson r of both images' RGB box-downsampled by 8 (as
 ``shared/tools/compare_with_cycles.py`` computes it; Cycles' 1-sample noise averages out
@@ -41,6 +42,7 @@ import argparse
 import json
 import math
 import os
+import statistics
 import sys
 import time
 from dataclasses import dataclass
@@ -363,14 +365,53 @@ def _drawn(scene) -> dict:
             "mesh_instances": sum(len(m.transforms) for m in scene.meshes)}
 
 
-def run_case(case: Case, repeats: int, budget: float, out: str) -> dict:
-    """Build, render with both engines, split Glint's time; the case's JSON result."""
+class GlintSplit:
+    """Times the two halves of Glint's F12 inside the renders being timed: the export
+    (``prepare_job``: ``export_scene`` and the settings) and the core's render
+    (``RenderJob.run``); the rest of an F12 is Blender's (the render depsgraph's evaluation,
+    the render result).  Wraps the engine's functions for this process only (a bench child),
+    and keeps what the last render drew, its warnings and its ray counts."""
+
+    def __init__(self):
+        from glint.addon.engine import final, job
+
+        self.export: list[float] = []
+        self.core: list[float] = []
+        self.last: dict = {}
+        prepare, run = final.prepare_job, job.RenderJob.run
+
+        def timed_prepare(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return prepare(*args, **kwargs)
+            finally:
+                self.export.append(time.perf_counter() - start)
+
+        def timed_run(render_job, *args, **kwargs):
+            start = time.perf_counter()
+            result = run(render_job, *args, **kwargs)
+            self.core.append(time.perf_counter() - start)
+            stats = result.stats
+            self.last = {"drawn": _drawn(render_job.scene), "warnings": render_job.warnings,
+                         "precision": result.precision,
+                         "phases": dict(stats.phases(), tiles=stats.seconds_tiles),
+                         "rays": {"camera": stats.camera_rays, "shadow": stats.shadow_rays,
+                                  "reflection": stats.reflection_rays,
+                                  "node_tests": stats.node_tests,
+                                  "sphere_tests": stats.sphere_tests,
+                                  "triangle_tests": stats.triangle_tests}}
+            return result
+
+        final.prepare_job = timed_prepare
+        job.RenderJob.run = timed_run
+
+
+def run_case(case: Case, repeats: int, budget: float, out: str, split: GlintSplit) -> dict:
+    """Build, render with both engines (Glint's F12 split by ``split``); the case's JSON
+    result."""
     import bpy
 
     from .measure import measure
-    from glint.addon.engine.job import render_settings
-    from glint.addon.export import export_scene
-    from glint.core import render
 
     start = time.perf_counter()
     build(case)
@@ -381,6 +422,8 @@ def run_case(case: Case, repeats: int, budget: float, out: str) -> dict:
     images = {}
     for engine in ("GLINT", "CYCLES"):
         scene.render.engine = engine
+        split.export.clear()
+        split.core.clear()
 
         def work():
             done = bpy.ops.render.render(scene=scene.name)
@@ -388,30 +431,19 @@ def run_case(case: Case, repeats: int, budget: float, out: str) -> dict:
                 raise RuntimeError(f"{engine} render of {case.spec} did not finish: {done}")
         warm_start = time.perf_counter()
         _, timing = measure(work, repeats, budget, trace_memory=False)
-        result[engine.lower()] = {"runs": timing.runs, "median_s": timing.median,
-                                  "first_s": time.perf_counter() - warm_start - sum(timing.runs)}
+        entry = result[engine.lower()] = {
+            "runs": timing.runs, "median_s": timing.median,
+            "first_s": time.perf_counter() - warm_start - sum(timing.runs)}
+        if engine == "GLINT":
+            if len(split.core) != 1 + len(timing.runs):
+                raise RuntimeError(f"Glint's F12 of {case.spec} did not render "
+                                   f"({len(split.core)} core renders for "
+                                   f"{1 + len(timing.runs)} F12s)")
+            timed = slice(1, None)  # the warm-up's halves are left out, as its time is
+            entry["export_s"] = statistics.median(split.export[timed])
+            entry["core_s"] = statistics.median(split.core[timed])
+            entry.update(split.last)
         images[engine] = _render_image(engine, out)
-
-    # Glint's share, split: the export of the evaluated scene, then the core's render.
-    graph = bpy.context.evaluated_depsgraph_get()
-    start = time.perf_counter()
-    exported, warnings = export_scene(graph)
-    result["glint"]["export_s"] = time.perf_counter() - start
-    result["glint"]["drawn"] = _drawn(exported)
-    result["glint"]["warnings"] = warnings
-    settings = render_settings(scene.glint, scene.render)
-    start = time.perf_counter()
-    rendered = render(exported, settings)
-    result["glint"]["core_s"] = time.perf_counter() - start
-    result["glint"]["precision"] = rendered.precision
-    stats = rendered.stats
-    result["glint"]["phases"] = dict(stats.phases(), tiles=stats.seconds_tiles)
-    result["glint"]["rays"] = {"camera": stats.camera_rays, "shadow": stats.shadow_rays,
-                               "reflection": stats.reflection_rays,
-                               "node_tests": stats.node_tests,
-                               "sphere_tests": stats.sphere_tests,
-                               "triangle_tests": stats.triangle_tests}
-    del rendered, exported
 
     result["similarity"] = similarity(images["GLINT"], images["CYCLES"])
     picture = os.path.join(out, f"scale-{case.kind}-{case.count}.png")
@@ -430,10 +462,11 @@ def _child(specs, repeats: int, budget: float, out: str) -> None:
     with quiet_output():
         render_script.register_glint(render_script.import_glint())
     os.makedirs(out, exist_ok=True)
+    split = GlintSplit()
     for spec in specs:
         case = Case.parse(spec)
         with quiet_output():
-            result = run_case(case, repeats, budget, out)
+            result = run_case(case, repeats, budget, out, split)
         print(json.dumps(result), flush=True)
 
 

@@ -767,8 +767,8 @@ def scale_rows(name: str, result: dict) -> list:
     shapes = ", ".join(f"{drawn[key]:,} {label}" for key, label in
                        (("spheres", "spheres"), ("triangles", "triangles"))
                        if drawn[key]) or "nothing"
-    glint_notes = [f"export_scene {glint['export_s']:.3g} s + core.render "
-                   f"{glint['core_s']:.3g} s (timed once more on their own)",
+    glint_notes = [f"export {glint['export_s']:.3g} s + core render {glint['core_s']:.3g} s "
+                   f"(within the F12; the rest is Blender's)",
                    f"drew {shapes}", _largest_phase(glint),
                    f"first render {glint['first_s']:.3g} s",
                    f"scene built in bpy in {result['build_s']:.3g} s"]
