@@ -26,7 +26,7 @@ from typing import Optional
 
 import numpy as np
 
-from .geometry import read_array
+from .geometry import STORED_INT, read_array
 from .meshes import EVALUATED_AS_MESH
 
 
@@ -159,7 +159,7 @@ class InstanceExporter:
         attribute: Optional[object] = points.attributes.get(".reference_index")
         if attribute is None:
             return np.zeros(count, np.int64)
-        return read_array(attribute.data, "value", 1, np.int64)
+        return read_array(attribute.data, "value", 1, np.int64, stored=STORED_INT)
 
 
 class InstanceWalk:

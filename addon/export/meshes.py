@@ -36,8 +36,9 @@ import numpy as np
 from ...core import SceneError, Sphere, SphereSet, TriangleMesh
 from .context import instance_name
 from .errors import ExportError
-from .geometry import (ANALYTIC_SPHERE_PROPERTY, SphereFit, degenerate_transforms, mesh_sphere,
-                       read_array, sphere_instances)
+from .geometry import (ANALYTIC_SPHERE_PROPERTY, STORED_FLOAT, STORED_INT, SphereFit,
+                       corner_values, degenerate_transforms, mesh_sphere, read_array,
+                       sphere_instances)
 
 
 #: Object types whose evaluated mesh the depsgraph yields as a MESH instance of the object
@@ -55,25 +56,41 @@ class MeshArrays:
     slots: np.ndarray                     # (T,) int64 material slot of each triangle
 
 
+def face_slots(mesh, faces: np.ndarray) -> np.ndarray:
+    """(T,) int64 the material slot of each of ``faces`` (face indices): the mesh's
+    ``material_index`` attribute (absent when every face uses the first slot)."""
+    attribute = mesh.attributes.get("material_index")
+    if attribute is None or attribute.domain != 'FACE':
+        return np.zeros(len(faces), np.int64)
+    return read_array(attribute.data, "value", 1, np.int64, stored=STORED_INT)[faces]
+
+
 def read_mesh(mesh) -> MeshArrays:
-    """The triangles of an evaluated bpy Mesh (module docstring), with ``foreach_get``."""
-    vertices = read_array(mesh.vertices, "co", 3)
+    """The triangles of an evaluated bpy Mesh (module docstring), with ``foreach_get``:
+    each triangle's corners (``loop_triangles.loops``, the one read Blender does not serve
+    in bulk: 0.55 s for a million triangles), its vertices through the ``.corner_vert``
+    attribute and its face (``loop_triangle_polygons``) and slot through the face's
+    ``material_index``, so the same values as ``loop_triangles.vertices`` and
+    ``.material_index`` without their per-element reads (0.65 and 0.5 s more)."""
+    vertices = read_array(mesh.vertices, "co", 3, stored=STORED_FLOAT)
     triangulation = mesh.loop_triangles
-    triangles = read_array(triangulation, "vertices", 3, np.int64)
-    slots = read_array(triangulation, "material_index", 1, np.int64)
+    loops = read_array(triangulation, "loops", 3, np.int64, stored=STORED_INT)
+    triangles = corner_values(mesh, ".corner_vert", mesh.loops, "vertex_index")[loops]
+    faces = read_array(mesh.loop_triangle_polygons, "value", 1, np.int64, stored=STORED_INT)
+    slots = face_slots(mesh, faces)
     corners = vertices[triangles]
     area_vectors = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    keep = (area_vectors * area_vectors).sum(axis=1) > 0
+    keep = area_vectors.any(axis=1)
     normals = None
     if mesh.normals_domain != 'FACE':
-        loops = read_array(triangulation, "loops", 3, np.int64)
-        corner_normals = read_array(mesh.corner_normals, "vector", 3)
-        normals = corner_normals[loops]
+        # Gathered in Blender's float32 and widened after: half the memory traffic.
+        corner_normals = read_array(mesh.corner_normals, "vector", 3, STORED_FLOAT)
+        normals = corner_normals[loops].astype(np.float64)
         # A corner whose normal Blender left zero (a degenerate neighbourhood) shades flat.
-        zero = (normals * normals).sum(axis=2) == 0
+        zero = ~normals.any(axis=2)
         if zero.any():
-            faces = np.repeat(area_vectors[:, None, :], 3, axis=1)
-            normals[zero] = faces[zero]
+            flat = np.repeat(area_vectors[:, None, :], 3, axis=1)
+            normals[zero] = flat[zero]
     if not keep.all():
         triangles, slots = triangles[keep], slots[keep]
         normals = normals[keep] if normals is not None else None
