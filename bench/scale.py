@@ -25,7 +25,8 @@ trace).  Glint: anti-aliasing off (one camera ray per pixel), its other settings
 defaults (default semantics, precision auto, depth 3, one thread per core); Cycles: CPU, 1
 sample, no adaptive sampling, no denoising, its default light paths.  Each is timed as
 ``bench.measure`` times every contender: one warm-up, then the median of up to ``--repeats``
-runs within ``--budget`` seconds.  Glint's F12s are split as they run (``GlintSplit``):
+runs within ``--budget`` seconds, or the first run alone when it took longer than the
+budget (``measure_render``).  Glint's F12s are split as they run (``GlintSplit``):
 the export (``prepare_job``) and the core's render (``RenderJob.run``), medians over the
 timed runs; the rest is Blender's (depsgraph evaluation, the render result).
 
@@ -39,6 +40,7 @@ over the 8 x 8 boxes), the ratio of their mean brightness, and the pixels whose 
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import math
 import os
@@ -406,12 +408,26 @@ class GlintSplit:
         job.RenderJob.run = timed_run
 
 
+def measure_render(work, repeats: int, budget: float) -> tuple[list, float]:
+    """(timed runs, first run's seconds): as ``bench.measure`` times every contender (a
+    warm-up, then up to ``repeats`` runs within ``budget`` seconds), except that a first
+    render longer than ``budget`` is the one timed run: a render of minutes has nothing to
+    warm up (no kernels to load) and a second one would double the bench's time."""
+    from .measure import run_count, timed_runs
+
+    gc.collect()
+    start = time.perf_counter()
+    work()
+    first = time.perf_counter() - start
+    if first > budget:
+        return [first], first
+    return timed_runs(work, run_count(repeats, first, budget)), first
+
+
 def run_case(case: Case, repeats: int, budget: float, out: str, split: GlintSplit) -> dict:
     """Build, render with both engines (Glint's F12 split by ``split``); the case's JSON
     result."""
     import bpy
-
-    from .measure import measure
 
     start = time.perf_counter()
     build(case)
@@ -429,17 +445,16 @@ def run_case(case: Case, repeats: int, budget: float, out: str, split: GlintSpli
             done = bpy.ops.render.render(scene=scene.name)
             if 'FINISHED' not in done:
                 raise RuntimeError(f"{engine} render of {case.spec} did not finish: {done}")
-        warm_start = time.perf_counter()
-        _, timing = measure(work, repeats, budget, trace_memory=False)
-        entry = result[engine.lower()] = {
-            "runs": timing.runs, "median_s": timing.median,
-            "first_s": time.perf_counter() - warm_start - sum(timing.runs)}
+        runs, first = measure_render(work, repeats, budget)
+        entry = result[engine.lower()] = {"runs": runs, "median_s": statistics.median(runs),
+                                          "first_s": first, "first_counted": runs == [first]}
         if engine == "GLINT":
-            if len(split.core) != 1 + len(timing.runs):
+            renders = len(runs) + (0 if entry["first_counted"] else 1)
+            if len(split.core) != renders:
                 raise RuntimeError(f"Glint's F12 of {case.spec} did not render "
-                                   f"({len(split.core)} core renders for "
-                                   f"{1 + len(timing.runs)} F12s)")
-            timed = slice(1, None)  # the warm-up's halves are left out, as its time is
+                                   f"({len(split.core)} core renders for {renders} F12s)")
+            # The warm-up's halves are left out, as its time is (unless it is the run).
+            timed = slice(len(split.core) - len(runs), None)
             entry["export_s"] = statistics.median(split.export[timed])
             entry["core_s"] = statistics.median(split.core[timed])
             entry.update(split.last)
