@@ -590,6 +590,28 @@ def test_f12_draws_the_instances_of_an_instancer_not_rendered_itself(scene):
     assert [len(s) for s in button.sphere_sets] == [8] and not button.spheres
 
 
+def test_many_objects_sharing_a_sphere_mesh_become_one_set_of_the_same_spheres(scene,
+                                                                                monkeypatch):
+    from glint.addon.export import meshes as meshes_module
+
+    ball = uv_sphere_mesh("ball", 0.1, 64, 32)
+    places = [(0.0, 0.0, 0.0), (0.5, 0.0, 0.0), (0.0, 0.5, 0.2)]
+    for index, place in enumerate(places):
+        add_mesh(f"copy {index}", ball, place)
+
+    named, _ = export()
+    monkeypatch.setattr(meshes_module, "MAX_NAMED_SPHERES", 2)
+    grouped, _ = export()
+
+    assert sorted(s.name for s in named.spheres) == ["copy 0", "copy 1", "copy 2"]
+    assert not named.sphere_sets
+    (spheres,) = grouped.sphere_sets
+    assert not grouped.spheres and spheres.name == "copy 0 (3 instances)"
+    np.testing.assert_allclose(np.sort(spheres.centers, axis=0),
+                               np.sort([s.center for s in named.spheres], axis=0), atol=1e-7)
+    np.testing.assert_allclose(spheres.radii, [s.radius for s in named.spheres])
+
+
 def test_instances_of_a_hidden_instancer_are_not_exported(scene):
     instancer("hidden crowd", grid_positions(8), uv_sphere_mesh("ball", 0.1, 64, 32)) \
         .hide_render = True

@@ -46,6 +46,14 @@ from .geometry import (ANALYTIC_SPHERE_PROPERTY, STORED_FLOAT, STORED_INT, Spher
 EVALUATED_AS_MESH = {'CURVE', 'FONT', 'SURFACE', 'META'}
 
 
+#: Objects drawing one sphere-like mesh with the same materials beyond which their spheres
+#: are one SphereSet (named after the first object, whose Object Index it gets, as a
+#: triangle mesh shared by several objects does) instead of a named ``core.Sphere`` each:
+#: each Sphere checks its material again, 80 microseconds apiece (100,000 linked
+#: duplicates: 8 s of a 9 s export).
+MAX_NAMED_SPHERES = 1000
+
+
 @dataclass(frozen=True)
 class MeshArrays:
     """An evaluated mesh's triangles as Glint draws them (object space)."""
@@ -245,6 +253,8 @@ class MeshExporter:
     def _spheres(self, use: MeshUse, names, placed, material) -> None:
         context = self.context
         single = np.array([name is not None for name in names], bool)
+        if single.sum() > MAX_NAMED_SPHERES:
+            single[:] = False  # many objects sharing a mesh: one set, like a shared mesh
         try:
             for name, center, radius in zip(names[single], placed.centers[single],
                                             placed.radii[single]):

@@ -37,6 +37,8 @@ are each named in one warning.
 
 from __future__ import annotations
 
+from typing import Optional
+
 import bpy
 
 from ...core import Scene, SceneError
@@ -74,6 +76,21 @@ def _collections_hidden_for_render() -> set:
 INSTANCING_PARENTS = ('VERTS', 'FACES')
 
 
+def _collection_members(hidden_names: set) -> tuple[set, set]:
+    """(pointers of the objects directly in a collection named in ``hidden_names``, those
+    directly in any other collection or a scene's own collection), in one pass over the
+    collections.  ``Object.users_collection`` answers the same for one object by walking
+    every collection (a Python loop in Blender's ``_bpy_types``): asked once per object, the
+    viewport's export of 30,000 objects took 67 s in it."""
+    hidden, shown = set(), set()
+    for collection in bpy.data.collections:
+        members = hidden if collection.name in hidden_names else shown
+        members.update(obj.as_pointer() for obj in collection.objects)
+    for scene in bpy.data.scenes:
+        shown.update(obj.as_pointer() for obj in scene.collection.objects)
+    return hidden, shown
+
+
 class _RenderVisibility:
     """Whether an instance of a viewport depsgraph would be rendered (see module docstring)."""
 
@@ -81,16 +98,25 @@ class _RenderVisibility:
         self.filter = depsgraph.mode != 'RENDER'
         self.hidden_collections = _collections_hidden_for_render() if self.filter else set()
         self.hidden_objects: dict[int, bool] = {}  # original object pointer -> hidden
+        self._members: Optional[tuple[set, set]] = None
 
     def _hidden(self, obj) -> bool:
-        # Once per object: users_collection searches every collection.
+        """Hidden for render itself, or every collection holding it is (or is inside) one
+        hidden for render; once per object."""
         key = obj.as_pointer()
         hidden = self.hidden_objects.get(key)
         if hidden is None:
-            collections = obj.users_collection
-            hidden = self.hidden_objects[key] = obj.hide_render or bool(collections) and all(
-                collection.name in self.hidden_collections for collection in collections)
+            hidden = self.hidden_objects[key] = obj.hide_render or \
+                self._only_in_hidden_collections(key)
         return hidden
+
+    def _only_in_hidden_collections(self, key: int) -> bool:
+        if not self.hidden_collections:
+            return False
+        if self._members is None:
+            self._members = _collection_members(self.hidden_collections)
+        in_hidden, in_shown = self._members
+        return key in in_hidden and key not in in_shown
 
     def __call__(self, instance) -> bool:
         if not self.filter:
