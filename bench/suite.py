@@ -739,11 +739,11 @@ class Bench:
             self.rows.extend(scale_rows(name, result))
 
     def scale_export_workload(self, name: str) -> None:
-        """export_scene alone on a million instances (``bench.export_scale``): in bulk from
-        Geometry Nodes and walked one by one."""
+        """export_scene alone on a million points and instances (``bench.export_scale``'s
+        cases: in bulk from Geometry Nodes, and walked one by one)."""
         from . import export_scale
 
-        for case in ("sphere instances", "sphere instances, walked", "points"):
+        for case in export_scale.CASES:
             for count in self.plan.scale_export_counts:
                 log(f"export of {count:,} {case}")
                 result = export_scale.run_child(case, count, self.plan.repeats)
