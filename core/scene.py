@@ -182,6 +182,15 @@ class SurfaceMaterial:
     """A physically based surface as a sum of lobes, in Cycles' units (scene-linear colours).
 
     diffuse: Lambertian albedo a (radiance a E / pi under irradiance E).
+    layer, layer_f0: the share (in [0, 1]) of ``diffuse`` that lies under a dielectric
+        specular layer (a Principled BSDF's: 1; a Diffuse BSDF's: 0) and that layer's
+        reflectance at normal incidence (its f90 is 1, as in Cycles).  Cycles' Principled
+        BSDF weights its diffuse by 1 - A(N.V), A the specular layer's directional albedo
+        (``closure_layering_weight``), so seen at a grazing angle it shows less diffuse and
+        more gloss.  ``diffuse`` holds that lobe as base x (1 - f0) (the normal-incidence
+        value, which view-independent code uses); ``core.bsdf.diffuse_seen`` turns the
+        layered share into base x (1 - A(N.V)).  layer_f0 = 0: no layer (Cycles makes no
+        specular closure for a Principled BSDF whose f0 is 0).
     specular_f0, specular_f90: the glossy lobe's reflectance at normal and grazing incidence;
         Schlick's curve F(c) = f0 + (f90 - f0) (1 - c)^5 between them.  A Glossy BSDF of colour
         c is f0 = f90 = c; Principled's dielectric layer f0 = ((ior - 1) / (ior + 1))^2.
@@ -208,6 +217,8 @@ class SurfaceMaterial:
     """
 
     diffuse: Vec3 = (0.8, 0.8, 0.8)
+    layer: float = 0.0
+    layer_f0: float = 0.0
     specular_f0: Vec3 = (0.0, 0.0, 0.0)
     specular_f90: Vec3 = (0.0, 0.0, 0.0)
     roughness: float = 0.5
@@ -228,6 +239,8 @@ class SurfaceMaterial:
                      "transparency", "translucency"):
             _set(self, name, _colour(f"{where}.{name}", getattr(self, name)))
         _set(self, "roughness", _fraction(f"{where}.roughness", self.roughness))
+        _set(self, "layer", _fraction(f"{where}.layer", self.layer))
+        _set(self, "layer_f0", _fraction(f"{where}.layer_f0", self.layer_f0))
         _set(self, "transmission_fresnel",
              _fraction(f"{where}.transmission_fresnel", self.transmission_fresnel))
         _set(self, "ior", _positive(f"{where}.ior", self.ior))
@@ -266,6 +279,8 @@ class SurfaceMaterial:
         dielectric = (1.0 - m) * a
         return cls(
             diffuse=tuple(dielectric * (1.0 - t) * (1.0 - f0_dielectric) * c for c in base),
+            layer=1.0 if f0_dielectric > 0 else 0.0,
+            layer_f0=min(1.0, f0_dielectric * max(tint)),
             specular_f0=tuple(dielectric * f0_dielectric * k + m * a * c
                               for c, k in zip(base, tint)),
             specular_f90=tuple(dielectric * min(1.0, 2.0 * level) * k + m * a

@@ -188,11 +188,14 @@ class Lobes:
     transparency: np.ndarray
     translucency: np.ndarray
     holdout: float
+    layered_sum: float         # sum of the layered diffuse lobes' strengths (mean colour)
+    layer_f0_sum: float        # sum of strength x their specular layer's f0
 
     @classmethod
     def none(cls) -> "Lobes":
         zero = np.zeros(3)
-        return cls(zero, zero, zero, 0.0, 0.0, zero, 0.0, 0.0, 0.0, zero, zero, zero, 0.0)
+        return cls(zero, zero, zero, 0.0, 0.0, zero, 0.0, 0.0, 0.0, zero, zero, zero, 0.0,
+                   0.0, 0.0)
 
     def scaled(self, k: float) -> "Lobes":
         return Lobes(*(value * k for value in vars(self).values()))
@@ -223,8 +226,12 @@ class Lobes:
         ior = self.ior_sum / self.refraction_weight if self.refraction_weight > 0 else 1.5
         fresnel = (self.fresnel_sum / self.refraction_weight if self.refraction_weight > 0
                    else 1.0)
+        diffuse_weight = float(np.mean(np.maximum(self.diffuse, 0.0)))
+        layer = self.layered_sum / diffuse_weight if diffuse_weight > 0 else 0.0
+        layer_f0 = self.layer_f0_sum / self.layered_sum if self.layered_sum > 0 else 0.0
         return SurfaceMaterial(
-            diffuse=positive(self.diffuse), specular_f0=positive(self.f0),
+            diffuse=positive(self.diffuse), layer=float(np.clip(layer, 0, 1)),
+            layer_f0=float(np.clip(layer_f0, 0, 1)), specular_f0=positive(self.f0),
             specular_f90=positive(self.f90), roughness=float(np.clip(roughness, 0, 1)),
             transmission=positive(self.transmission),
             transmission_fresnel=float(np.clip(fresnel, 0, 1)), ior=max(float(ior), 1e-3),
@@ -249,6 +256,9 @@ def _principled_lobes(values: dict) -> Lobes:
                          dielectric * min(1.0, 2.0 * level) * tint + m * a * np.ones(3),
                          roughness)
     lobes.diffuse = dielectric * (1.0 - t) * (1.0 - f0_dielectric) * base
+    if f0_dielectric > 0:  # the diffuse lies under the specular layer (``SurfaceMaterial``)
+        lobes.layered_sum = float(np.mean(lobes.diffuse))
+        lobes.layer_f0_sum = lobes.layered_sum * min(1.0, f0_dielectric * float(np.max(tint)))
     if t > 0:
         refraction = Lobes.refraction(dielectric * t * base, ior, 1.0)
         lobes = lobes + refraction
