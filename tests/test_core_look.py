@@ -163,13 +163,18 @@ def test_world_light_is_occluded_by_other_spheres_unless_world_samples_is_0():
 
 
 def test_the_tabulated_ggx_albedo_is_its_quadrature():
-    from core.bsdf import (_ALBEDO_COSINES, _ALBEDO_TABLE, _SCHLICK_TABLE,
-                           directional_albedo_quadrature)
+    from core.bsdf import (_ALBEDO_COSINES, _ALBEDO_TABLE, _SCHLICK_TABLE, _schlick_rise,
+                           dielectric_rise, dielectric_table, directional_albedo_quadrature)
 
     np.testing.assert_allclose(_ALBEDO_TABLE, directional_albedo_quadrature(), atol=6e-6)
     # alpha = 1 at normal incidence: 1 - ln 2, the closed form of the single-scattering lobe.
     assert _ALBEDO_TABLE[-1, -1] == pytest.approx(1 - math.log(2), abs=2e-3)
-    np.testing.assert_allclose(_SCHLICK_TABLE, directional_albedo_quadrature(5), atol=6e-6)
+    np.testing.assert_allclose(_SCHLICK_TABLE, directional_albedo_quadrature(_schlick_rise),
+                               atol=6e-6)
+    np.testing.assert_allclose(dielectric_table(1.5), directional_albedo_quadrature(
+        lambda c: dielectric_rise(c, 1.5)), atol=6e-6)
+    # Another index is integrated on first use; water's curve rises less than glass's.
+    assert (dielectric_table(1.33) < dielectric_table(1.5))[:, :-1].all()
     # A near-mirror (alpha 1e-3) reflects V about N itself: (1 - N.V)^5 of E.
     np.testing.assert_allclose(_SCHLICK_TABLE[0], (1 - _ALBEDO_COSINES) ** 5 * _ALBEDO_TABLE[0],
                                atol=1e-3)
