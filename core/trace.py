@@ -102,6 +102,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
     cutoff = ctx.settings.contribution_cutoff
 
     path = np.arange(n)
+    shares = None if ctx.article else rays.shares   # the article's lights are points
     unique = True   # every path index appears once (until rays split)
     # (n,) in article semantics and for the article's materials alone; (3, n) colour weights
     # for Blender's look.
@@ -135,8 +136,9 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
             primary.t[path], primary.normal[:, path] = hits.t, normals
             primary.primitive[path], primary.material[path] = primitive, hits.material
         exclude = None if ctx.article else geometry.exclusions(primitive, front)
-        illumination, goes_on, shadow_code = shade(ctx, points, normals, directions,
-                                                   hits.material, exclude, stats)
+        illumination, goes_on, shadow_code = shade(
+            ctx, points, normals, directions, hits.material, exclude, stats,
+            shares=None if shares is None else shares.take(path))
         illumination *= weight
         _accumulate(colour, path, illumination, unique, depth == 0 and len(path) == n)
         if signature is not None:
