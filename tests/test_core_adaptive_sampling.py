@@ -147,3 +147,24 @@ def test_soft_lights_with_adaptive_aa_do_not_depend_on_tiles_or_threads():
     for first in (0, 3):
         for other in (1, 2):
             assert np.array_equal(images[first], images[first + other])
+
+
+def test_a_colour_step_is_an_edge_and_a_gradient_is_not():
+    from core.render import EDGE_CONTRAST, _edges
+
+    width = 12
+    ramp = np.linspace(0.2, 0.8, width)                  # 0.055 a pixel: 14 8-bit levels
+    display = np.zeros((3, width, 4))
+    display[..., :3] = ramp[None, :, None]
+    display[..., 3] = 1
+    signature = np.tile(np.arange(width, dtype=np.uint64), (3, 1))  # every pixel a facet
+    assert not _edges(signature, display).any()
+    stepped = display.copy()
+    stepped[:, 6:, 0] += 3 * EDGE_CONTRAST               # a step between columns 5 and 6
+    edge = _edges(signature, stepped)
+    assert edge[:, 5:7].all() and edge.sum() == 6
+    line = display.copy()
+    line[:, 3, 3] = 0                                     # a one-pixel gap in alpha
+    assert _edges(signature, line)[:, 2:5].all()
+    # A step the signatures do not see (one surface) is left alone.
+    assert not _edges(np.zeros((3, width), np.uint64), stepped).any()
