@@ -113,6 +113,7 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
     ``Aggregate.exclusions``), None in article semantics.  shares: which share of each soft
     light's samples (and of the world's directions) each point traces, for points reached by
     anti-aliasing samples (``core.lights.SampleShares``, m slots); None: all of them.
+    (Light through translucent surfaces: ``shade_translucent``.)
     """
     if shares is not None and shares.count == 1:
         shares = None
@@ -130,6 +131,42 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
                                                             shares, stats)
         colour += blender_colour
     return colour, goes_on, shadow_code
+
+
+@timed("seconds_shading")
+def shade_translucent(ctx: TraceContext, points, normals, directions, materials,
+                      exclude_back, stats: RayStats, *, shares: SampleShares | None = None):
+    """(radiance (3, m), shadow_code (m,) uint64) the translucent points pass through from
+    their back hemisphere (default semantics, ``ctx.look.translucent`` set; arguments as for
+    ``shade``, with exclude_back the primitive each segment reaching a point through its
+    surface ignores, ``Aggregate.exclusions`` of the other side; shadow_code: which lights
+    each point sees through its surface, 0 for points that are not translucent): the
+    Blender lights on the other side (shadow segments crossing the surface: a closed
+    sphere's own far side blocks them, as in Cycles' direct light) and the world seen
+    there, each times translucency / pi (``bsdf.translucent_view``)."""
+    if shares is not None and shares.count == 1:
+        shares = None
+    view = ctx.look.translucent
+    colour = np.zeros_like(points)
+    shadow_code = np.zeros(points.shape[1], np.uint64)
+    chosen = np.flatnonzero(view.diffuse[:, materials].max(axis=0) > 0)
+    if len(chosen) == 0:
+        return colour, shadow_code
+    where, back = take(points, chosen), -take(normals, chosen)
+    material, exclude = materials[chosen], exclude_back[chosen]
+    shares = None if shares is None else shares.take(chosen)
+    light, shadow_code[chosen] = _shade_blender_lights(
+        ctx, where, back, take(directions, chosen), material, exclude,
+        np.zeros(len(chosen), np.uint64), shares, stats, surfaces=view, world_terms=False)
+    world = _column(ctx.ambient, points.dtype)
+    if world.any():
+        seen = 1.0
+        if ctx.settings.world_samples:
+            seen = 1 - _world_occlusion(ctx, where, back, material, ray_offsets(where), exclude,
+                                        shares, stats)
+        light += take(view.diffuse, material) * world * seen
+    colour[:, chosen] = light
+    return colour, shadow_code
 
 
 def _column(values, dtype):
@@ -292,7 +329,7 @@ def _sphere_sample_weights(light, towards):
 
 
 def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, shadow_code,
-                          shares, stats):
+                          shares, stats, surfaces=None, world_terms=True):
     """(radiance (3, m), shadow_code) from Blender's lights (``core.lights``) and the world's
     glossy, emitted and occluded terms (``core.bsdf``) at m points, default semantics.
 
@@ -300,13 +337,14 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
     Each light appends a digit to ``shadow_code`` for adaptive anti-aliasing: not reached,
     blocked, partly visible or visible.  (Not quarters of visibility as for the article's
     lights: an area light's penumbra changes smoothly from pixel to pixel, and every pixel of
-    it would count as an edge.)"""
+    it would count as an edge.)  surfaces: the lobes to shade with (default: the look's);
+    world_terms: False leaves the world's terms out."""
     look = ctx.look
-    surfaces = look.surfaces
+    surfaces = look.surfaces if surfaces is None else surfaces
     dtype = points.dtype
     m = points.shape[1]
     to_view = -directions
-    world = _column(ctx.ambient, dtype)
+    world = _column(ctx.ambient if world_terms else np.zeros(3), dtype)
     colour = np.zeros((3, m), dtype)
     colour += environment(surfaces, materials, normals, to_view, world)
     offset = ray_offsets(points)
