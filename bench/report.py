@@ -83,7 +83,7 @@ def table(bench: Bench) -> list[str]:
 @dataclass
 class Target:
     name: str
-    status: str        # PASS | FAIL | NOT MEASURED
+    status: str        # PASS | FAIL | NOT MEASURED | MEASURED (no target figure)
     details: str
 
     def line(self) -> str:
@@ -226,9 +226,79 @@ def target_float32(bench: Bench) -> Target:
                   f"reference: max {f32.max_error:.2g}, RMS {f32.rms_error:.2g} (8-bit steps)")
 
 
+#: Issue 9's scale targets: Glint's F12 within this factor of Cycles' on a million
+#: point-cloud spheres, and faster than Cycles on 100,000 instanced spheres.
+POINTS_SLOWDOWN, INSTANCES_SLOWDOWN = 5.0, 1.0
+
+
+def _largest(bench: Bench, kinds) -> list[dict]:
+    """The ``bench.scale`` results of these kinds at the largest count each was run at."""
+    chosen = []
+    for kind in kinds:
+        results = [r for r in bench.scale_results if r["kind"] == kind]
+        if results:
+            chosen.append(max(results, key=lambda r: r["count"]))
+    return chosen
+
+
+def _versus_cycles(result: dict) -> str:
+    glint, cycles, alike = result["glint"], result["cycles"], result["similarity"]
+    r = "—" if alike["r"] is None else f"{alike['r']:.3f}"
+    return (f"{result['title']}: Glint {glint['median_s']:.3g} s (export "
+            f"{glint['export_s']:.3g} s, core {glint['core_s']:.3g} s) vs Cycles "
+            f"{cycles['median_s']:.3g} s = {glint['median_s'] / cycles['median_s']:.2f}x "
+            f"Cycles' time; similarity r {r}")
+
+
+def target_scale_points(bench: Bench) -> Target:
+    name = (f"(scale 1) 1,000,000 point-cloud spheres at 640x360: Glint's F12 (export "
+            f"included) within {POINTS_SLOWDOWN:g}x Cycles' (1 spp, whole render)")
+    results = _largest(bench, ("points",))
+    if not results:
+        return _missing(name, "the scale-points workload")
+    (result,) = results
+    ratio = result["glint"]["median_s"] / result["cycles"]["median_s"]
+    partial = "" if result["count"] >= 1_000_000 else " (fewer points than the target's)"
+    return Target(name, _status(ratio <= POINTS_SLOWDOWN),
+                  _versus_cycles(result) + f" (needs <= {POINTS_SLOWDOWN:g}x){partial}")
+
+
+def target_scale_instances(bench: Bench) -> Target:
+    name = ("(scale 2) 100,000 instanced sphere objects at 640x360 faster than Cycles, export "
+            "included (Geometry Nodes instances, vertex instances, linked duplicates)")
+    results = _largest(bench, ("instances", "vertex-instances", "duplicates"))
+    if not results:
+        return _missing(name, "the scale-instances workload")
+    ok = all(r["glint"]["median_s"] < INSTANCES_SLOWDOWN * r["cycles"]["median_s"]
+             for r in results)
+    return Target(name, _status(ok), "; ".join(_versus_cycles(r) for r in results))
+
+
+def target_scale_suzanne(bench: Bench) -> Target:
+    name = "(scale 3) a 1,000,000-triangle Suzanne over a floor at 1920x1080, Cycles beside it"
+    results = _largest(bench, ("suzanne",))
+    if not results:
+        return _missing(name, "the scale-suzanne workload")
+    return Target(name, "MEASURED", _versus_cycles(results[0]) + " (no time target)")
+
+
+def target_scale_export(bench: Bench) -> Target:
+    name = "(scale 4) export time for a million instances"
+    results = [r for r in bench.scale_results if r["kind"] == "export"]
+    if not results:
+        return _missing(name, "the scale-export workload")
+    return Target(name, "MEASURED", "; ".join(
+        f"{r['count']:,} {r['case']}: export_scene {r['export_s']:.3g} s" for r in results))
+
+
 def targets(bench: Bench) -> list[Target]:
     return [target_accurate_speed(bench), target_adaptive(bench), target_scaling(bench),
-            target_float32(bench)]
+            target_float32(bench)] + scale_targets(bench)
+
+
+def scale_targets(bench: Bench) -> list[Target]:
+    return [target_scale_points(bench), target_scale_instances(bench),
+            target_scale_suzanne(bench), target_scale_export(bench)]
 
 
 # --------------------------------------------------------------------------------------------

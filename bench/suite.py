@@ -17,10 +17,18 @@ Workloads (``--only NAME``):
   processes with glibc's defaults and with ``core.allocator``'s settings: minor page faults,
   system and user time per render (``bench.allocation``).
 * parallelism: the article's scene at article-hd's size (800x450 with --quick, so that
-  processes are used) (article/float64) on 1 and 2 threads
-  and 1 and 2 worker processes (``core.workers``), images checked bit for bit against one
-  thread; the processes' start-up is paid in the warm-up, and once more, alone, in a
-  "cold" row (workers ended first).
+  processes are used), article/float64 and default/auto, on 1 and 2 threads and 1 and 2
+  worker processes (``core.workers``), images checked bit for bit against one thread, CPU
+  per frame in this process and in the workers; the processes' start-up is paid in the
+  warm-up, and once more, alone, in a "cold" row (workers ended first).
+
+* scale-points, scale-instances, scale-suzanne: issue 9's scale rows (``bench.scale``):
+  scenes built in bpy (a million Geometry Nodes points; 100,000 UV spheres as Geometry Nodes
+  instances, vertex instances and linked duplicates; Suzanne subdivided to 1,007,616
+  triangles over a floor at 1920x1080), Glint's F12 (export + render, AA off) against
+  Cycles' F12 at 1 spp, both in one child process per case, with their similarity.
+* scale-export: ``export_scene`` alone on 100,000 and 1,000,000 instances, read in bulk and
+  walked one by one, and on a million points (``bench.export_scale``).
 
 For article-hd and spheres, Glint article/float64 and default/auto render once more on one
 thread for the per-phase timers (``RayStats.phases``) that the report prints.
@@ -43,7 +51,7 @@ import hashlib
 import os
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Optional
 
 import numpy as np
@@ -91,6 +99,10 @@ class Plan:
     baseline_max_elements: int     # rays x spheres of the baseline's one broadcast
     repeats: int
     budget: float                  # seconds of timed runs per contender after its warm-up
+    # The scale-* workloads: workload name -> its bench.scale case specs, and the instance
+    # counts of scale-export's bench.export_scale cases.
+    scale_cases: dict = field(default_factory=dict)
+    scale_export_counts: tuple = ()
 
 
 FULL = Plan(
@@ -123,10 +135,25 @@ QUICK = Plan(
     sphere_set_hd=((320, 180), (1_000, 100_000)),
     baseline_max_elements=5_000_000, repeats=1, budget=5.0)
 
+#: Issue 9's scale rows (``bench.scale``: Glint and Cycles through F12 on scenes built in
+#: bpy, in child processes); KIND:COUNT:WIDTHxHEIGHT, COUNT being Suzanne's subdivision levels.
+FULL = replace(FULL, scale_cases={
+    "scale-points": ("points:1000000:640x360",),
+    "scale-instances": ("instances:100000:640x360", "vertex-instances:100000:640x360",
+                        "duplicates:100000:640x360"),
+    "scale-suzanne": ("suzanne:5:1920x1080",)}, scale_export_counts=(100_000, 1_000_000))
+QUICK = replace(QUICK, scale_cases={
+    "scale-points": ("points:1000:160x90",),
+    "scale-instances": ("instances:1000:160x90", "vertex-instances:1000:160x90",
+                        "duplicates:300:160x90"),
+    "scale-suzanne": ("suzanne:2:320x180",)}, scale_export_counts=(10_000,))
+SCALE_WORKLOADS = ("scale-points", "scale-instances", "scale-suzanne", "scale-export")
+
 SCENE_WORKLOADS = ("article-small", "article-hd", "article-uhd", "spheres", "spheres-nofloor")
 AA_WORKLOADS = ("aa-adaptive", "aa-fixed16")
 CURVES = ("cost-pixels", "cost-spheres", "cost-sphere-sets")
 WORKLOADS = SCENE_WORKLOADS + AA_WORKLOADS + CURVES + ("parallelism", "malloc")
+WORKLOADS = WORKLOADS + SCALE_WORKLOADS
 #: Workloads whose Glint rows (CURVE_GLINTS) also get a per-phase breakdown.
 PHASE_WORKLOADS = ("article-hd", "spheres")
 
@@ -243,6 +270,7 @@ class Bench:
         self._timings = {}           # (scene key, contender key) -> (Timing, image bytes)
         self._floor_bands = {}       # size -> bool mask
         self.phases: list[tuple] = []  # (workload title, contender, RayStats) per-phase timers
+        self.scale_results: list[dict] = []  # bench.scale's JSON result per scale case
 
     # ---------------------------------------------------------------------------------------
     # Measuring one contender
@@ -419,6 +447,10 @@ class Bench:
                 self.parallelism_workload(name)
             elif name == "malloc":
                 self.malloc_workload(name)
+            elif name == "scale-export":
+                self.scale_export_workload(name)
+            elif name in SCALE_WORKLOADS:
+                self.scale_workload(name)
             else:
                 raise ValueError(f"unknown workload {name!r}")
 
@@ -630,7 +662,8 @@ class Bench:
                               SET_CURVE_GLINT)
 
     def parallelism_workload(self, name: str) -> None:
-        """Threads against worker processes, 1 and 2 of each, on the article's scene."""
+        """Threads against worker processes, 1 and 2 of each, on the article's scene, in
+        article/float64 and default/auto."""
         from core import workers
 
         width, height = self.plan.article_sizes["article-hd"]
@@ -638,33 +671,37 @@ class Bench:
             width, height = 800, 450
         title = f"article {width}x{height}, parallelism"
         scene = article_scene(width, height)
-        reference = None
-        for parallelism in ("threads", "processes"):
-            for count in (1, 2):
-                glint = Glint("article", "float64", threads=count, parallelism=parallelism)
-                log(f"{title}: {glint.label}")
-                result, timing, _ = self.measure_glint(("article", width, height), scene, glint)
-                row = Row(name, title, glint.label, "glint", timing, timing.median,
-                          semantics="article", precision=result.precision, glint=glint)
-                if reference is None:
-                    reference = result.image
-                    row.notes.append("the reference of this workload's images")
-                elif np.array_equal(result.image, reference):
-                    row.notes.append("image identical to 1 thread's")
-                else:
-                    raise AssertionError(f"{glint.label}: image differs from 1 thread's")
-                before = cpu_seconds(workers.worker_pids())
-                render(scene, glint.settings())
-                after = cpu_seconds(workers.worker_pids())
-                if before is not None and after is not None:
-                    row.notes.append(f"CPU per frame {after - before:.2f} s (this process and "
-                                     f"its workers, one more render)")
-                if result.parallelism != parallelism:
-                    row.notes.append(f"ran on {result.parallelism} (core.workers.MIN_PIXELS "
-                                     f"or processes unavailable)")
-                elif parallelism == "processes":
-                    row.notes.append("memory: this process only")
-                self.rows.append(row)
+        for semantics, precision in (("article", "float64"), ("default", "auto")):
+            reference = None
+            medians = {}
+            for parallelism in ("threads", "processes"):
+                for count in (1, 2):
+                    glint = Glint(semantics, precision, threads=count, parallelism=parallelism)
+                    log(f"{title}: {glint.label}")
+                    result, timing, _ = self.measure_glint(("article", width, height), scene,
+                                                           glint)
+                    row = Row(name, title, glint.label, "glint", timing, timing.median,
+                              semantics=semantics, precision=result.precision, glint=glint)
+                    medians[parallelism, count] = timing.median
+                    if reference is None:
+                        reference = result.image
+                        row.notes.append("the reference of this workload's images")
+                    elif np.array_equal(result.image, reference):
+                        row.notes.append("image identical to 1 thread's")
+                    else:
+                        raise AssertionError(f"{glint.label}: image differs from 1 thread's")
+                    row.notes.append(self._cpu_per_frame(scene, glint.settings()))
+                    if result.parallelism != parallelism:
+                        row.notes.append(f"ran on {result.parallelism} (core.workers."
+                                         f"MIN_PIXELS or processes unavailable)")
+                    elif parallelism == "processes":
+                        row.notes.append("memory: this process only")
+                    if (parallelism, count) == ("processes", 2):
+                        row.notes.append(
+                            f"{medians['processes', 1] / timing.median:.2f}x 1 process, "
+                            f"{medians['threads', 1] / timing.median:.2f}x 1 thread (medians "
+                            f"of this run)")
+                    self.rows.append(row)
         glint = Glint("article", "float64", threads=2, parallelism="processes")
         settings = glint.settings()
         workers.shutdown()
@@ -675,6 +712,24 @@ class Bench:
                              semantics="article", precision="float64", glint=glint,
                              notes=["workers started in this run" if ran == "processes"
                                     else f"ran on {ran}"]))
+
+    @staticmethod
+    def _cpu_per_frame(scene, settings) -> str:
+        """CPU seconds of one more render, in this process and in the workers."""
+        from core import workers
+
+        pids = workers.worker_pids() if settings.parallelism == "processes" else []
+        before = cpu_seconds(), cpu_seconds(pids)
+        render(scene, settings)
+        after = cpu_seconds(), cpu_seconds(pids)
+        if None in before + after:
+            return "CPU per frame not measured (no /proc)"
+        here = after[0] - before[0]
+        if not pids:
+            return f"CPU per frame {here:.2f} s (one more render)"
+        there = (after[1] - after[0]) - (before[1] - before[0])
+        return (f"CPU per frame {here + there:.2f} s: {here:.3f} s in this process, "
+                f"{there:.2f} s in workers (one more render)")
 
     def malloc_workload(self, name: str) -> None:
         """Faults and system time per render, glibc's defaults against core.allocator."""
@@ -694,3 +749,87 @@ class Bench:
                                  semantics="article", precision="float64",
                                  notes=[allocation.summary(runs) + " per render, in 2 child "
                                         "processes after a warm-up render each"]))
+
+    # ---------------------------------------------------------------------------------------
+    # Issue 9's scale rows
+
+    def scale_workload(self, name: str) -> None:
+        """Glint (F12: export + render) and Cycles at 1 spp on each of the workload's
+        ``bench.scale`` cases, both in one child process per case."""
+        from . import scale
+
+        if not self.use_blender:
+            self.notes.append(f"{name}: not run (--no-blender; both contenders are Blender "
+                              f"renders)")
+            return
+        for spec in self.plan.scale_cases[name]:
+            case = scale.Case.parse(spec)
+            log(f"{case.title}: Glint and Cycles (bench.scale child)")
+            (result,) = scale.run([case], self.plan.repeats, self.plan.budget, self.out_dir)
+            self.scale_results.append(result)
+            self.rows.extend(scale_rows(name, result))
+
+    def scale_export_workload(self, name: str) -> None:
+        """export_scene alone on a million points and instances (``bench.export_scale``'s
+        cases: in bulk from Geometry Nodes, and walked one by one)."""
+        from . import export_scale
+
+        for case in export_scale.CASES:
+            for count in self.plan.scale_export_counts:
+                log(f"export of {count:,} {case}")
+                result = export_scale.run_child(case, count, self.plan.repeats)
+                timing = Timing(result["runs"])
+                self.scale_results.append(dict(result, kind="export"))
+                self.rows.append(Row(
+                    name, f"export of {count:,} {case}", "Glint export_scene", "glint", timing,
+                    timing.median, notes=[
+                        f"{result['drawn']:,} drawn; Blender's depsgraph evaluation before "
+                        f"it {result['depsgraph_s']:.2f} s (not Glint's)"]))
+
+
+SCALE_GLINT_LABEL = "Glint default/auto, AA off, F12 (export + render)"
+SCALE_CYCLES_LABEL = "Cycles CPU, 1 spp, F12"
+
+
+def scale_rows(name: str, result: dict) -> list:
+    """The Glint and Cycles rows of one ``bench.scale`` case's result."""
+    glint, cycles, alike = result["glint"], result["cycles"], result["similarity"]
+    drawn = glint["drawn"]
+    shapes = ", ".join(f"{drawn[key]:,} {label}" for key, label in
+                       (("spheres", "spheres"), ("triangles", "triangles"))
+                       if drawn[key]) or "nothing"
+    glint_notes = [f"export {glint['export_s']:.3g} s + core render {glint['core_s']:.3g} s "
+                   f"(within the F12; the rest is Blender's)",
+                   f"drew {shapes}", _largest_phase(glint), _first(glint),
+                   f"scene built in bpy in {result['build_s']:.3g} s"]
+    glint_notes += [f"warning: {text}" for text in glint["warnings"]]
+    r = "—" if alike["r"] is None else f"{alike['r']:.3f}"
+    box = alike["box"]
+    cycles_notes = ["all cores; default light paths", _first(cycles),
+                    f"vs Glint: r {r} (RGB in {box}x{box} boxes), brightness Glint/Cycles "
+                    f"{alike['brightness_ratio']:.2f}, coverage differs on "
+                    f"{alike['coverage_mismatch']:,} of {alike['pixels']:,} pixels",
+                    f"picture {os.path.basename(result['picture'])} (Glint left)"]
+    return [Row(name, result["title"], SCALE_GLINT_LABEL, "glint", Timing(glint["runs"]),
+                glint["median_s"], semantics="default", precision=glint["precision"],
+                memory_kind="rss", notes=glint_notes),
+            Row(name, result["title"], SCALE_CYCLES_LABEL, "cycles", Timing(cycles["runs"]),
+                cycles["median_s"], memory_kind="rss", notes=cycles_notes)]
+
+
+def _largest_phase(glint: dict) -> str:
+    """The core render's costliest phase (``RayStats.phases``, summed over threads) and its
+    rays, for where the time goes."""
+    phases = {k: v for k, v in glint["phases"].items() if k != "tiles"}
+    name = max(phases, key=phases.get)
+    rays = glint["rays"]
+    camera = max(rays["camera"], 1)
+    return (f"core's largest phase: {name} {phases[name]:.3g} of {glint['phases']['tiles']:.3g} "
+            f"thread-s; per camera ray {rays['shadow'] / camera:.2g} shadow rays, "
+            f"{rays['node_tests'] / camera:.3g} node tests")
+
+
+def _first(contender: dict) -> str:
+    if contender["first_counted"]:
+        return "one render, no warm-up (it took longer than the budget)"
+    return f"warm-up render {contender['first_s']:.3g} s"
