@@ -11,7 +11,8 @@ Both do the same job.  Without a .blend, the article's scene is built in Blender
 frame is rendered by Glint's render engine, exactly as F12 would render it, and the PNG is
 what Blender's colour management (view transform, look, exposure) makes of it: the pixels F12
 saves and the Render button's Image shows (``write_output``).  With Film > Transparent, alpha
-is the spheres' coverage and the background is transparent.
+is the coverage (less holdouts and what Transparent BSDFs let through) and the background is
+transparent.
 
 How the add-on is loaded: this file sits in the repository root, which is the extension
 package itself (``__init__.py``, ``addon/``, ``core/``).  ``import_glint`` loads that directory
@@ -220,6 +221,9 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     choices = load_choices()
     parser.add_argument("--semantics", choices=choices.SEMANTICS)
     parser.add_argument("--precision", choices=choices.PRECISIONS)
+    parser.add_argument("--parallelism", choices=choices.PARALLELISM,
+                        help=choices.help_text(choices.PARALLELISM_CHOICES) +
+                             " (default: the scene's Glint > Performance > Parallelism)")
     add_animation_arguments(parser)
     args = parser.parse_args(argv)
 
@@ -313,6 +317,8 @@ def apply_options(scene, args) -> None:
         settings.semantics = args.semantics.upper()
     if args.precision is not None:
         settings.precision = args.precision.upper()
+    if args.parallelism is not None:
+        settings.parallelism = args.parallelism.upper()
     if args.frame is not None:
         frame = type(scene).bl_rna.properties["frame_current"]
         if not frame.hard_min <= args.frame <= frame.hard_max:
@@ -713,6 +719,11 @@ def main(argv: list[str] | None = None, own_process: bool = False) -> int:
             from glint.core import allocator
 
             allocator.configure()
+        if own_process and args.frames is None:
+            # One frame, then exit: 'auto' weighs the workers' start-up (core.workers).
+            from glint.core import workers
+
+            workers.expect_one_render()
         if args.blend is not None:
             # Before the file loads, so that its render engine GLINT is known (Blender reports
             # "Engine 'GLINT' not available" otherwise); the article's scene is built after a

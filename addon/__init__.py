@@ -6,6 +6,7 @@ register again), as Blender does when an extension is disabled and enabled.
 
 import bpy
 
+from ..core import workers
 from . import operators, properties, ui
 from .engine import final
 
@@ -29,4 +30,8 @@ def unregister():
     properties.unregister_pointers()
     for cls in reversed(_classes):
         bpy.utils.unregister_class(cls)
+    # The render worker processes (core.workers) end with the add-on, not with Blender: a
+    # disabled or reloaded extension leaves no process behind (the next render starts new
+    # ones).
+    workers.shutdown()
 

@@ -7,8 +7,9 @@ import bpy
 from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty,
                        IntProperty, PointerProperty, StringProperty)
 
-from ..core import Material
-from ..core.choices import ANTI_ALIASING_CHOICES, PRECISION_CHOICES, SEMANTICS_CHOICES
+from ..core import Material, RenderSettings
+from ..core.choices import (ANTI_ALIASING_CHOICES, PARALLELISM_CHOICES, PRECISION_CHOICES,
+                            SEMANTICS_CHOICES)
 from ..core.scene import (MAX_COLOUR, MAX_DEPTH, MAX_LIGHT_SAMPLES, MAX_SAMPLES,
                           MAX_SHININESS)
 
@@ -40,6 +41,10 @@ class GlintRenderSettings(bpy.types.PropertyGroup):
         name="Precision", default='AUTO', items=enum_items(PRECISION_CHOICES))
     semantics: EnumProperty(
         name="Semantics", default='DEFAULT', items=enum_items(SEMANTICS_CHOICES))
+    parallelism: EnumProperty(
+        name="Parallelism", default=RenderSettings.parallelism.upper(),
+        items=enum_items(PARALLELISM_CHOICES),
+        description="How tiles render at once (as many as Performance > Threads says)")
     image_name: StringProperty(
         name="Image", default=DEFAULT_IMAGE_NAME,
         description="Image datablock the Render button writes (created if missing)")

@@ -34,6 +34,20 @@ def draw_render_settings(layout, scene) -> None:
     layout.operator(GLINT_OT_render.bl_idname, icon='RENDER_STILL')
 
 
+def draw_performance(layout, scene) -> None:
+    """How tiles render at once: Glint's parallelism, and Blender's own Performance > Threads,
+    which sets how many (threads or worker processes; ``job.render_settings``)."""
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    layout.prop(scene.glint, "parallelism")
+    render = scene.render
+    column = layout.column()
+    column.prop(render, "threads_mode")
+    row = column.row()
+    row.enabled = render.threads_mode == 'FIXED'
+    row.prop(render, "threads")
+
+
 class GLINT_PT_render(bpy.types.Panel):
     bl_label = "Glint"
     bl_space_type = 'PROPERTIES'
@@ -61,6 +75,39 @@ class GLINT_PT_sidebar(bpy.types.Panel):
 
     def draw(self, context):
         draw_render_settings(self.layout, context.scene)
+
+
+class GLINT_PT_render_performance(bpy.types.Panel):
+    bl_label = "Performance"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "render"
+    bl_parent_id = "GLINT_PT_render"
+    bl_options = {'DEFAULT_CLOSED'}
+    COMPAT_ENGINES = GLINT_PT_render.COMPAT_ENGINES
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+    def draw(self, context):
+        draw_performance(self.layout, context.scene)
+
+
+class GLINT_PT_sidebar_performance(bpy.types.Panel):
+    bl_label = "Performance"
+    bl_space_type = 'VIEW_3D'
+    bl_region_type = 'UI'
+    bl_category = "Glint"
+    bl_parent_id = "GLINT_PT_sidebar"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None
+
+    def draw(self, context):
+        draw_performance(self.layout, context.scene)
 
 
 class GLINT_PT_material(bpy.types.Panel):
@@ -93,4 +140,5 @@ class GLINT_PT_material(bpy.types.Panel):
                          icon='INFO')
 
 
-classes = (GLINT_PT_render, GLINT_PT_sidebar, GLINT_PT_material)
+classes = (GLINT_PT_render, GLINT_PT_render_performance, GLINT_PT_sidebar,
+           GLINT_PT_sidebar_performance, GLINT_PT_material)

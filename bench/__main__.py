@@ -77,7 +77,8 @@ def plan_lines(plan, quick: bool) -> list[str]:
         f"timed at {size(plan.per_pixel_article_size)} (article) and "
         f"{size(plan.per_pixel_spheres_size)} (spheres); sphere sets of "
         f"{', '.join(f'{c:,}' for c in plan.sphere_set_counts)} at "
-        f"{size(plan.sphere_set_size)}.",
+        f"{size(plan.sphere_set_size)} and {', '.join(f'{c:,}' for c in plan.sphere_set_hd[1])} "
+        f"at {size(plan.sphere_set_hd[0])}.",
         f"Scale cases (bench.scale, KIND:COUNT:WIDTHxHEIGHT): "
         f"{'; '.join(', '.join(cases) for cases in plan.scale_cases.values())}; export of "
         f"{', '.join(f'{c:,}' for c in plan.scale_export_counts)} instances.",
@@ -129,7 +130,7 @@ def main(argv=None) -> int:
                                               "SphereSet")):
         rows = report.curve_table(bench, curve)
         if rows:
-            lines += [f"## {title}", ""] + rows + [""]
+            lines += [f"## {title}", ""] + rows + [""] + report.curve_exponents(bench, curve)
 
     os.makedirs(args.out, exist_ok=True)
     try:

@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Optional
 
+import numpy as np
+
 from .suite import BASELINE_LABEL, CURVE_GLINTS, GLINT_PLAIN, Bench, CurvePoint, Glint, Row
 
 MIB = 2 ** 20
@@ -315,6 +317,36 @@ def curve_table(bench: Bench, curve: str) -> list[str]:
                      f"{_seconds(p.seconds)} | {p.runs} | {p.seconds / p.pixels * 1e6:.3g} | "
                      f"{peak} | {p.image_bytes / MIB:,.1f} | {working} |")
     return lines
+
+
+def fitted_exponent(counts, seconds) -> float:
+    """k of the least-squares fit seconds ~ counts^k (a straight line in log-log)."""
+    return float(np.polyfit(np.log(counts), np.log(seconds), 1)[0])
+
+
+def curve_exponents(bench: Bench, curve: str) -> list[str]:
+    """For each contender and size of a sphere-count curve: the fitted exponent over all its
+    points and over its last decade (logarithmic cost would fit near 0)."""
+    if curve == "cost-pixels":
+        return []
+    lines = []
+    groups = {}
+    for p in bench.curve_points:
+        if p.curve == curve:
+            groups.setdefault((p.contender, p.width, p.height), []).append(p)
+    for (contender, width, height), points in groups.items():
+        points = sorted(points, key=lambda p: p.spheres)
+        if len(points) < 3:
+            continue
+        counts = np.array([p.spheres for p in points], float)
+        seconds = np.array([p.seconds for p in points])
+        tail = counts >= counts[-1] / 10
+        tail_text = (f", {fitted_exponent(counts[tail], seconds[tail]):.2f} from "
+                     f"{int(counts[tail][0]):,}" if tail.sum() >= 2 else "")
+        lines.append(f"- {contender} at {width}x{height}: time ~ spheres^k with k = "
+                     f"{fitted_exponent(counts, seconds):.2f} over {int(counts[0]):,} to "
+                     f"{int(counts[-1]):,}{tail_text}")
+    return lines + ([""] if lines else [])
 
 
 def phase_table(bench: Bench) -> list[str]:

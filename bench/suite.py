@@ -9,17 +9,18 @@ Workloads (``--only NAME``):
   precision 'auto' renders in float32.
 * aa-adaptive, aa-fixed16: the article's scene at 1920x1080 with anti-aliasing.
 * cost-pixels, cost-spheres: time and peak memory against pixel count (up to 7680x4320) and
-  against sphere count (1 to 10,000).
+  against sphere count (1 to 100,000 ``core.Sphere`` objects).
 * cost-sphere-sets: time and peak memory of Glint default/auto against sphere count when the
-  spheres are one ``core.SphereSet`` (1,000 to 1,000,000 at 640x360; ``bench.scenes``).
+  spheres are one ``core.SphereSet`` (1 to 1,000,000 at 640x360, and 1,000 and 1,000,000 at
+  1920x1080; ``bench.scenes``); the report fits each curve's exponent (time ~ count^k).
 * malloc: the article's scene at article-hd's size (article/float64, 1 thread) in child
   processes with glibc's defaults and with ``core.allocator``'s settings: minor page faults,
   system and user time per render (``bench.allocation``).
 * parallelism: the article's scene at article-hd's size (800x450 with --quick, so that
-  processes are used) (article/float64) on 1 and 2 threads
-  and 1 and 2 worker processes (``core.workers``), images checked bit for bit against one
-  thread; the processes' start-up is paid in the warm-up, and once more, alone, in a
-  "cold" row (workers ended first).
+  processes are used), article/float64 and default/auto, on 1 and 2 threads and 1 and 2
+  worker processes (``core.workers``), images checked bit for bit against one thread, CPU
+  per frame in this process and in the workers; the processes' start-up is paid in the
+  warm-up, and once more, alone, in a "cold" row (workers ended first).
 
 * scale-points, scale-instances, scale-suzanne: issue 9's scale rows (``bench.scale``):
   scenes built in bpy (a million Geometry Nodes points; 100,000 UV spheres as Geometry Nodes
@@ -94,6 +95,7 @@ class Plan:
     sphere_counts: tuple
     sphere_set_size: Size          # the cost-sphere-sets curve's size and counts
     sphere_set_counts: tuple
+    sphere_set_hd: tuple           # (size, counts): the set curve's points at a large size
     baseline_max_elements: int     # rays x spheres of the baseline's one broadcast
     repeats: int
     budget: float                  # seconds of timed runs per contender after its warm-up
@@ -113,8 +115,10 @@ FULL = Plan(
     cycles16_max_pixels=1920 * 1080,
     pixel_curve=((160, 90), (320, 180), (640, 360), (1280, 720), (1920, 1080), (3840, 2160),
                  (7680, 4320)),
-    sphere_curve_size=(640, 360), sphere_counts=(1, 10, 100, 1000, 3000, 10000),
-    sphere_set_size=(640, 360), sphere_set_counts=(1_000, 100_000, 1_000_000),
+    sphere_curve_size=(640, 360), sphere_counts=(1, 10, 100, 1000, 3000, 10000, 100_000),
+    sphere_set_size=(640, 360),
+    sphere_set_counts=(1, 10, 100, 1_000, 10_000, 100_000, 1_000_000),
+    sphere_set_hd=((1920, 1080), (1_000, 1_000_000)),
     baseline_max_elements=40_000_000, repeats=3, budget=40.0)
 
 QUICK = Plan(
@@ -127,7 +131,8 @@ QUICK = Plan(
     cycles16_max_pixels=300 * 200,
     pixel_curve=((160, 90), (320, 180), (640, 360), (960, 540)),
     sphere_curve_size=(160, 90), sphere_counts=(1, 10, 100, 1000),
-    sphere_set_size=(160, 90), sphere_set_counts=(1_000, 100_000),
+    sphere_set_size=(160, 90), sphere_set_counts=(1, 100, 10_000, 100_000),
+    sphere_set_hd=((320, 180), (1_000, 100_000)),
     baseline_max_elements=5_000_000, repeats=1, budget=5.0)
 
 #: Issue 9's scale rows (``bench.scale``: Glint and Cycles through F12 on scenes built in
@@ -646,15 +651,19 @@ class Bench:
                                   scene, contender)
 
     def sphere_set_curve(self) -> None:
-        width, height = self.plan.sphere_set_size
-        for count in self.plan.sphere_set_counts:
+        """The set curve at its size, then its large-size points (a million spheres at
+        1920x1080 against a thousand)."""
+        hd_size, hd_counts = self.plan.sphere_set_hd
+        points = [(self.plan.sphere_set_size, count) for count in self.plan.sphere_set_counts]
+        for (width, height), count in points + [(hd_size, count) for count in hd_counts]:
             scene = random_sphere_set_scene(count, width, height)
-            log(f"cost-sphere-sets {count} spheres: {SET_CURVE_GLINT.label}")
+            log(f"cost-sphere-sets {count} spheres {width}x{height}: {SET_CURVE_GLINT.label}")
             self._curve_point("cost-sphere-sets", ("sphere-set", count, width, height), scene,
                               SET_CURVE_GLINT)
 
     def parallelism_workload(self, name: str) -> None:
-        """Threads against worker processes, 1 and 2 of each, on the article's scene."""
+        """Threads against worker processes, 1 and 2 of each, on the article's scene, in
+        article/float64 and default/auto."""
         from core import workers
 
         width, height = self.plan.article_sizes["article-hd"]
@@ -662,33 +671,37 @@ class Bench:
             width, height = 800, 450
         title = f"article {width}x{height}, parallelism"
         scene = article_scene(width, height)
-        reference = None
-        for parallelism in ("threads", "processes"):
-            for count in (1, 2):
-                glint = Glint("article", "float64", threads=count, parallelism=parallelism)
-                log(f"{title}: {glint.label}")
-                result, timing, _ = self.measure_glint(("article", width, height), scene, glint)
-                row = Row(name, title, glint.label, "glint", timing, timing.median,
-                          semantics="article", precision=result.precision, glint=glint)
-                if reference is None:
-                    reference = result.image
-                    row.notes.append("the reference of this workload's images")
-                elif np.array_equal(result.image, reference):
-                    row.notes.append("image identical to 1 thread's")
-                else:
-                    raise AssertionError(f"{glint.label}: image differs from 1 thread's")
-                before = cpu_seconds(workers.worker_pids())
-                render(scene, glint.settings())
-                after = cpu_seconds(workers.worker_pids())
-                if before is not None and after is not None:
-                    row.notes.append(f"CPU per frame {after - before:.2f} s (this process and "
-                                     f"its workers, one more render)")
-                if result.parallelism != parallelism:
-                    row.notes.append(f"ran on {result.parallelism} (core.workers.MIN_PIXELS "
-                                     f"or processes unavailable)")
-                elif parallelism == "processes":
-                    row.notes.append("memory: this process only")
-                self.rows.append(row)
+        for semantics, precision in (("article", "float64"), ("default", "auto")):
+            reference = None
+            medians = {}
+            for parallelism in ("threads", "processes"):
+                for count in (1, 2):
+                    glint = Glint(semantics, precision, threads=count, parallelism=parallelism)
+                    log(f"{title}: {glint.label}")
+                    result, timing, _ = self.measure_glint(("article", width, height), scene,
+                                                           glint)
+                    row = Row(name, title, glint.label, "glint", timing, timing.median,
+                              semantics=semantics, precision=result.precision, glint=glint)
+                    medians[parallelism, count] = timing.median
+                    if reference is None:
+                        reference = result.image
+                        row.notes.append("the reference of this workload's images")
+                    elif np.array_equal(result.image, reference):
+                        row.notes.append("image identical to 1 thread's")
+                    else:
+                        raise AssertionError(f"{glint.label}: image differs from 1 thread's")
+                    row.notes.append(self._cpu_per_frame(scene, glint.settings()))
+                    if result.parallelism != parallelism:
+                        row.notes.append(f"ran on {result.parallelism} (core.workers."
+                                         f"MIN_PIXELS or processes unavailable)")
+                    elif parallelism == "processes":
+                        row.notes.append("memory: this process only")
+                    if (parallelism, count) == ("processes", 2):
+                        row.notes.append(
+                            f"{medians['processes', 1] / timing.median:.2f}x 1 process, "
+                            f"{medians['threads', 1] / timing.median:.2f}x 1 thread (medians "
+                            f"of this run)")
+                    self.rows.append(row)
         glint = Glint("article", "float64", threads=2, parallelism="processes")
         settings = glint.settings()
         workers.shutdown()
@@ -699,6 +712,24 @@ class Bench:
                              semantics="article", precision="float64", glint=glint,
                              notes=["workers started in this run" if ran == "processes"
                                     else f"ran on {ran}"]))
+
+    @staticmethod
+    def _cpu_per_frame(scene, settings) -> str:
+        """CPU seconds of one more render, in this process and in the workers."""
+        from core import workers
+
+        pids = workers.worker_pids() if settings.parallelism == "processes" else []
+        before = cpu_seconds(), cpu_seconds(pids)
+        render(scene, settings)
+        after = cpu_seconds(), cpu_seconds(pids)
+        if None in before + after:
+            return "CPU per frame not measured (no /proc)"
+        here = after[0] - before[0]
+        if not pids:
+            return f"CPU per frame {here:.2f} s (one more render)"
+        there = (after[1] - after[0]) - (before[1] - before[0])
+        return (f"CPU per frame {here + there:.2f} s: {here:.3f} s in this process, "
+                f"{there:.2f} s in workers (one more render)")
 
     def malloc_workload(self, name: str) -> None:
         """Faults and system time per render, glibc's defaults against core.allocator."""

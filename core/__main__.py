@@ -16,12 +16,13 @@ import time
 
 import numpy as np
 
-from . import allocator
+from . import allocator, workers
 from .article import article_scene, article_settings
-from .choices import ANTI_ALIASING, PARALLELISM, PRECISIONS, SEMANTICS
+from .choices import (ANTI_ALIASING, PARALLELISM, PARALLELISM_CHOICES, PRECISIONS,
+                      SEMANTICS, help_text)
 from .png import atomic_file, write_png
 from .render import render
-from .scene import SceneError
+from .scene import RenderSettings, SceneError
 
 SCENES = {"article": article_scene}
 
@@ -47,9 +48,9 @@ def parse_args(argv):
     parser.add_argument("--samples", type=int, default=16)
     parser.add_argument("--threads", type=int, default=None,
                         help="tiles rendered at once (default: one per core)")
-    parser.add_argument("--parallelism", choices=list(PARALLELISM), default="threads",
-                        help="threads, or worker processes for renders of more than one "
-                             "tile and 0.3 Mpixel")
+    parser.add_argument("--parallelism", choices=PARALLELISM,
+                        default=RenderSettings.parallelism,
+                        help=help_text(PARALLELISM_CHOICES))
     parser.add_argument("--no-malloc-tuning", action="store_true",
                         help="keep glibc's default malloc thresholds (core.allocator)")
     args = parser.parse_args(argv)
@@ -75,6 +76,8 @@ def main(argv=None, own_process: bool = False) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     if own_process and not args.no_malloc_tuning:
         allocator.configure()
+    if own_process:  # one render, then exit: 'auto' weighs the workers' start-up
+        workers.expect_one_render()
     if signal.getsignal(signal.SIGTERM) is not signal.SIG_IGN:
         signal.signal(signal.SIGTERM, _terminate)
     try:
@@ -108,6 +111,8 @@ def main(argv=None, own_process: bool = False) -> int:
         print(f"error: internal error ({type(error).__name__}"
               f"{': ' + detail[0] if detail else ''})", file=sys.stderr)
         return 1
+    if result.fallback is not None:
+        print(f"warning: {result.fallback}", file=sys.stderr)
     print(f"wrote {args.output} ({args.width}x{args.height}, {result.precision}, "
           f"{args.semantics} semantics) in {elapsed:.3f} s")
     return 0

@@ -26,10 +26,30 @@ ANTI_ALIASING_CHOICES = (
 
 #: How tiles run in parallel (``core.render``, ``core.workers``).
 PARALLELISM_CHOICES = (
+    ("auto", "Auto", "Worker processes for renders large enough that their start-up pays "
+                     "(more than one tile and thread, at least 0.3 Mpixel; in a process that "
+                     "renders once, workers already running or 8 M camera samples), threads "
+                     "otherwise"),
     ("threads", "Threads", "Tiles on a thread pool in this process"),
     ("processes", "Processes", "Tiles in worker processes (both cores busy despite the GIL); "
                                "falls back to threads where processes cannot start"),
 )
+
+#: What the image's alpha and background are (``core.trace``): Blender's Film > Transparent
+#: off ('opaque') and on ('transparent'), and the core's own image ('coverage').
+FILM_CHOICES = (
+    ("coverage", "Coverage", "The background where camera rays escape; alpha = the share of "
+                             "the pixel neither escaped nor held out"),
+    ("opaque", "Opaque", "Blender's Film > Transparent off: the background where camera rays "
+                         "escape; alpha 1 except where holdouts cut it"),
+    ("transparent", "Transparent", "Blender's Film > Transparent on: escaped camera rays add "
+                                   "nothing; alpha as for coverage"),
+)
+
+
+def help_text(choices) -> str:
+    """A command-line option's help: each value with its description."""
+    return "; ".join(f"{value}: {description}" for value, _, description in choices)
 
 
 def values(choices) -> tuple:
@@ -41,3 +61,4 @@ SEMANTICS = values(SEMANTICS_CHOICES)
 PRECISIONS = values(PRECISION_CHOICES)
 ANTI_ALIASING = values(ANTI_ALIASING_CHOICES)
 PARALLELISM = values(PARALLELISM_CHOICES)
+FILMS = values(FILM_CHOICES)

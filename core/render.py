@@ -56,11 +56,13 @@ class RenderResult:
     """image: (H, W, 4) in the render's precision (or the ``image_dtype`` asked for), row 0 =
     top; RGB: article semantics the article's display values clipped to [0, 1], default
     semantics unclipped scene-linear radiance (Cycles' units; Blender's colour management
-    turns it into display values); alpha = fraction of the pixel's samples whose camera ray
-    hit a sphere.  stats: RayStats.  precision: 'float64' or 'float32'.
+    turns it into display values); alpha: the mean over the pixel's samples of 1 - what
+    escaped or was held out (``RenderSettings.film``, ``core.trace``): without holdouts and
+    Transparent BSDFs, the fraction of samples whose camera ray hit something.  stats:
+    RayStats.  precision: 'float64' or 'float32'.
     missed_colour: (3,) float64, what a camera sample that hits nothing adds to its pixel's RGB
-    (the background in default semantics, black in the article's), so a caller can take the
-    background out of a pixel exactly: ``rgb - (1 - alpha) * missed_colour``.
+    (the background in default semantics, black in the article's and with film
+    'transparent').
     semantics: the semantics rendered.
     parallelism: how the tiles ran: 'threads' (the calling thread or a thread pool) or
     'processes' (``core.workers``), which can differ from the setting's (small renders, or
@@ -73,6 +75,9 @@ class RenderResult:
     semantics: str = "article"
     parallelism: str = "threads"
     passes: Optional[PrimaryPasses] = None   # render(passes=True): see core.passes
+    #: Why tiles that were to go to worker processes ran on threads (they cannot start
+    #: here: ``core.workers.unavailable_reason``), else None; the front ends show it.
+    fallback: Optional[str] = None
 
     def display(self) -> np.ndarray:
         """(H, W, 4) display values in [0, 1] for an 8-bit file: the image itself in article
@@ -99,7 +104,7 @@ def _tiles(width: int, height: int, size: int):
 
 
 def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None):
-    """(rgb (n, 3), coverage (n,), signature (n,)) for sample positions xs, ys (n,); rgb
+    """(rgb (n, 3), alpha (n,), signature (n,)) for sample positions xs, ys (n,); rgb
     clipped to [0, 1] per sample in article semantics, unclipped radiance otherwise; lens:
     aperture positions (2, n) for a thin-lens camera."""
     start = time.perf_counter()
@@ -109,7 +114,7 @@ def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None):
     stats.seconds_camera += traced - start
     stats.seconds_bounces += time.perf_counter() - traced
     rgb = result.colour.T
-    return (np.clip(rgb, 0, 1) if ctx.article else rgb), result.coverage, result.signature
+    return (np.clip(rgb, 0, 1) if ctx.article else rgb), result.alpha, result.signature
 
 
 def _pixel_grid(y0, y1, x0, x1):
@@ -228,18 +233,31 @@ def render_tile(ctx: TraceContext, camera, tile, stop: Optional[threading.Event]
 def missed_colour(scene: Scene, settings: RenderSettings) -> np.ndarray:
     """(3,) what a camera sample that escapes adds to its pixel (see RenderResult): the
     tracer adds the background only in default semantics, unclipped (only the article's
-    samples are clipped, and it adds none)."""
-    if settings.semantics != "default":
+    samples are clipped, and it adds none), and not with film 'transparent'."""
+    if settings.semantics != "default" or settings.film == "transparent":
         return np.zeros(3)
     return np.asarray(scene.background, np.float64)
 
 
-def _in_processes(settings: RenderSettings, pixels: int, tiles: int) -> bool:
+def _in_processes(settings: RenderSettings, pixels: int, tiles: int, threads: int) -> bool:
     """Whether this render's tiles go to worker processes (``RenderSettings.parallelism``).
-    A single tile or a small render stays in this process: starting a worker costs more
-    than it gains there."""
-    return (settings.parallelism == "processes" and tiles > 1
-            and pixels >= workers.MIN_PIXELS)
+    A single tile or a small render stays in this process (starting a worker costs more
+    than it gains there).  'auto' asks for more than one worker (one only moves the work
+    out of this process), and in a process that renders once (``workers.one_render``) for
+    warm workers or a render heavy enough to pay for their start-up."""
+    if tiles < 2 or pixels < workers.MIN_PIXELS:
+        return False
+    if settings.parallelism != "auto":
+        return settings.parallelism == "processes"
+    if threads < 2:
+        return False
+    per_pixel = settings.samples if settings.anti_aliasing == "fixed" else 1
+    return (not workers.one_render or workers.warm(threads)
+            or pixels * per_pixel >= workers.COLD_MIN_SAMPLES)
+
+
+def _fallback_line(reason: str) -> str:
+    return f"worker processes unavailable ({reason}): rendered on threads"
 
 
 def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
@@ -247,7 +265,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
            should_cancel: Optional[Callable[[], bool]] = None,
            image_dtype=None, reserve_bytes: int = 0,
            on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None,
-           passes: bool = False) -> RenderResult:
+           passes: "bool | PrimaryPasses" = False) -> RenderResult:
     """Render ``scene``; see ``core`` for the result's layout.  image_dtype: the image's
     dtype (default: the render's precision); float32 halves a float64 render's largest array
     for callers that keep no more than float32 anyway (Blender's render results).
@@ -257,7 +275,9 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     a view of the image: copy what must outlive the call.  Tiles land in any order; a
     cancelled render has passed on exactly the tiles that finished.
     passes: also fill ``RenderResult.passes`` (``core.passes``: depth, position, normal,
-    primitive and material of each pixel centre's first hit, in world units).
+    primitive and material of each pixel centre's first hit, in world units); a
+    PrimaryPasses of the image's size is filled in place, so ``on_tile`` can read each tile's
+    passes as the tile lands.
 
     Before anything is allocated, the render's memory is planned (``core.memory``) and a
     render that cannot fit raises memory.NotEnoughMemory, a SceneError."""
@@ -274,22 +294,31 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     threads = settings.threads or os.cpu_count() or 1
     image_dtype = dtype if image_dtype is None else np.dtype(image_dtype)
     if passes:  # the passes' arrays, beside the image
-        reserve_bytes += PrimaryPasses.BYTES_PER_PIXEL * width * height
+        per_pixel = PrimaryPasses.BYTES_PER_PIXEL
+        if isinstance(passes, PrimaryPasses) and passes.emission is not None:
+            per_pixel += PrimaryPasses.EMISSION_BYTES_PER_PIXEL
+        reserve_bytes += per_pixel * width * height
     tiles = _tiles(width, height, settings.tile_size)
     # Passes are filled beside each tile in this process (``work``), so they keep tiles here.
-    in_processes = not passes and _in_processes(settings, width * height, len(tiles))
+    in_processes = not passes and _in_processes(settings, width * height, len(tiles),
+                                                    threads)
     memory_plan = memory.plan(scene, settings, image_dtype, threads, reserve_bytes)
-    if in_processes:  # plus the shared image and each worker's interpreter and scene
+    if in_processes:  # plus each worker's interpreter and scene (the image is shared)
         memory_plan = dataclasses.replace(memory_plan, other=memory_plan.other + workers.
-                                          planned_bytes((height, width, 4), dtype, threads,
-                                                        memory_plan.scene))
+                                          planned_bytes(threads, memory_plan.scene))
     memory.check(memory_plan, width, height)
     if in_processes:
         workers.prestart(threads)  # they start while the context is built
     ctx = make_context(scene, settings, dtype)
-    image = np.zeros((height, width, 4), image_dtype)
+    shape = (height, width, 4)
     stats = RayStats()
-    primary = PrimaryPasses.empty(width, height) if passes else None
+    if isinstance(passes, PrimaryPasses):
+        if passes.depth.shape != (height, width):
+            raise SceneError(f"passes are {passes.depth.shape[1]}x{passes.depth.shape[0]}, "
+                             f"the image {width}x{height}")
+        primary = passes
+    else:
+        primary = PrimaryPasses.empty(width, height) if passes else None
 
     def work(ctx, camera, tile, stop=None):
         rgba, tile_stats = render_tile(ctx, camera, tile, stop)
@@ -297,33 +326,52 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
             fill_tile_passes(primary, ctx, camera, tile, tile_stats, world)
         return rgba, tile_stats
 
-    def finish(tile, rgba, tile_stats, done, finite=None):
-        """finite: whether every value of rgba is finite, if already known (workers check
-        their own tiles, sparing the parent a pass over the image)."""
-        y0, y1, x0, x1 = tile
-        if finite is None:
-            finite = bool(np.isfinite(rgba).all())
+    def land(tile, pixels, tile_stats, done, finite):
+        """A finished tile: pixels its (h, w, 4) view of the image, finite whether the
+        values it was made from are all finite (workers check their own tiles, sparing this
+        process a pass over the image)."""
         if not finite:  # never a silently wrong picture, even from a bug
+            y0, y1, x0, x1 = tile
             raise RenderError(f"pixels {x0}-{x1 - 1} x {y0}-{y1 - 1} came out NaN or "
                               f"infinite; please report this scene")
-        image[y0:y1, x0:x1] = rgba
         stats.add(tile_stats)
         if on_tile is not None:
-            on_tile(tile, image[y0:y1, x0:x1])
+            on_tile(tile, pixels)
         if progress is not None:
             progress(done / len(tiles))
+
+    def finish(tile, rgba, tile_stats, done):
+        """A tile rendered in this process: into the image, then landed."""
+        y0, y1, x0, x1 = tile
+        finite = bool(np.isfinite(rgba).all())
+        if finite:
+            image[y0:y1, x0:x1] = rgba
+        land(tile, image[y0:y1, x0:x1], tile_stats, done, finite)
 
     def cancelled():
         return should_cancel is not None and should_cancel()
 
+    fallback = None
     if in_processes:
         try:
-            workers.render_tiles(ctx, scene.camera, tiles, image.shape, threads, finish,
-                                 should_cancel)
+            # The workers write their tiles straight into the image they share with this
+            # process, which is the result (core.workers: no copy of any tile here).
+            image, unavailable = workers.render_tiles(ctx, scene.camera, tiles, shape,
+                                                      image_dtype, threads, land,
+                                                      should_cancel)
+            if unavailable is not None:  # the workers failed after some tiles landed
+                return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
+                                    settings.semantics, parallelism="threads",
+                                    fallback=_fallback_line(unavailable))
             return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
                                 settings.semantics, parallelism="processes")
-        except workers.ProcessesUnavailable:
-            pass  # no tile has landed yet: the same tiles on threads, below
+        except workers.WorkersBusy:
+            pass  # another render (a viewport) has them: threads, without a word
+        except workers.ProcessesUnavailable as error:
+            fallback = _fallback_line(str(error))
+        # No tile has landed yet: the same tiles on threads, below.
+
+    image = np.zeros(shape, image_dtype)
 
     if threads == 1 or len(tiles) == 1:
         for done, tile in enumerate(tiles, 1):
@@ -331,7 +379,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
                 raise RenderCancelled("render cancelled")
             finish(tile, *work(ctx, scene.camera, tile), done)
         return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
-                            settings.semantics, passes=primary)
+                            settings.semantics, passes=primary, fallback=fallback)
 
     stop = threading.Event()
     with ThreadPoolExecutor(max_workers=threads) as pool:
@@ -366,4 +414,4 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
                 future.cancel()
             raise
     return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
-                        settings.semantics, passes=primary)
+                        settings.semantics, passes=primary, fallback=fallback)

@@ -22,16 +22,21 @@ tile), so large renders run their tiles in ``count`` worker processes instead:
   every worker it uses the prepared ``TraceContext`` and camera once (pickled: a few kB for
   the article's scene, the arrays themselves for big ones), dropped when the render ends.
 * the parent sends tile rectangles, at most two in flight per worker; a worker renders a
-  tile with the same ``core.render.render_tile`` as a thread would and writes its pixels into
-  one shared-memory image (``multiprocessing.shared_memory``, kept for the next render of
-  the same or smaller size up to ``KEEP_SHARED_BYTES``, so its pages fault once), then
-  answers with the tile's RayStats and whether its values are all finite.  The parent
-  finishes every tile itself (a tile with NaN is the same RenderError as with threads; copy
-  into the result, on_tile, progress), in the order they land, exactly as the thread pool
-  does: the image does not depend on the number of workers or on how they are run.
+  tile with the same ``core.render.render_tile`` as a thread would and writes its pixels
+  straight into the render's image, then answers with the tile's RayStats and whether its
+  values are all finite.  The image is a frame's memory (``_Frame``: a memfd, or an unlinked
+  temporary file, mapped by the parent and every worker; its descriptor goes to each worker
+  once over its socket), and the parent's mapping of it is the image the render returns, so
+  no tile is copied: a copy into a fresh image was most of the parent's CPU (measured at
+  1080p, float64: 0.034 of 0.059 s a frame, page faults included), which on two cores is
+  taken from the workers.  Frames whose image the caller has dropped are used again (at
+  most ``KEPT_FRAMES``, each up to ``KEEP_SHARED_BYTES``), so their pages are mapped
+  everywhere already.  The parent lands every tile itself (a tile with NaN is the same
+  RenderError as with threads; on_tile, progress), in the order they land, as the thread
+  pool does: the image does not depend on the number of workers or on how they are run.
 * the parent polls ``should_cancel`` at least every ``CANCEL_POLL_SECONDS``; a cancel (or any
-  exception in the parent, KeyboardInterrupt included) sets a shared stop byte that running
-  tiles check at every bundle of rays (the first byte of the shared memory), and the
+  exception in the parent, KeyboardInterrupt included) sets a stop byte that running tiles
+  check at every bundle of rays (byte 0 of a control page every worker maps), and the
   workers are then stopped.
 * an exception in a worker is sent back pickled and raised in the parent as the same type
   with the same message (the worker's traceback text is attached as a note); a worker that
@@ -43,17 +48,22 @@ tile), so large renders run their tiles in ``count`` worker processes instead:
 from __future__ import annotations
 
 import atexit
+import itertools
+import mmap
 import os
 import pickle
 import socket
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 import traceback
-from multiprocessing import resource_tracker, shared_memory
+import weakref
+from collections import deque
 from multiprocessing.connection import Connection
 from multiprocessing.connection import wait as wait_for
+from multiprocessing.reduction import recv_handle, send_handle
 
 import numpy as np
 
@@ -70,11 +80,12 @@ TILES_IN_FLIGHT = 2
 #: Renders below this many pixels stay in the calling process: starting a worker (a Python
 #: and NumPy import, 0.1-0.3 s, once per process) costs more than a small render gains.
 MIN_PIXELS = 300_000
-#: The shared image is kept between renders up to this size (a 1920 x 1080 float64 image is
-#: 63 MiB); larger ones are freed when their render ends.
+#: Frame memory is kept for later renders up to this size each (a 1920 x 1080 float64 image
+#: is 63 MiB); a larger frame's memory lives only as long as its image.
 KEEP_SHARED_BYTES = 256 * 2 ** 20
-#: The shared memory holds the stop byte at 0 and the image from this offset (aligned).
-IMAGE_OFFSET = 64
+#: Frames kept for later renders: two, so that a caller still holding the previous image
+#: while the next renders (``result = render(...)`` in a loop) never makes a new one.
+KEPT_FRAMES = 2
 
 #: Resident memory of a worker besides its tracing (Python, NumPy, core, its kept heap):
 #: measured 62-64 MB after an 800 x 400 render, which includes its share of the tracing
@@ -87,10 +98,37 @@ _CORE_FOLDER = os.path.dirname(os.path.abspath(__file__))
 
 #: Why worker processes could not be used in this process (None: not known to fail).
 unavailable_reason: str | None = None
+#: How many tiles the last render on workers rendered in this process while they started.
+last_render_here = 0
+#: Set by ``expect_one_render``: this process renders once and exits (``python -m core``,
+#: render.py for one frame), so a cold start is paid for one render only.
+one_render = False
+#: With ``one_render`` and no warm workers, 'auto' takes processes only for renders of at
+#: least this many camera samples (pixels x samples per pixel), where their start-up pays:
+#: booting two workers costs about 0.6 s of CPU (measured at load 5-7), and two workers
+#: save 0.1 s a Mpixel of the article's scene on 2 free cores (README).
+COLD_MIN_SAMPLES = 8_000_000
+
+
+def expect_one_render() -> None:
+    """Say that this process renders once and exits (see ``one_render``)."""
+    global one_render
+    one_render = True
+
+
+def warm(count: int) -> bool:
+    """Whether ``count`` workers of this process are running and have served a render."""
+    return (_pool.owner == os.getpid() and len(_pool.workers) >= count
+            and all(worker.served for worker in _pool.workers[:count]))
 
 
 class ProcessesUnavailable(Exception):
     """Worker processes cannot be used for this render; the caller renders on threads."""
+
+
+class WorkersBusy(ProcessesUnavailable):
+    """Another render (a viewport's, say) is using the workers: threads this time, and no
+    reason to tell the user."""
 
 
 class _StopFlag:
@@ -101,6 +139,34 @@ class _StopFlag:
 
     def is_set(self) -> bool:
         return self._buffer[0] != 0
+
+
+def _anonymous_file(size: int) -> int:
+    """A descriptor of ``size`` zero bytes that no name refers to, so nothing can leak when a
+    process dies: a memfd on Linux, an unlinked temporary file elsewhere."""
+    if hasattr(os, "memfd_create"):
+        descriptor = os.memfd_create("glint-frame", os.MFD_CLOEXEC)
+    else:
+        descriptor, path = tempfile.mkstemp(prefix="glint-frame-")
+        os.unlink(path)
+    try:
+        os.ftruncate(descriptor, size)
+    except OSError:
+        os.close(descriptor)
+        raise
+    return descriptor
+
+
+def _map(descriptor: int, size: int, populate: bool = False) -> mmap.mmap:
+    """The file ``descriptor`` mapped shared; populate: map every page at once (one system
+    call instead of a page fault per 4 KiB page)."""
+    flags = mmap.MAP_SHARED | (getattr(mmap, "MAP_POPULATE", 0) if populate else 0)
+    return mmap.mmap(descriptor, size, flags=flags)
+
+
+def _frame_image(mapping, shape, dtype) -> np.ndarray:
+    """The (H, W, 4) image of ``dtype`` at the start of ``mapping``."""
+    return np.frombuffer(mapping, np.dtype(dtype), count=int(np.prod(shape))).reshape(shape)
 
 
 def _python_executable() -> str | None:
@@ -117,30 +183,36 @@ def _python_executable() -> str | None:
 # The worker side
 
 class _Job:
-    """One render as a worker sees it: its context, camera and the shared image."""
+    """One render as a worker sees it: its context, camera and the frame's image."""
 
-    def __init__(self, memory, shape, dtype_name: str, payload: bytes):
-        self.image = np.ndarray(tuple(shape), np.dtype(dtype_name), buffer=memory.buf,
-                                offset=IMAGE_OFFSET)
-        self.stop = _StopFlag(memory.buf[:1])
+    def __init__(self, mapping, shape, dtype_name: str, payload: bytes):
+        self.image = _frame_image(mapping, tuple(shape), dtype_name)
         self.ctx, self.camera = pickle.loads(payload)
 
     def close(self) -> None:
-        self.image = self.stop = self.ctx = self.camera = None
+        self.image = self.ctx = self.camera = None
 
 
 def worker_loop(connection, setup: dict) -> None:
     """Run in a worker: serve renders until the parent sends None or goes away.
 
-    Messages in: ('render', shared name, shape, dtype) followed by the pickled (context,
-    camera) as bytes; a tile (y0, y1, x0, x1); ('end',); None.  Answers: ('ready',),
-    ('done', tile, stats, whether every value is finite), ('cancelled', tile),
-    ('error', tile, exception, traceback text), ('ended',)."""
+    First the control page's descriptor (its byte 0 is the stop byte).  Messages in:
+    ('render', frame id, frame bytes, shape, dtype, whether the frame's descriptor follows),
+    [the descriptor,] then the pickled (context, camera) as bytes; a tile (y0, y1, x0, x1);
+    ('end', ids of the frames to keep mapped); None.  Answers: ('ready',), ('done', tile,
+    stats, whether every value is finite), ('cancelled', tile), ('error', tile, exception,
+    traceback text), ('ended',)."""
     from . import allocator
     from .render import RenderCancelled, render_tile
 
     allocator.configure()
-    job = memory = None
+    try:
+        control = _received_mapping(connection, mmap.PAGESIZE)
+    except (EOFError, OSError):
+        return
+    stop = _StopFlag(control)
+    frames: dict[int, mmap.mmap] = {}      # frame id -> its mapping, kept between renders
+    job = None
     try:
         while True:
             try:
@@ -150,18 +222,16 @@ def worker_loop(connection, setup: dict) -> None:
             if message is None:
                 return
             if message[0] == "render":
-                payload = connection.recv_bytes()
+                _, frame, size, shape, dtype_name, sent = message
                 try:
+                    if sent:
+                        frames[frame] = _received_mapping(connection, size)
+                    payload = connection.recv_bytes()
                     if job is not None:       # a render whose end never came
                         job.close()
-                        job = None
-                    if memory is None or memory.name != message[1]:
-                        if memory is not None:
-                            memory.close()
-                        memory = None
-                        memory = _attach(message[1])
-                    job = _Job(memory, *message[2:], payload)
+                    job = _Job(frames[frame], shape, dtype_name, payload)
                 except Exception as error:
+                    job = None
                     _send_error(connection, None, error)
                     continue
                 connection.send(("ready",))
@@ -169,15 +239,17 @@ def worker_loop(connection, setup: dict) -> None:
                 if job is not None:
                     job.close()
                     job = None
+                for frame in set(frames) - set(message[1]):
+                    frames.pop(frame).close()  # the parent let this frame go
                 connection.send(("ended",))
-            elif job is None or job.stop.is_set():
+            elif job is None or stop.is_set():
                 connection.send(("cancelled", message))
             else:
                 tile = message
                 try:
-                    rgba, stats = render_tile(job.ctx, job.camera, tile, job.stop)
+                    rgba, stats = render_tile(job.ctx, job.camera, tile, stop)
                     y0, y1, x0, x1 = tile
-                    job.image[y0:y1, x0:x1] = rgba
+                    job.image[y0:y1, x0:x1] = rgba     # straight into the caller's image
                     connection.send(("done", tile, stats, bool(np.isfinite(rgba).all())))
                 except RenderCancelled:
                     connection.send(("cancelled", tile))
@@ -186,20 +258,18 @@ def worker_loop(connection, setup: dict) -> None:
     finally:
         if job is not None:
             job.close()
-        if memory is not None:
-            memory.close()
+        for mapping in frames.values():
+            mapping.close()
 
 
-def _attach(name: str):
-    """The parent's shared memory, not registered with a resource tracker: Python < 3.13
-    registers every attached segment, which would start a tracker process in each worker and
-    unlink the parent's image when the worker exits.  Only the parent owns it."""
-    register = resource_tracker.register
-    resource_tracker.register = lambda *args: None
+def _received_mapping(connection, size: int) -> mmap.mmap:
+    """The descriptor the parent sends next over ``connection``, mapped (and closed: the
+    mapping keeps the memory)."""
+    descriptor = recv_handle(connection)
     try:
-        return shared_memory.SharedMemory(name=name)
+        return _map(descriptor, size)
     finally:
-        resource_tracker.register = register
+        os.close(descriptor)
 
 
 def _send_error(connection, tile, error: BaseException) -> None:
@@ -223,6 +293,9 @@ class _Worker:
         self.process = process
         self.connection = connection
         self.in_flight: list = []
+        self.frames: set[int] = set()   # ids of the frames this worker has mapped
+        self.served = False              # has been ready for a render (is warm)
+        self.owes_end = False            # its last render's 'ready' and 'ended' are unread
 
     def end(self) -> None:
         """Stop the worker for good: ask, then kill if it does not go."""
@@ -238,6 +311,35 @@ class _Worker:
         self.connection.close()
 
 
+class _Frame:
+    """Memory for one frame's image that the parent and the workers map (``_anonymous_file``):
+    the workers write their tiles into it and the caller gets the parent's mapping as the
+    render's image, so no tile is copied.  A frame whose image the caller has dropped is
+    used again by a later render (its pages are already mapped everywhere)."""
+
+    _ids = itertools.count(1)
+
+    def __init__(self, size: int):
+        self.id = next(self._ids)
+        self.size = size
+        self.descriptor = _anonymous_file(size)
+        self._handed_out = None   # weakref to the mapping behind the image last handed out
+
+    def busy(self) -> bool:
+        """Whether an image of this frame (or a view of one) is still alive."""
+        return self._handed_out is not None and self._handed_out() is not None
+
+    def image(self, shape, dtype) -> np.ndarray:
+        """A new (H, W, 4) image over this frame; its mapping lives as long as the image."""
+        mapping = _map(self.descriptor, self.size, populate=True)
+        self._handed_out = weakref.ref(mapping)
+        return _frame_image(mapping, shape, dtype)
+
+    def close(self) -> None:
+        """Let the memory go once every mapping is gone (an image still alive keeps it)."""
+        os.close(self.descriptor)
+
+
 class _Pool:
     """The live worker processes of this process, reused from render to render."""
 
@@ -245,27 +347,45 @@ class _Pool:
         self.lock = threading.Lock()      # one render at a time uses the workers
         self.workers: list[_Worker] = []
         self.owner = os.getpid()
-        self.memory = None                # the shared image, kept between renders
+        self.control = None               # one page every worker maps: byte 0 stops tiles
+        self.control_descriptor = None
+        self.frames: list[_Frame] = []    # most recently used last
 
-    def shared_memory(self, size: int):
-        """Shared memory of at least ``size`` bytes: the kept one if it is large enough."""
-        if self.memory is not None and self.memory.size < size:
-            self.free_memory()
-        if self.memory is None:
-            self.memory = shared_memory.SharedMemory(create=True, size=size)
-        return self.memory
+    def frame(self, size: int) -> _Frame:
+        """A kept frame of at least ``size`` bytes that no live image uses, else a new one."""
+        for frame in self.frames:
+            if frame.size >= size and not frame.busy():
+                self.frames.remove(frame)
+                break
+        else:
+            frame = _Frame(size)
+        self.frames.append(frame)
+        return frame
+
+    def kept_frames(self) -> list[int]:
+        """Let go of all but the KEPT_FRAMES most recent frames of at most KEEP_SHARED_BYTES;
+        the ids of those kept."""
+        kept = [f for f in self.frames if f.size <= KEEP_SHARED_BYTES][-KEPT_FRAMES:]
+        for frame in self.frames:
+            if frame not in kept:
+                frame.close()
+        self.frames = kept
+        return [frame.id for frame in kept]
 
     def free_memory(self) -> None:
-        if self.memory is not None:
-            self.memory.close()
-            self.memory.unlink()
-            self.memory = None
+        for frame in self.frames:
+            frame.close()
+        self.frames = []
+        if self.control is not None:
+            self.control.close()
+            os.close(self.control_descriptor)
+            self.control = self.control_descriptor = None
 
     def grow(self, count: int) -> None:
         """Start workers until there are ``count`` (raises ProcessesUnavailable)."""
         global unavailable_reason
         if self.owner != os.getpid():     # a fork of the process that started them
-            self.workers, self.memory, self.owner = [], None, os.getpid()
+            self._forget()
         executable = _python_executable()
         if executable is None:
             unavailable_reason = f"sys.executable ({sys.executable!r}) is not a Python"
@@ -273,6 +393,9 @@ class _Pool:
             unavailable_reason = "worker processes need POSIX descriptor passing"
         if unavailable_reason is not None:
             raise ProcessesUnavailable(unavailable_reason)
+        if self.control is None:
+            self.control_descriptor = _anonymous_file(mmap.PAGESIZE)
+            self.control = _map(self.control_descriptor, mmap.PAGESIZE)
         setup = {"sys_path": list(sys.path), "core_name": _CORE_PACKAGE,
                  "core_folder": _CORE_FOLDER}
         flags = ["-P"] if sys.version_info >= (3, 11) else []   # not core/ on sys.path
@@ -292,6 +415,7 @@ class _Pool:
             self.workers.append(worker)
             try:
                 worker.connection.send(setup)
+                send_handle(worker.connection, self.control_descriptor, process.pid)
             except OSError:
                 self._failed_to_start(worker)
 
@@ -312,17 +436,30 @@ class _Pool:
         for worker in list(self.workers):
             self.drop(worker)
 
-    def shutdown(self) -> None:
-        if self.owner != os.getpid():     # a fork: the workers are its parent's, not ours
-            self.workers, self.memory = [], None
+    def _forget(self) -> None:
+        """In a fork of the process that started the workers: they are its parent's."""
+        self.workers, self.frames, self.owner = [], [], os.getpid()
+        self.control = self.control_descriptor = None
+
+    def shutdown(self, timeout: float) -> None:
+        if self.owner != os.getpid():
+            self._forget()
             return
-        with self.lock:
+        idle = self.lock.acquire(timeout=timeout)
+        try:
+            # A render still running after ``timeout`` (a viewport's, as the add-on is
+            # disabled) loses its workers and fails with a RenderError; the memory it uses
+            # is let go when it ends.
             self.drop_all()
-            self.free_memory()
+            if idle:
+                self.free_memory()
+        finally:
+            if idle:
+                self.lock.release()
 
 
 _pool = _Pool()
-atexit.register(_pool.shutdown)
+atexit.register(_pool.shutdown, END_TIMEOUT_SECONDS)
 
 
 def worker_pids() -> list[int]:
@@ -330,124 +467,175 @@ def worker_pids() -> list[int]:
     return [worker.process.pid for worker in _pool.workers]
 
 
-def shutdown() -> None:
-    """End the worker processes (the next render with processes starts new ones)."""
-    _pool.shutdown()
+def shutdown(timeout: float = END_TIMEOUT_SECONDS) -> None:
+    """End the worker processes and free the kept shared image (the next render with
+    processes starts new ones).  Waits up to ``timeout`` seconds for a running render to
+    finish first, then ends the workers anyway."""
+    _pool.shutdown(timeout)
 
 
 class _Render:
-    """One render on ``count`` of the pool's workers, into a shared-memory image."""
+    """One render on ``count`` of the pool's workers, into a frame's image (``_Frame``)."""
 
-    def __init__(self, ctx, camera, shape, count: int):
-        self.dtype = np.dtype(ctx.dtype)
+    def __init__(self, ctx, camera, shape, dtype, count: int):
+        self.ctx, self.camera = ctx, camera
+        self.dtype = np.dtype(dtype)
         self.shape = tuple(shape)
-        image_bytes = int(np.prod(self.shape)) * self.dtype.itemsize
-        self.memory = _pool.shared_memory(IMAGE_OFFSET + image_bytes)
-        self.image = np.ndarray(self.shape, self.dtype, buffer=self.memory.buf,
-                                offset=IMAGE_OFFSET)
-        self.stop = self.memory.buf[:1]
+        self.frame = _pool.frame(int(np.prod(self.shape)) * self.dtype.itemsize)
+        self.image = self.frame.image(self.shape, self.dtype)
+        self.stop = _pool.control
         self.stop[0] = 0
         self.payload = pickle.dumps((ctx, camera), protocol=5)
         self.workers = _pool.workers[:count]
+        self.pending = None          # tiles not yet sent (a deque, from ``run``)
+        self.starting = set()        # connections of the workers not yet ready
+        self.done = 0                # tiles landed
+        self.here = 0                # of those, rendered in this process
 
-    def start(self, should_cancel) -> None:
-        """Hand every worker this render and wait until all are ready."""
-        global unavailable_reason
-        from .render import RenderCancelled
-
-        header = ("render", self.memory.name, self.shape, self.dtype.name)
+    def start(self) -> None:
+        """Hand every worker this render (each answers 'ready' once it has loaded it)."""
+        frame = self.frame
         for worker in list(self.workers):
+            if worker.owes_end:           # the last render ended before it was ready
+                worker.owes_end = False
+                if not _wait_for_end(worker, time.monotonic() + START_TIMEOUT_SECONDS):
+                    self.workers.remove(worker)
+                    _pool._failed_to_start(worker)
+                worker.served = True
+            sent = frame.id not in worker.frames
             try:
-                worker.connection.send(header)
+                worker.connection.send(("render", frame.id, frame.size, self.shape,
+                                        self.dtype.name, sent))
+                if sent:
+                    send_handle(worker.connection, frame.descriptor, worker.process.pid)
+                    worker.frames.add(frame.id)
                 worker.connection.send_bytes(self.payload)
             except OSError:
                 self.workers.remove(worker)
                 _pool._failed_to_start(worker)
+
+    def run(self, tiles, finish, should_cancel) -> None:
+        """Render ``tiles``; finish(tile, pixels, stats, done, finite) is called in this
+        process for each as it lands, pixels its view of the image, finite whether all its
+        values are finite.  A worker gets tiles once it is ready.  While a worker is still
+        starting (its first render: a Python, NumPy and core import, 0.25-0.5 s here), this
+        process renders tiles itself, so a cold start costs the frame nothing but the tiles
+        it did not help with."""
+        global unavailable_reason
+        from .render import RenderCancelled
+
+        self.pending = deque(tiles)
+        by_connection = {w.connection: w for w in self.workers}
+        self.starting = starting = {w.connection for w in self.workers}
+        helping = not all(w.served for w in self.workers)   # warm ones are ready at once
         deadline = time.monotonic() + START_TIMEOUT_SECONDS
-        waiting = {w.connection: w for w in self.workers}
-        while waiting:
+        while self.pending or any(w.in_flight for w in self.workers):
             if should_cancel is not None and should_cancel():
                 raise RenderCancelled("render cancelled")
-            if time.monotonic() > deadline:
+            if starting and time.monotonic() > deadline:
                 unavailable_reason = (f"worker processes did not start within "
                                       f"{START_TIMEOUT_SECONDS:g} s")
                 raise ProcessesUnavailable(unavailable_reason)
-            for connection in wait_for(list(waiting), timeout=CANCEL_POLL_SECONDS):
-                worker = waiting.pop(connection)
-                try:
-                    message = connection.recv()
-                except (EOFError, OSError):
-                    self.workers.remove(worker)
-                    _pool._failed_to_start(worker)
-                if message[0] == "error":
-                    _raise_worker_error(message)
-
-    def run(self, tiles, finish, should_cancel) -> None:
-        """Render ``tiles``; finish(tile, rgba, stats, done, finite) is called in this
-        process for each as it lands, rgba a view of the shared image, finite whether all
-        its values are finite (checked by the worker)."""
-        from .render import RenderCancelled, RenderError
-
-        queue = iter(tiles)
-        done = 0
-        by_connection = {w.connection: w for w in self.workers}
-        for worker in self.workers:
-            self._feed(worker, queue)
-        while any(w.in_flight for w in self.workers):
-            ready = wait_for([w.connection for w in self.workers if w.in_flight],
-                             timeout=CANCEL_POLL_SECONDS)
+            help_now = helping and bool(starting) and bool(self.pending)
+            listen = list(starting) + [w.connection for w in self.workers if w.in_flight]
+            ready = wait_for(listen, timeout=0 if help_now else CANCEL_POLL_SECONDS)
             for connection in ready:
                 worker = by_connection[connection]
                 try:
                     message = connection.recv()
                 except (EOFError, OSError):
-                    _pool.drop(worker)
-                    self.workers.remove(worker)
-                    raise RenderError(f"a render worker process died (exit code "
-                                      f"{worker.process.returncode})") from None
+                    if connection in starting:
+                        self.workers.remove(worker)
+                        _pool._failed_to_start(worker)
+                    self._died(worker)
+                if connection in starting:       # ('ready',) or ('error', None, ...)
+                    starting.discard(connection)
+                    if message[0] == "error":
+                        _raise_worker_error(message)
+                    worker.served = True
+                    self._feed(worker, self.pending)
+                    continue
                 kind, tile = message[0], message[1]
                 worker.in_flight.remove(tile)
                 if kind == "error":
                     _raise_worker_error(message)
                 if kind == "cancelled":
                     raise RenderCancelled("render cancelled")
-                done += 1
+                self.done += 1
                 y0, y1, x0, x1 = tile
-                finish(tile, self.image[y0:y1, x0:x1], message[2], done, message[3])
-                self._feed(worker, queue)
+                finish(tile, self.image[y0:y1, x0:x1], message[2], self.done, message[3])
+                self._feed(worker, self.pending)
+            if help_now and not ready:
+                self.render_here(self.pending.popleft(), finish)
+
+    def render_here(self, tile, finish) -> None:
+        """One tile rendered in this process, as a thread would, into the image."""
+        from .render import render_tile
+
+        rgba, stats = render_tile(self.ctx, self.camera, tile)
+        y0, y1, x0, x1 = tile
+        finite = bool(np.isfinite(rgba).all())
+        if finite:
+            self.image[y0:y1, x0:x1] = rgba
+        self.done += 1
+        self.here += 1
+        finish(tile, self.image[y0:y1, x0:x1], stats, self.done, finite)
+
+    def finish_here(self, finish, should_cancel) -> None:
+        """The workers are gone after some tiles landed: the tiles they had and those never
+        sent, rendered in this process (as one thread would; two threads gain nothing)."""
+        from .render import RenderCancelled
+
+        for worker in self.workers:
+            self.pending.extendleft(reversed(worker.in_flight))
+            worker.in_flight.clear()
+        _pool.drop_all()    # the others started the same way: none is trusted
+        while self.pending:
             if should_cancel is not None and should_cancel():
                 raise RenderCancelled("render cancelled")
+            self.render_here(self.pending.popleft(), finish)
 
-    @staticmethod
-    def _feed(worker: _Worker, queue) -> None:
-        while len(worker.in_flight) < TILES_IN_FLIGHT:
-            tile = next(queue, None)
-            if tile is None:
-                return
-            worker.connection.send(tile)
+    def _feed(self, worker: _Worker, pending: deque) -> None:
+        while len(worker.in_flight) < TILES_IN_FLIGHT and pending:
+            tile = pending.popleft()
+            try:
+                worker.connection.send(tile)
+            except OSError:         # it died after its last answer (a broken pipe)
+                self._died(worker)
             worker.in_flight.append(tile)
 
+    def _died(self, worker: _Worker):
+        """A worker went away during the render: a RenderError naming its exit code."""
+        from .render import RenderError
+
+        _pool.drop(worker)
+        self.workers.remove(worker)
+        raise RenderError(f"a render worker process died (exit code "
+                          f"{worker.process.returncode})") from None
+
     def end(self) -> None:
-        """Stop running tiles at their next bundle, let every worker drop this render (a
-        worker that does not answer is replaced next time), free the image."""
+        """Stop running tiles at their next bundle, let every worker drop this render and
+        the frames the pool let go (a worker that does not answer is replaced next time)."""
         self.stop[0] = 1
+        kept = _pool.kept_frames()
         self.workers = [w for w in self.workers if w in _pool.workers]   # not dropped
         for worker in list(self.workers):
+            worker.frames &= set(kept)
             try:
-                worker.connection.send(("end",))
+                worker.connection.send(("end", kept))
             except (OSError, ValueError):
                 _pool.drop(worker)
                 self.workers.remove(worker)
         deadline = time.monotonic() + END_TIMEOUT_SECONDS
         for worker in self.workers:
-            if not _wait_for_end(worker, deadline):
+            if worker.connection in self.starting:
+                # Still starting when the frame was done: it answers 'ready' and then
+                # 'ended' once up, read at its next render's start (not waited for here).
+                worker.owes_end = True
+            elif not _wait_for_end(worker, deadline):
                 _pool.drop(worker)
             worker.in_flight.clear()
-        self.image = None
-        self.stop.release()
         self.stop = None
-        if self.memory.size > KEEP_SHARED_BYTES:
-            _pool.free_memory()
 
 
 def _wait_for_end(worker: _Worker, deadline: float) -> bool:
@@ -486,34 +674,49 @@ def prestart(count: int) -> None:
         _pool.lock.release()
 
 
-def planned_bytes(shape, dtype, count: int, scene_bytes: int) -> int:
+def planned_bytes(count: int, scene_bytes: int) -> int:
     """What rendering in ``count`` workers holds beyond a threaded render (``core.memory``):
-    the shared image of ``shape`` in the render's ``dtype``, and per worker its interpreter
-    and its own copy of the scene; the tracing memory only moves into the workers."""
-    image = IMAGE_OFFSET + int(np.prod(shape)) * np.dtype(dtype).itemsize
-    return image + count * (WORKER_PROCESS_BYTES + scene_bytes)
+    per worker its interpreter and its own copy of the scene.  The tracing memory only moves
+    into the workers, and the image is the frame they share (no second copy)."""
+    return count * (WORKER_PROCESS_BYTES + scene_bytes)
 
 
-def render_tiles(ctx, camera, tiles, shape, count: int, finish, should_cancel=None) -> None:
-    """Render ``tiles`` of an image of ``shape`` (H, W, 4) on ``count`` worker processes.
-    Raises ProcessesUnavailable, before any tile is finished, where they cannot be used
-    (cannot start here, or another render is using them)."""
+def render_tiles(ctx, camera, tiles, shape, dtype, count: int, finish,
+                 should_cancel=None):
+    """(image, fallback): the (H, W, 4) image of ``shape`` and ``dtype`` with ``tiles``
+    rendered into it on ``count`` worker processes (and in this process while they start,
+    ``_Render.run``); finish(tile, pixels, stats, done, finite) is called in this process as
+    each tile lands, pixels the tile's view of the image.  fallback: None, or why this
+    process rendered the tiles left after the workers failed to start.  Raises
+    ProcessesUnavailable, before any tile is finished, where they cannot be used (cannot
+    start here; WorkersBusy: another render is using them)."""
+    global last_render_here
     if not _pool.lock.acquire(blocking=False):
-        raise ProcessesUnavailable("another render is using the worker processes")
+        raise WorkersBusy("another render is using the worker processes")
     try:
         try:
             _pool.grow(count)
         except ProcessesUnavailable:
             _pool.drop_all()
             raise
-        render = _Render(ctx, camera, shape, count)
+        render = _Render(ctx, camera, shape, dtype, count)
+        fallback = None
         try:
-            render.start(should_cancel)
-            render.run(tiles, finish, should_cancel)
+            try:
+                render.start()
+                render.run(tiles, finish, should_cancel)
+            except ProcessesUnavailable as error:
+                if render.done == 0:
+                    raise
+                fallback = str(error)       # tiles landed: this process does the rest
+                render.finish_here(finish, should_cancel)
+            return render.image, fallback
         except ProcessesUnavailable:
             _pool.drop_all()    # the others started the same way: none is trusted
             raise
         finally:
+            last_render_here = render.here
             render.end()
+            render.image = None   # the caller's now, or gone (its frame is free again)
     finally:
         _pool.lock.release()

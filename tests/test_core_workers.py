@@ -90,8 +90,8 @@ def test_an_error_in_a_worker_is_raised_as_itself(small_renders_in_processes):
     with pytest.raises(ValueError) as in_process:
         render_tile(ctx, scene.camera, bad_tile)
     with pytest.raises(ValueError) as in_worker:
-        workers.render_tiles(ctx, scene.camera, [(0, 32, 0, 32), bad_tile], (64, 64, 4), 1,
-                             lambda *finished: None)
+        workers.render_tiles(ctx, scene.camera, [(0, 32, 0, 32), bad_tile], (64, 64, 4),
+                             np.float64, 1, lambda *finished: None)
     assert str(in_worker.value) == str(in_process.value)
     assert "in a render worker process" in "".join(getattr(in_worker.value, "__notes__", []))
 
@@ -309,7 +309,7 @@ def test_the_memory_plan_counts_the_workers(small_renders_in_processes, monkeypa
 
     memory = importlib.import_module("core.memory")
     scene = core.article_scene(64, 64)
-    settings = _settings(threads=2)
+    settings = _settings(threads=2, parallelism="threads")
     threaded = memory.plan(scene, settings, np.float64, 2)
     monkeypatch.setattr(memory, "available_memory",
                         lambda: threaded.total + memory.HEADROOM + 1024)
@@ -360,3 +360,177 @@ def test_a_stray_module_at_the_front_of_the_path_does_not_break_the_workers(
     assert result.parallelism == "processes", workers.unavailable_reason
     assert np.array_equal(result.image, reference.image)
     workers.shutdown()   # later tests start workers with the ordinary path
+
+
+def test_an_image_the_caller_keeps_is_never_written_by_a_later_render(
+        small_renders_in_processes):
+    """Workers write straight into the result's memory (a frame every worker maps); a frame
+    is used again only once nothing refers to its image, not even a view."""
+    settings = _settings(threads=2, parallelism="processes")
+    first = core.render(core.article_scene(96, 64), settings)
+    kept_view = first.image[10:20]
+    first_copy = first.image.copy()
+    del first
+    for size in ((96, 64), (96, 64), (64, 64)):   # same and smaller frames, several times
+        other = core.render(core.article_scene(*size), _settings(
+            threads=2, parallelism="processes", semantics="article"))
+        assert other.parallelism == "processes"
+        assert not np.shares_memory(other.image, kept_view)
+    assert np.array_equal(kept_view, first_copy[10:20])
+
+
+def test_frames_are_reused_and_no_descriptor_leaks(small_renders_in_processes):
+    settings = _settings(threads=2, parallelism="processes")
+    scene = core.article_scene(96, 64)
+    result = core.render(scene, settings)
+    result = core.render(scene, settings)          # the first is alive meanwhile: 2 frames
+    descriptors = len(os.listdir("/proc/self/fd"))
+    seen = set()
+    for _ in range(6):
+        result = core.render(scene, settings)      # the previous result is alive meanwhile
+        seen |= {frame.id for frame in workers._pool.frames}
+    assert result.parallelism == "processes"
+    assert len(seen) == workers.KEPT_FRAMES == 2   # the two frames, taken in turn
+    assert len(os.listdir("/proc/self/fd")) == descriptors
+
+
+def test_an_image_outlives_shutdown(small_renders_in_processes):
+    scene = core.article_scene(96, 64)
+    result = core.render(scene, _settings(threads=2, parallelism="processes"))
+    workers.shutdown()                               # frames closed, workers gone
+    assert workers._pool.frames == []
+    reference = core.render(scene, _settings(threads=1, parallelism="threads"))
+    assert np.array_equal(result.image, reference.image)
+    result.image[:] = 0                              # still the caller's, writable
+
+
+def test_a_worker_dead_before_its_next_tile_is_sent_is_the_same_render_error(
+        small_renders_in_processes):
+    """Killed (and gone) just after its tile landed: the parent's next send to it breaks the
+    pipe, which must be the RenderError of a dead worker, not a BrokenPipeError."""
+    import importlib
+    import signal
+
+    scene = core.article_scene(160, 160)
+    settings = _settings(threads=2, parallelism="processes", tile_size=16)
+    core.render(scene, settings)                      # two workers, warm
+
+    def kill_all_on_first_tile(tile, rgba):
+        for worker in list(workers._pool.workers):
+            if worker.process.poll() is None:
+                os.kill(worker.process.pid, signal.SIGKILL)
+                worker.process.wait()
+
+    render_module = importlib.import_module("core.render")
+    with pytest.raises(render_module.RenderError,
+                       match=r"a render worker process died \(exit code -9\)"):
+        core.render(scene, settings, on_tile=kill_all_on_first_tile)
+    again = core.render(scene, settings)             # new workers take their place
+    assert again.parallelism == "processes" and len(workers.worker_pids()) == 2
+
+
+def slow_boot(tmp_path, monkeypatch, wait_for=None, then_exit=None):
+    """Workers whose start waits (``wait_for``: until that file exists; else 2 s) and then
+    either boots (core/_worker_boot.py) or exits with ``then_exit``."""
+    real = workers._BOOT_FILE
+    wrapper = tmp_path / "slow_boot.py"
+    wait = (f"while not os.path.exists({str(wait_for)!r}): time.sleep(0.01)" if wait_for
+            else "time.sleep(2.0)")
+    finish = (f"sys.exit({then_exit})" if then_exit is not None else
+              f"sys.argv[0] = {real!r}; runpy.run_path({real!r}, run_name='__main__')")
+    wrapper.write_text(f"import os, runpy, sys, time\n{wait}\n{finish}\n")
+    workers.shutdown()
+    monkeypatch.setattr(workers, "unavailable_reason", None)
+    monkeypatch.setattr(workers, "_BOOT_FILE", str(wrapper))
+
+
+def test_while_workers_start_this_process_renders_tiles(small_renders_in_processes,
+                                                        monkeypatch, tmp_path):
+    """A cold start costs the frame nothing it could have rendered meanwhile: here the
+    workers take 2 s to start and this process renders the whole (small) frame itself."""
+    scene = core.article_scene(96, 64)
+    reference = core.render(scene, _settings(threads=1, parallelism="threads"))
+    slow_boot(tmp_path, monkeypatch)
+    landed = []
+    result = core.render(scene, _settings(threads=2, parallelism="processes"),
+                         progress=landed.append)
+    assert result.parallelism == "processes" and result.fallback is None
+    assert workers.last_render_here == len(landed) == 6     # every tile, here
+    assert np.array_equal(result.image, reference.image) and result.stats == reference.stats
+    # The workers, up by now, owe that render's end: read at the next render's start.
+    again = core.render(scene, _settings(threads=2, parallelism="processes"))
+    assert again.parallelism == "processes" and workers.last_render_here == 0
+    assert np.array_equal(again.image, reference.image)
+    workers.shutdown()
+
+
+def test_workers_that_fail_after_tiles_landed_leave_the_rest_to_this_process(
+        small_renders_in_processes, monkeypatch, tmp_path):
+    scene = core.article_scene(160, 160)
+    settings = _settings(threads=2, parallelism="processes", tile_size=16)
+    reference = core.render(scene, _settings(threads=1, parallelism="threads", tile_size=16))
+    signal_file = tmp_path / "first tile landed"
+    slow_boot(tmp_path, monkeypatch, wait_for=signal_file, then_exit=3)
+
+    def on_tile(tile, rgba):
+        signal_file.touch()        # the workers exit once a tile has landed
+
+    result = core.render(scene, settings, on_tile=on_tile)
+    assert result.parallelism == "threads"
+    assert result.fallback == ("worker processes unavailable (a worker process exited while "
+                               "starting (exit code 3)): rendered on threads")
+    assert workers.last_render_here == 100     # the first tile, and the rest after the exit
+    assert np.array_equal(result.image, reference.image) and result.stats == reference.stats
+    assert workers._pool.workers == []
+
+
+def test_auto_takes_processes_where_their_start_up_pays(monkeypatch):
+    import importlib
+
+    render_module = importlib.import_module("core.render")
+
+    def in_processes(width, height, threads=2, **settings):
+        tiles = len(render_module._tiles(width, height, 128))
+        return render_module._in_processes(core.RenderSettings(parallelism="auto", **settings),
+                                           width * height, tiles, threads)
+
+    monkeypatch.setattr(workers, "one_render", False)   # a session: workers live on
+    assert in_processes(1920, 1080)
+    assert not in_processes(1920, 1080, threads=1)      # one worker only moves the work
+    assert not in_processes(500, 500)                    # under MIN_PIXELS
+    monkeypatch.setattr(workers, "one_render", True)    # render once, then exit
+    monkeypatch.setattr(workers, "warm", lambda count: False)
+    assert not in_processes(1920, 1080)                  # 2 M samples: start-up does not pay
+    assert in_processes(1920, 1080, anti_aliasing="fixed", samples=4)     # 8.3 M samples
+    assert in_processes(3840, 2160)                      # 8.3 M
+    monkeypatch.setattr(workers, "warm", lambda count: True)
+    assert in_processes(1920, 1080)                      # already paid
+    for parallelism in ("threads", "processes"):         # explicit choices are kept
+        assert render_module._in_processes(core.RenderSettings(parallelism=parallelism),
+                                           1920 * 1080, 135, 1) == (parallelism == "processes")
+
+
+def test_python_m_core_renders_one_frame_so_auto_weighs_the_start_up(tmp_path):
+    def run(*arguments):
+        done = subprocess.run([sys.executable, "-c", textwrap.dedent(f"""
+            import sys
+            from core import __main__ as main, workers
+            ran = []
+            real = main.render
+            def recording(*args, **kwargs):
+                result = real(*args, **kwargs)
+                ran.append(result.parallelism)
+                return result
+            main.render = recording
+            code = main.main({list(arguments)!r} + ["--output", {str(tmp_path / 'o.npy')!r}],
+                             own_process=True)
+            print(code, ran[0], workers.one_render)
+        """)], capture_output=True, text=True, cwd=REPOSITORY, timeout=300)
+        assert done.returncode == 0, done.stderr
+        return done.stdout.split()[-3:]     # after main's "wrote ..." line
+
+    size = ["--width", "800", "--height", "450", "--threads", "2"]
+    assert run(*size) == ["0", "threads", "True"]
+    assert run(*size, "--anti-aliasing", "fixed", "--samples", "32") == ["0", "processes",
+                                                                         "True"]
+    assert run(*size, "--parallelism", "processes") == ["0", "processes", "True"]

@@ -66,12 +66,15 @@ def mesh_scene(rings=60, instances=6):
                       lights=(core.PointLight((5, 5, 5)),))
 
 
+# Threads, not 'auto': tracemalloc sees this process only, and the plan is about tracing
+# memory (worker processes are planned in test_core_workers).
 CASES = {
     "article 1024x1024, 2 threads": (lambda: core.article_scene(1024, 1024),
-                                     core.RenderSettings(threads=2)),
+                                     core.RenderSettings(threads=2, parallelism="threads")),
     "article 512x512, fixed 64 samples": (lambda: core.article_scene(512, 512),
                                           core.RenderSettings(threads=2, anti_aliasing="fixed",
-                                                              samples=64)),
+                                                              samples=64,
+                                                              parallelism="threads")),
     "5,000 spheres at 64x64, soft light": (lambda: spheres_scene(5000),
                                            core.RenderSettings(threads=2, light_samples=16)),
     "a 100,000-sphere set at 64x64, hard light": (lambda: sphere_set_scene(100_000, False),
@@ -96,8 +99,8 @@ def test_the_plan_covers_what_a_render_allocates_without_wild_overestimates(case
 
 def test_a_render_that_cannot_fit_is_refused_before_tracing_in_one_line():
     scene = core.article_scene(100_000, 100_000)
-    with pytest.raises(memory.NotEnoughMemory) as raised:
-        core.render(scene, core.RenderSettings())
+    with pytest.raises(memory.NotEnoughMemory) as raised:  # threads: the image alone
+        core.render(scene, core.RenderSettings(parallelism="threads"))
     message = str(raised.value)
     assert "100000x100000 render needs about 320.0 GB" in message
     assert "lower the resolution" in message and "\n" not in message

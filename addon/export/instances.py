@@ -125,10 +125,11 @@ class InstanceExporter:
         local = transforms.reshape(count, 4, 4).transpose(0, 2, 1).astype(np.float64)
         world = np.matmul(np.asarray(parent.matrix_world, np.float64), local)
         indices = self._reference_indices(points, count)
+        holdout = self.context.is_holdout(parent)
         for index, mesh in enumerate(meshes):
             chosen = indices == index if len(meshes) > 1 else slice(None)
             self.meshes.add_bulk(mesh, tuple(mesh.materials), world[chosen],
-                                 f"{mesh.name} (instanced by {parent.name})")
+                                 f"{mesh.name} (instanced by {parent.name})", holdout)
         return True
 
     def covers(self, objects, layer_objects) -> bool:

@@ -122,6 +122,7 @@ class MeshUse:
     name: str                       # the first instance's name
     mesh: object                    # the evaluated bpy Mesh (read in ``finish``)
     materials: tuple                # bpy materials per slot
+    holdout: bool = False           # its instances are holdouts (``ExportContext.is_holdout``)
     matrices: list = field(default_factory=list)   # per instance: 64 bytes, float32 4x4
     names: list = field(default_factory=list)      # per instance: its name, or None
     forced: list = field(default_factory=list)     # per instance: glint_analytic_sphere
@@ -190,25 +191,30 @@ class MeshExporter:
         """Where the instances of this instance's (original object, evaluated mesh) go: its
         MeshUse, the object's glint_analytic_sphere and the name it is exported under."""
         obj = instance.object
-        key = (obj.original.as_pointer(), obj.data.as_pointer())
+        # An instance is a holdout as its instancer is (as Cycles reads it).
+        holder = instance.parent if instance.is_instance else obj
+        key = (obj.original.as_pointer(), obj.data.as_pointer(), holder.as_pointer())
         known = self.objects.get(key)
         if known is None:
             materials = evaluated_materials(obj)
-            use_key = (key[1], _material_key(materials))
+            holdout = self.context.is_holdout(holder)
+            use_key = (key[1], _material_key(materials), holdout)
             use = self.uses.get(use_key)
             if use is None:
-                use = self.uses[use_key] = MeshUse(instance_name(instance), obj.data, materials)
+                use = self.uses[use_key] = MeshUse(instance_name(instance), obj.data, materials,
+                                                   holdout)
             known = self.objects[key] = (use, forces_sphere(obj))
         use, forced = known
         return MeshPlacement(use, forced, obj.name if own_geometry(instance) else None)
 
-    def add_bulk(self, mesh, materials: tuple, matrices: np.ndarray, display_name: str) -> None:
+    def add_bulk(self, mesh, materials: tuple, matrices: np.ndarray, display_name: str,
+                 holdout: bool = False) -> None:
         """Instances of one evaluated mesh given as (K, 4, 4) world matrices (instances read
-        in bulk, ``instances``)."""
-        key = (mesh.as_pointer(), _material_key(materials))
+        in bulk, ``instances``); holdout: their instancer is a holdout."""
+        key = (mesh.as_pointer(), _material_key(materials), holdout)
         use = self.uses.get(key)
         if use is None:
-            use = self.uses[key] = MeshUse(display_name, mesh, materials)
+            use = self.uses[key] = MeshUse(display_name, mesh, materials, holdout)
         use.blocks.append(np.asarray(matrices, np.float64).reshape(-1, 4, 4))
 
     def finish(self) -> None:
@@ -238,8 +244,8 @@ class MeshExporter:
         arrays, fit = self._arrays(use.mesh)
         if len(arrays.triangles) == 0:
             return
-        slot_materials = ([context.material(m, use.name) for m in use.materials]
-                          or [context.material(None, use.name)])
+        slot_materials = ([context.material(m, use.name, use.holdout) for m in use.materials]
+                          or [context.material(None, use.name, use.holdout)])
         if fit is not None and drawn.any():
             placed = sphere_instances(fit, matrices[drawn], context.footprint, forced[drawn])
             as_sphere = np.zeros(len(matrices), bool)

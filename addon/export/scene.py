@@ -214,6 +214,7 @@ def export_scene(depsgraph, camera_override=None, *, view_camera=None
         context = ExportContext.for_camera(view_camera, _render_camera(depsgraph,
                                                                        camera_override),
                                            article=article)
+    context.view_layer = depsgraph.view_layer_eval
     visible = _RenderVisibility(depsgraph)
     meshes = MeshExporter(context)
     bulk = InstanceExporter(context, meshes, visible)
