@@ -330,8 +330,11 @@ class _Frame:
         return self._handed_out is not None and self._handed_out() is not None
 
     def image(self, shape, dtype) -> np.ndarray:
-        """A new (H, W, 4) image over this frame; its mapping lives as long as the image."""
-        mapping = _map(self.descriptor, self.size, populate=True)
+        """A new (H, W, 4) image over this frame; its mapping lives as long as the image.
+        A frame used before has its pages already: they are mapped at once (one system
+        call, not a fault per page).  A new one's pages are allocated where they are first
+        written, by the workers in parallel, not all here before the first tile."""
+        mapping = _map(self.descriptor, self.size, populate=self._handed_out is not None)
         self._handed_out = weakref.ref(mapping)
         return _frame_image(mapping, shape, dtype)
 
