@@ -11,7 +11,8 @@ Both do the same job.  Without a .blend, the article's scene is built in Blender
 frame is rendered by Glint's render engine, exactly as F12 would render it, and the PNG is
 what Blender's colour management (view transform, look, exposure) makes of it: the pixels F12
 saves and the Render button's Image shows (``write_output``).  With Film > Transparent, alpha
-is the spheres' coverage and the background is transparent.
+is the coverage (less holdouts and what Transparent BSDFs let through) and the background is
+transparent.
 
 How the add-on is loaded: this file sits in the repository root, which is the extension
 package itself (``__init__.py``, ``addon/``, ``core/``).  ``import_glint`` loads that directory

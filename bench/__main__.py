@@ -77,7 +77,11 @@ def plan_lines(plan, quick: bool) -> list[str]:
         f"timed at {size(plan.per_pixel_article_size)} (article) and "
         f"{size(plan.per_pixel_spheres_size)} (spheres); sphere sets of "
         f"{', '.join(f'{c:,}' for c in plan.sphere_set_counts)} at "
-        f"{size(plan.sphere_set_size)}.",
+        f"{size(plan.sphere_set_size)} and {', '.join(f'{c:,}' for c in plan.sphere_set_hd[1])} "
+        f"at {size(plan.sphere_set_hd[0])}.",
+        f"Scale cases (bench.scale, KIND:COUNT:WIDTHxHEIGHT): "
+        f"{'; '.join(', '.join(cases) for cases in plan.scale_cases.values())}; export of "
+        f"{', '.join(f'{c:,}' for c in plan.scale_export_counts)} instances.",
         "Threads: Glint one per core; baseline and per-pixel program one (NumPy); Cycles all "
         "cores.  Memory: tracemalloc peak of the warm-up run (Python/NumPy contenders), "
         "resident-set growth of one render in a child process (Blender, marked RSS).",
@@ -126,7 +130,7 @@ def main(argv=None) -> int:
                                               "SphereSet")):
         rows = report.curve_table(bench, curve)
         if rows:
-            lines += [f"## {title}", ""] + rows + [""]
+            lines += [f"## {title}", ""] + rows + [""] + report.curve_exponents(bench, curve)
 
     os.makedirs(args.out, exist_ok=True)
     try:
@@ -142,7 +146,7 @@ def main(argv=None) -> int:
         json.dump({"rows": [_row_json(r) for r in bench.rows],
                    "curves": [dataclasses.asdict(p) for p in bench.curve_points],
                    "targets": [dataclasses.asdict(t) for t in report.targets(bench)],
-                   "notes": bench.notes}, out, indent=1)
+                   "notes": bench.notes, "scale": bench.scale_results}, out, indent=1)
     return 0
 
 

@@ -103,6 +103,18 @@ def run_case(case: str, count: int, repeat: int) -> dict:
                 export_s=statistics.median(times), runs=times, drawn=drawn)
 
 
+def run_child(case: str, count: int, repeat: int) -> dict:
+    """``run_case`` in a child process of its own; its result."""
+    child = subprocess.run(
+        [sys.executable, "-m", "bench.export_scale", "--repeat", str(repeat),
+         "--child", case, str(count)], cwd=REPOSITORY, capture_output=True, text=True)
+    lines = [line for line in child.stdout.splitlines() if line.startswith("{")]
+    if child.returncode != 0 or not lines:
+        raise RuntimeError(f"bench.export_scale {case!r} {count}: "
+                           f"{child.stderr.strip()[-800:]}")
+    return json.loads(lines[-1])
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--counts", type=int, nargs="+", default=[100_000, 1_000_000])
@@ -117,11 +129,7 @@ def main(argv=None) -> None:
     print("|---|---:|---:|---:|---:|")
     for case in args.cases:
         for count in args.counts:
-            child = subprocess.run(
-                [sys.executable, "-m", "bench.export_scale", "--repeat", str(args.repeat),
-                 "--child", case, str(count)],
-                cwd=REPOSITORY, capture_output=True, text=True, check=True)
-            result = json.loads(child.stdout.strip().splitlines()[-1])
+            result = run_child(case, count, args.repeat)
             print(f"| {case} | {count:,} | {result['depsgraph_s']:.2f} | "
                   f"{result['export_s']:.3f} | {result['drawn']:,} |", flush=True)
 

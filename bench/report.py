@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Optional
 
+import numpy as np
+
 from .suite import BASELINE_LABEL, CURVE_GLINTS, GLINT_PLAIN, Bench, CurvePoint, Glint, Row
 
 MIB = 2 ** 20
@@ -81,7 +83,7 @@ def table(bench: Bench) -> list[str]:
 @dataclass
 class Target:
     name: str
-    status: str        # PASS | FAIL | NOT MEASURED
+    status: str        # PASS | FAIL | NOT MEASURED | MEASURED (no target figure)
     details: str
 
     def line(self) -> str:
@@ -224,9 +226,79 @@ def target_float32(bench: Bench) -> Target:
                   f"reference: max {f32.max_error:.2g}, RMS {f32.rms_error:.2g} (8-bit steps)")
 
 
+#: Issue 9's scale targets: Glint's F12 within this factor of Cycles' on a million
+#: point-cloud spheres, and faster than Cycles on 100,000 instanced spheres.
+POINTS_SLOWDOWN, INSTANCES_SLOWDOWN = 5.0, 1.0
+
+
+def _largest(bench: Bench, kinds) -> list[dict]:
+    """The ``bench.scale`` results of these kinds at the largest count each was run at."""
+    chosen = []
+    for kind in kinds:
+        results = [r for r in bench.scale_results if r["kind"] == kind]
+        if results:
+            chosen.append(max(results, key=lambda r: r["count"]))
+    return chosen
+
+
+def _versus_cycles(result: dict) -> str:
+    glint, cycles, alike = result["glint"], result["cycles"], result["similarity"]
+    r = "—" if alike["r"] is None else f"{alike['r']:.3f}"
+    return (f"{result['title']}: Glint {glint['median_s']:.3g} s (export "
+            f"{glint['export_s']:.3g} s, core {glint['core_s']:.3g} s) vs Cycles "
+            f"{cycles['median_s']:.3g} s = {glint['median_s'] / cycles['median_s']:.2f}x "
+            f"Cycles' time; similarity r {r}")
+
+
+def target_scale_points(bench: Bench) -> Target:
+    name = (f"(scale 1) 1,000,000 point-cloud spheres at 640x360: Glint's F12 (export "
+            f"included) within {POINTS_SLOWDOWN:g}x Cycles' (1 spp, whole render)")
+    results = _largest(bench, ("points",))
+    if not results:
+        return _missing(name, "the scale-points workload")
+    (result,) = results
+    ratio = result["glint"]["median_s"] / result["cycles"]["median_s"]
+    partial = "" if result["count"] >= 1_000_000 else " (fewer points than the target's)"
+    return Target(name, _status(ratio <= POINTS_SLOWDOWN),
+                  _versus_cycles(result) + f" (needs <= {POINTS_SLOWDOWN:g}x){partial}")
+
+
+def target_scale_instances(bench: Bench) -> Target:
+    name = ("(scale 2) 100,000 instanced sphere objects at 640x360 faster than Cycles, export "
+            "included (Geometry Nodes instances, vertex instances, linked duplicates)")
+    results = _largest(bench, ("instances", "vertex-instances", "duplicates"))
+    if not results:
+        return _missing(name, "the scale-instances workload")
+    ok = all(r["glint"]["median_s"] < INSTANCES_SLOWDOWN * r["cycles"]["median_s"]
+             for r in results)
+    return Target(name, _status(ok), "; ".join(_versus_cycles(r) for r in results))
+
+
+def target_scale_suzanne(bench: Bench) -> Target:
+    name = "(scale 3) a 1,000,000-triangle Suzanne over a floor at 1920x1080, Cycles beside it"
+    results = _largest(bench, ("suzanne",))
+    if not results:
+        return _missing(name, "the scale-suzanne workload")
+    return Target(name, "MEASURED", _versus_cycles(results[0]) + " (no time target)")
+
+
+def target_scale_export(bench: Bench) -> Target:
+    name = "(scale 4) export time for a million instances"
+    results = [r for r in bench.scale_results if r["kind"] == "export"]
+    if not results:
+        return _missing(name, "the scale-export workload")
+    return Target(name, "MEASURED", "; ".join(
+        f"{r['count']:,} {r['case']}: export_scene {r['export_s']:.3g} s" for r in results))
+
+
 def targets(bench: Bench) -> list[Target]:
     return [target_accurate_speed(bench), target_adaptive(bench), target_scaling(bench),
-            target_float32(bench)]
+            target_float32(bench)] + scale_targets(bench)
+
+
+def scale_targets(bench: Bench) -> list[Target]:
+    return [target_scale_points(bench), target_scale_instances(bench),
+            target_scale_suzanne(bench), target_scale_export(bench)]
 
 
 # --------------------------------------------------------------------------------------------
@@ -245,6 +317,36 @@ def curve_table(bench: Bench, curve: str) -> list[str]:
                      f"{_seconds(p.seconds)} | {p.runs} | {p.seconds / p.pixels * 1e6:.3g} | "
                      f"{peak} | {p.image_bytes / MIB:,.1f} | {working} |")
     return lines
+
+
+def fitted_exponent(counts, seconds) -> float:
+    """k of the least-squares fit seconds ~ counts^k (a straight line in log-log)."""
+    return float(np.polyfit(np.log(counts), np.log(seconds), 1)[0])
+
+
+def curve_exponents(bench: Bench, curve: str) -> list[str]:
+    """For each contender and size of a sphere-count curve: the fitted exponent over all its
+    points and over its last decade (logarithmic cost would fit near 0)."""
+    if curve == "cost-pixels":
+        return []
+    lines = []
+    groups = {}
+    for p in bench.curve_points:
+        if p.curve == curve:
+            groups.setdefault((p.contender, p.width, p.height), []).append(p)
+    for (contender, width, height), points in groups.items():
+        points = sorted(points, key=lambda p: p.spheres)
+        if len(points) < 3:
+            continue
+        counts = np.array([p.spheres for p in points], float)
+        seconds = np.array([p.seconds for p in points])
+        tail = counts >= counts[-1] / 10
+        tail_text = (f", {fitted_exponent(counts[tail], seconds[tail]):.2f} from "
+                     f"{int(counts[tail][0]):,}" if tail.sum() >= 2 else "")
+        lines.append(f"- {contender} at {width}x{height}: time ~ spheres^k with k = "
+                     f"{fitted_exponent(counts, seconds):.2f} over {int(counts[0]):,} to "
+                     f"{int(counts[-1]):,}{tail_text}")
+    return lines + ([""] if lines else [])
 
 
 def phase_table(bench: Bench) -> list[str]:

@@ -9,9 +9,10 @@ Workloads (``--only NAME``):
   precision 'auto' renders in float32.
 * aa-adaptive, aa-fixed16: the article's scene at 1920x1080 with anti-aliasing.
 * cost-pixels, cost-spheres: time and peak memory against pixel count (up to 7680x4320) and
-  against sphere count (1 to 10,000).
+  against sphere count (1 to 100,000 ``core.Sphere`` objects).
 * cost-sphere-sets: time and peak memory of Glint default/auto against sphere count when the
-  spheres are one ``core.SphereSet`` (1,000 to 1,000,000 at 640x360; ``bench.scenes``).
+  spheres are one ``core.SphereSet`` (1 to 1,000,000 at 640x360, and 1,000 and 1,000,000 at
+  1920x1080; ``bench.scenes``); the report fits each curve's exponent (time ~ count^k).
 * malloc: the article's scene at article-hd's size (article/float64, 1 thread) in child
   processes with glibc's defaults and with ``core.allocator``'s settings: minor page faults,
   system and user time per render (``bench.allocation``).
@@ -20,6 +21,14 @@ Workloads (``--only NAME``):
   worker processes (``core.workers``), images checked bit for bit against one thread, CPU
   per frame in this process and in the workers; the processes' start-up is paid in the
   warm-up, and once more, alone, in a "cold" row (workers ended first).
+
+* scale-points, scale-instances, scale-suzanne: issue 9's scale rows (``bench.scale``):
+  scenes built in bpy (a million Geometry Nodes points; 100,000 UV spheres as Geometry Nodes
+  instances, vertex instances and linked duplicates; Suzanne subdivided to 1,007,616
+  triangles over a floor at 1920x1080), Glint's F12 (export + render, AA off) against
+  Cycles' F12 at 1 spp, both in one child process per case, with their similarity.
+* scale-export: ``export_scene`` alone on 100,000 and 1,000,000 instances, read in bulk and
+  walked one by one, and on a million points (``bench.export_scale``).
 
 For article-hd and spheres, Glint article/float64 and default/auto render once more on one
 thread for the per-phase timers (``RayStats.phases``) that the report prints.
@@ -42,7 +51,7 @@ import hashlib
 import os
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Optional
 
 import numpy as np
@@ -86,9 +95,14 @@ class Plan:
     sphere_counts: tuple
     sphere_set_size: Size          # the cost-sphere-sets curve's size and counts
     sphere_set_counts: tuple
+    sphere_set_hd: tuple           # (size, counts): the set curve's points at a large size
     baseline_max_elements: int     # rays x spheres of the baseline's one broadcast
     repeats: int
     budget: float                  # seconds of timed runs per contender after its warm-up
+    # The scale-* workloads: workload name -> its bench.scale case specs, and the instance
+    # counts of scale-export's bench.export_scale cases.
+    scale_cases: dict = field(default_factory=dict)
+    scale_export_counts: tuple = ()
 
 
 FULL = Plan(
@@ -101,8 +115,10 @@ FULL = Plan(
     cycles16_max_pixels=1920 * 1080,
     pixel_curve=((160, 90), (320, 180), (640, 360), (1280, 720), (1920, 1080), (3840, 2160),
                  (7680, 4320)),
-    sphere_curve_size=(640, 360), sphere_counts=(1, 10, 100, 1000, 3000, 10000),
-    sphere_set_size=(640, 360), sphere_set_counts=(1_000, 100_000, 1_000_000),
+    sphere_curve_size=(640, 360), sphere_counts=(1, 10, 100, 1000, 3000, 10000, 100_000),
+    sphere_set_size=(640, 360),
+    sphere_set_counts=(1, 10, 100, 1_000, 10_000, 100_000, 1_000_000),
+    sphere_set_hd=((1920, 1080), (1_000, 1_000_000)),
     baseline_max_elements=40_000_000, repeats=3, budget=40.0)
 
 QUICK = Plan(
@@ -115,13 +131,29 @@ QUICK = Plan(
     cycles16_max_pixels=300 * 200,
     pixel_curve=((160, 90), (320, 180), (640, 360), (960, 540)),
     sphere_curve_size=(160, 90), sphere_counts=(1, 10, 100, 1000),
-    sphere_set_size=(160, 90), sphere_set_counts=(1_000, 100_000),
+    sphere_set_size=(160, 90), sphere_set_counts=(1, 100, 10_000, 100_000),
+    sphere_set_hd=((320, 180), (1_000, 100_000)),
     baseline_max_elements=5_000_000, repeats=1, budget=5.0)
+
+#: Issue 9's scale rows (``bench.scale``: Glint and Cycles through F12 on scenes built in
+#: bpy, in child processes); KIND:COUNT:WIDTHxHEIGHT, COUNT being Suzanne's subdivision levels.
+FULL = replace(FULL, scale_cases={
+    "scale-points": ("points:1000000:640x360",),
+    "scale-instances": ("instances:100000:640x360", "vertex-instances:100000:640x360",
+                        "duplicates:100000:640x360"),
+    "scale-suzanne": ("suzanne:5:1920x1080",)}, scale_export_counts=(100_000, 1_000_000))
+QUICK = replace(QUICK, scale_cases={
+    "scale-points": ("points:1000:160x90",),
+    "scale-instances": ("instances:1000:160x90", "vertex-instances:1000:160x90",
+                        "duplicates:300:160x90"),
+    "scale-suzanne": ("suzanne:2:320x180",)}, scale_export_counts=(10_000,))
+SCALE_WORKLOADS = ("scale-points", "scale-instances", "scale-suzanne", "scale-export")
 
 SCENE_WORKLOADS = ("article-small", "article-hd", "article-uhd", "spheres", "spheres-nofloor")
 AA_WORKLOADS = ("aa-adaptive", "aa-fixed16")
 CURVES = ("cost-pixels", "cost-spheres", "cost-sphere-sets")
 WORKLOADS = SCENE_WORKLOADS + AA_WORKLOADS + CURVES + ("parallelism", "malloc")
+WORKLOADS = WORKLOADS + SCALE_WORKLOADS
 #: Workloads whose Glint rows (CURVE_GLINTS) also get a per-phase breakdown.
 PHASE_WORKLOADS = ("article-hd", "spheres")
 
@@ -238,6 +270,7 @@ class Bench:
         self._timings = {}           # (scene key, contender key) -> (Timing, image bytes)
         self._floor_bands = {}       # size -> bool mask
         self.phases: list[tuple] = []  # (workload title, contender, RayStats) per-phase timers
+        self.scale_results: list[dict] = []  # bench.scale's JSON result per scale case
 
     # ---------------------------------------------------------------------------------------
     # Measuring one contender
@@ -414,6 +447,10 @@ class Bench:
                 self.parallelism_workload(name)
             elif name == "malloc":
                 self.malloc_workload(name)
+            elif name == "scale-export":
+                self.scale_export_workload(name)
+            elif name in SCALE_WORKLOADS:
+                self.scale_workload(name)
             else:
                 raise ValueError(f"unknown workload {name!r}")
 
@@ -614,10 +651,13 @@ class Bench:
                                   scene, contender)
 
     def sphere_set_curve(self) -> None:
-        width, height = self.plan.sphere_set_size
-        for count in self.plan.sphere_set_counts:
+        """The set curve at its size, then its large-size points (a million spheres at
+        1920x1080 against a thousand)."""
+        hd_size, hd_counts = self.plan.sphere_set_hd
+        points = [(self.plan.sphere_set_size, count) for count in self.plan.sphere_set_counts]
+        for (width, height), count in points + [(hd_size, count) for count in hd_counts]:
             scene = random_sphere_set_scene(count, width, height)
-            log(f"cost-sphere-sets {count} spheres: {SET_CURVE_GLINT.label}")
+            log(f"cost-sphere-sets {count} spheres {width}x{height}: {SET_CURVE_GLINT.label}")
             self._curve_point("cost-sphere-sets", ("sphere-set", count, width, height), scene,
                               SET_CURVE_GLINT)
 
@@ -709,3 +749,87 @@ class Bench:
                                  semantics="article", precision="float64",
                                  notes=[allocation.summary(runs) + " per render, in 2 child "
                                         "processes after a warm-up render each"]))
+
+    # ---------------------------------------------------------------------------------------
+    # Issue 9's scale rows
+
+    def scale_workload(self, name: str) -> None:
+        """Glint (F12: export + render) and Cycles at 1 spp on each of the workload's
+        ``bench.scale`` cases, both in one child process per case."""
+        from . import scale
+
+        if not self.use_blender:
+            self.notes.append(f"{name}: not run (--no-blender; both contenders are Blender "
+                              f"renders)")
+            return
+        for spec in self.plan.scale_cases[name]:
+            case = scale.Case.parse(spec)
+            log(f"{case.title}: Glint and Cycles (bench.scale child)")
+            (result,) = scale.run([case], self.plan.repeats, self.plan.budget, self.out_dir)
+            self.scale_results.append(result)
+            self.rows.extend(scale_rows(name, result))
+
+    def scale_export_workload(self, name: str) -> None:
+        """export_scene alone on a million points and instances (``bench.export_scale``'s
+        cases: in bulk from Geometry Nodes, and walked one by one)."""
+        from . import export_scale
+
+        for case in export_scale.CASES:
+            for count in self.plan.scale_export_counts:
+                log(f"export of {count:,} {case}")
+                result = export_scale.run_child(case, count, self.plan.repeats)
+                timing = Timing(result["runs"])
+                self.scale_results.append(dict(result, kind="export"))
+                self.rows.append(Row(
+                    name, f"export of {count:,} {case}", "Glint export_scene", "glint", timing,
+                    timing.median, notes=[
+                        f"{result['drawn']:,} drawn; Blender's depsgraph evaluation before "
+                        f"it {result['depsgraph_s']:.2f} s (not Glint's)"]))
+
+
+SCALE_GLINT_LABEL = "Glint default/auto, AA off, F12 (export + render)"
+SCALE_CYCLES_LABEL = "Cycles CPU, 1 spp, F12"
+
+
+def scale_rows(name: str, result: dict) -> list:
+    """The Glint and Cycles rows of one ``bench.scale`` case's result."""
+    glint, cycles, alike = result["glint"], result["cycles"], result["similarity"]
+    drawn = glint["drawn"]
+    shapes = ", ".join(f"{drawn[key]:,} {label}" for key, label in
+                       (("spheres", "spheres"), ("triangles", "triangles"))
+                       if drawn[key]) or "nothing"
+    glint_notes = [f"export {glint['export_s']:.3g} s + core render {glint['core_s']:.3g} s "
+                   f"(within the F12; the rest is Blender's)",
+                   f"drew {shapes}", _largest_phase(glint), _first(glint),
+                   f"scene built in bpy in {result['build_s']:.3g} s"]
+    glint_notes += [f"warning: {text}" for text in glint["warnings"]]
+    r = "—" if alike["r"] is None else f"{alike['r']:.3f}"
+    box = alike["box"]
+    cycles_notes = ["all cores; default light paths", _first(cycles),
+                    f"vs Glint: r {r} (RGB in {box}x{box} boxes), brightness Glint/Cycles "
+                    f"{alike['brightness_ratio']:.2f}, coverage differs on "
+                    f"{alike['coverage_mismatch']:,} of {alike['pixels']:,} pixels",
+                    f"picture {os.path.basename(result['picture'])} (Glint left)"]
+    return [Row(name, result["title"], SCALE_GLINT_LABEL, "glint", Timing(glint["runs"]),
+                glint["median_s"], semantics="default", precision=glint["precision"],
+                memory_kind="rss", notes=glint_notes),
+            Row(name, result["title"], SCALE_CYCLES_LABEL, "cycles", Timing(cycles["runs"]),
+                cycles["median_s"], memory_kind="rss", notes=cycles_notes)]
+
+
+def _largest_phase(glint: dict) -> str:
+    """The core render's costliest phase (``RayStats.phases``, summed over threads) and its
+    rays, for where the time goes."""
+    phases = {k: v for k, v in glint["phases"].items() if k != "tiles"}
+    name = max(phases, key=phases.get)
+    rays = glint["rays"]
+    camera = max(rays["camera"], 1)
+    return (f"core's largest phase: {name} {phases[name]:.3g} of {glint['phases']['tiles']:.3g} "
+            f"thread-s; per camera ray {rays['shadow'] / camera:.2g} shadow rays, "
+            f"{rays['node_tests'] / camera:.3g} node tests")
+
+
+def _first(contender: dict) -> str:
+    if contender["first_counted"]:
+        return "one render, no warm-up (it took longer than the budget)"
+    return f"warm-up render {contender['first_s']:.3g} s"

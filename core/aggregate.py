@@ -10,8 +10,8 @@ eye, a light sample), which make those rays cheaper and, for spheres, more accur
 Primitives (global ids, ``core.arrays``): analytic spheres (``core.intersect``) and
 triangles (``core.triangles``, watertight).  Behind the interface, spheres are found by
 cone culling over Morton clusters with coherent packets (``core.cull``) while the scene has
-few of them, and through a BVH with every triangle otherwise (``core.bvh``); a scene of
-four spheres builds no tree and pays nothing for triangle support.
+few of them, and through a binned-SAH BVH with every triangle otherwise (``core.bvh``); a
+scene of four spheres builds no tree and pays nothing for triangle support.
 
 Two choices are made once, when the aggregate is built: the hit rules (``article``: the
 article's, where a sphere counts only if both roots are positive, a shadow segment counts
@@ -30,7 +30,7 @@ from .cull import (DENSE_CANDIDATES, REFLECTION_CELLS, SHADOW_CELLS, candidate_r
                    cluster_spheres, direction_cells, reachable)
 from .intersect import OriginTerms, first_hit_distance, offset_roots, origin_roots
 from .rays import ARTICLE_OFFSET, Hits, RayBatch, RayStats, SharedOrigin, ray_offsets, timed
-from .triangles import Shear, watertight
+from .triangles import Shear, watertight, watertight_pairs
 from .vectors import dot, take
 
 #: The two ways to compute ray/sphere roots (``core.intersect``).
@@ -43,8 +43,10 @@ TRIANGLE_BLOCK_PAIRS = 1 << 18
 BVH_MIN_SPHERES = 500
 #: Meshes with at most this many triangles in all are tested flat, with no tree.
 BVH_MIN_TRIANGLES = 16
-#: A primitive whose bounding radius exceeds this multiple of the median stays out of the
-#: tree (a floor would inflate every box above it); at most MAX_HUGE of them.
+#: A sphere whose radius exceeds this multiple of the median stays out of the tree (the
+#: article's floor, radius 9000, would make the root's box that size: every ray would
+#: enter it); at most MAX_HUGE of them.  Triangles all go into the tree: its SAH build
+#: keeps large ones (a backdrop) apart from small ones.
 HUGE_RATIO = 8.0
 MAX_HUGE = 64
 #: Shared-origin sphere terms for the tree's spheres only up to this many spheres (memory:
@@ -90,7 +92,9 @@ class Aggregate:
         self._flat_triangles = np.arange(self.triangle_count)
         if self.triangle_count:
             t = triangles
-            self._v = (cast(t.v0), cast(t.v1), cast(t.v2))
+            # The corners as rows (9, T) for the tree's pair kernel; _v are views of them.
+            self._corners = cast(np.concatenate([t.v0, t.v1, t.v2]))
+            self._v = (self._corners[0:3], self._corners[3:6], self._corners[6:9])
             self._tri_normals = cast(t.normals)
             self._tri_corner_normals = (None if t.corner_normals is None
                                         else cast(t.corner_normals))
@@ -101,8 +105,11 @@ class Aggregate:
             self._tri_centers = centre
             self._tri_radii = reach * (1 + 1e-9) + 1e-12 * (1 + np.abs(centre).max(axis=0))
             self._tri_material = t.material
-            self._flat_triangles, tree_triangles = _partition(self._tri_radii,
-                                                              BVH_MIN_TRIANGLES)
+            # Every triangle goes into the tree once there are enough: the SAH build puts
+            # large ones (a backdrop) in their own subtrees.
+            if self.triangle_count > BVH_MIN_TRIANGLES:
+                self._flat_triangles, tree_triangles = (np.zeros(0, np.intp),
+                                                        np.arange(self.triangle_count))
         # One tree over the rest, spheres and triangles together (global ids).
         self._tree = None
         self._surface_keys = None   # built on first use (adaptive anti-aliasing only)
@@ -335,10 +342,9 @@ class Aggregate:
                             self._radii_t[sphere], article=self._textbook)
 
     def _triangle_pairs(self, rays: RayBatch, shear, r, triangle, t_min, t_max):
-        origins = rays.origins.astype(self.dtype, copy=False)
-        origins = origins if origins.shape[1] == 1 else take(origins, r)
-        v0, v1, v2 = (take(v, triangle) for v in self._v)
-        return watertight(v0, v1, v2, origins, shear.take(r), t_min, t_max)
+        return watertight_pairs(self._corners, triangle,
+                                rays.origins.astype(self.dtype, copy=False), shear, r, t_min,
+                                t_max)
 
     def _pairs_by_kind(self, prims, stats):
         """(sphere pairs, triangle pairs): indices into a tree leaf's (ray, primitive) pairs
@@ -395,7 +401,8 @@ class Aggregate:
                 for store, b in zip(barycentrics, (b0, b1, b2)):
                     store[owner[won]] = b[chosen[won]]
 
-        self._tree.traverse(origins, inverse, t_min.astype(np.float64), reach, visit, accept,
+        box_t_min = float(rays.t_min) if np.ndim(rays.t_min) == 0 else t_min.astype(np.float64)
+        self._tree.traverse(origins, inverse, box_t_min, reach, visit, accept,
                             stats=stats)
 
     def _occluded_in_tree(self, segments: RayBatch, stats) -> np.ndarray:
@@ -427,7 +434,9 @@ class Aggregate:
                 blocked &= prims != exclude[r]
             return np.where(blocked, 0.0, np.inf)
 
-        return self._tree.traverse(origins, inverse, np.maximum(low.astype(np.float64), 0.0),
+        box_t_min = (max(float(segments.t_min), 0.0) if np.ndim(segments.t_min) == 0
+                     else np.maximum(low.astype(np.float64), 0.0))
+        return self._tree.traverse(origins, inverse, box_t_min,
                                    reach, visit, any_hit=True, stats=stats)
 
     # ---- occlusion ----------------------------------------------------------------------

@@ -38,6 +38,7 @@ transmission is traced as sharp refraction (the blur is not modelled).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,8 +55,9 @@ class SurfaceArrays:
     roughness^2 (physical); lobe_norm, exponent: the article's highlight, 1 / pi and
     shininess / 4.  mirror: traces a
     mirror ray weighted by F(N.V).  glossy_environment: reflects F(N.V) x the world instead.
-    reflection: the article's mirror weight (0 for physical).  any_*: whether any sphere
-    needs that work at all.
+    reflection: the article's mirror weight (0 for physical).  holdout: the Holdout shader's
+    weight; holdout_object: the object is a holdout (``SurfaceMaterial``).  any_*: whether any
+    sphere needs that work at all.
     """
 
     physical: np.ndarray
@@ -73,9 +75,13 @@ class SurfaceArrays:
     transmission_fresnel: np.ndarray
     ior: np.ndarray
     transparency: np.ndarray
+    translucency: np.ndarray
+    holdout: np.ndarray
+    holdout_object: np.ndarray
     any_physical: bool
     any_emission: bool
     any_through: bool
+    any_holdout: bool
 
 
 def surface_arrays(materials, dtype) -> SurfaceArrays:
@@ -84,7 +90,8 @@ def surface_arrays(materials, dtype) -> SurfaceArrays:
                                   "alpha",
                                   "emission", "mirror", "glossy_environment", "reflection",
                                   "transmission", "transmission_fresnel", "ior",
-                                  "transparency")}
+                                  "transparency", "translucency", "holdout",
+                                  "holdout_object")}
     black = (0.0, 0.0, 0.0)
     for material in materials:
         if isinstance(material, SurfaceMaterial):
@@ -96,7 +103,9 @@ def surface_arrays(materials, dtype) -> SurfaceArrays:
                           glossy_environment=not mirror, reflection=0.0,
                           transmission=material.transmission,
                           transmission_fresnel=material.transmission_fresnel,
-                          ior=material.ior, transparency=material.transparency)
+                          ior=material.ior, transparency=material.transparency,
+                          translucency=material.translucency, holdout=material.holdout,
+                          holdout_object=material.holdout_object)
         else:
             assert isinstance(material, Material)
             values = dict(physical=False, diffuse=material.diffuse, f0=material.specular,
@@ -105,14 +114,16 @@ def surface_arrays(materials, dtype) -> SurfaceArrays:
                           mirror=False,
                           glossy_environment=False, reflection=material.reflection,
                           transmission=black, transmission_fresnel=0.0, ior=1.0,
-                          transparency=black)
+                          transparency=black, translucency=black, holdout=0.0,
+                          holdout_object=False)
         for name, value in values.items():
             rows[name].append(value)
     arrays = {}
     for name, values in rows.items():
-        if name in ("physical", "mirror", "glossy_environment"):
+        if name in ("physical", "mirror", "glossy_environment", "holdout_object"):
             arrays[name] = np.asarray(values, bool).reshape(-1)
-        elif name in ("diffuse", "f0", "f90", "emission", "transmission", "transparency"):
+        elif name in ("diffuse", "f0", "f90", "emission", "transmission", "transparency",
+                      "translucency"):
             arrays[name] = np.ascontiguousarray(np.asarray(values, np.float64).reshape(-1, 3).T,
                                                 dtype)
         else:
@@ -120,7 +131,20 @@ def surface_arrays(materials, dtype) -> SurfaceArrays:
     return SurfaceArrays(
         **arrays, any_physical=bool(arrays["physical"].any()),
         any_emission=bool(arrays["emission"].any()),
-        any_through=bool(arrays["transmission"].any() or arrays["transparency"].any()))
+        any_through=bool(arrays["transmission"].any() or arrays["transparency"].any()),
+        any_holdout=bool(arrays["holdout"].any() or arrays["holdout_object"].any()))
+
+
+def translucent_view(surfaces: SurfaceArrays):
+    """The lobes the light arriving through a surface meets (Translucent BSDF: a Lambertian
+    lobe of colour ``translucency`` on the back side, nothing else), for shading the back
+    hemisphere with the front's code (``core.shading``); None when no surface is translucent."""
+    if not surfaces.translucency.any():
+        return None
+    black = np.zeros_like(surfaces.diffuse)
+    return dataclasses.replace(
+        surfaces, diffuse=surfaces.translucency, f0=black, f90=black, emission=black,
+        glossy_environment=np.zeros_like(surfaces.glossy_environment), any_emission=False)
 
 
 def schlick(f0, f90, cosine):
@@ -293,12 +317,15 @@ def environment(surfaces: SurfaceArrays, spheres, normals, to_view, world):
 @dataclass
 class Branch:
     """Secondary rays leaving some of m hit points: index (k,) into the points, unit
-    directions (3, k), weights (3, k), and whether each leaves through the surface."""
+    directions (3, k), weights (3, k), whether each leaves through the surface, and whether
+    it goes straight on (a Transparent BSDF: what a camera ray sees through it is still the
+    camera's view, for holdouts and Film > Transparent)."""
 
     index: np.ndarray
     directions: np.ndarray
     weights: np.ndarray
     through: bool
+    straight: bool = False
 
 
 def scatter(surfaces: SurfaceArrays, normals, directions, cos_in, spheres, front) -> list:
@@ -345,7 +372,7 @@ def scatter(surfaces: SurfaceArrays, normals, directions, cos_in, spheres, front
         passing = np.flatnonzero(transparency.max(axis=0) > 0)
         if len(passing):
             branches.append(Branch(passing, take(directions, passing),
-                                   take(transparency, passing), True))
+                                   take(transparency, passing), True, straight=True))
     reflecting = np.flatnonzero(reflect_weight.max(axis=0) > 0)
     if len(reflecting):
         d, n = take(directions, reflecting), take(normals, reflecting)

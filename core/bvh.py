@@ -1,22 +1,35 @@
 """A bounding volume hierarchy built and traversed in whole-array NumPy.
 
-Build (``BVH.build``): primitives sorted by the 63-bit Morton code of their box centres
-(a linear BVH, Lauterbach et al. 2009), cut into leaves of LEAF_SIZE consecutive
-primitives; each level above groups WIDTH consecutive nodes of the level below, so node i
-of a level has children i * WIDTH .. i * WIDTH + WIDTH - 1.  Bounds are ``reduceat`` over
-the sorted boxes: no Python loop per node.
+Build (``BVH.build``): a binned surface-area-heuristic (SAH) tree (Wald 2007; pbrt 4's
+``BVHAggregate``), built level by level over every node of a level at once: each node's
+primitives are put into BINS bins along each axis by their box centres, the bins' counts
+and boxes come from ``bincount`` and ``minimum.at`` / ``maximum.at``, and the node is
+split at the bin boundary of least SAH cost (the children's surface areas times their
+primitive counts), or kept as a leaf of at most MAX_LEAF primitives when that costs less
+than any split (or when all its centres coincide and it is small).  Large primitives (a
+backdrop's triangles) among small ones (a mesh's) thus end in their own subtrees instead of
+inflating the small ones' boxes, which a Morton-order tree cannot avoid.  The binary tree is
+then collapsed into a WIDTH-wide one: a node's children are its binary grandchildren (a
+binary child that is a leaf stays one child).
+
+Layout: ``blocks`` (6, M, WIDTH) each wide node's child boxes as planes (low xyz, high
+xyz; a plane of a node's children is contiguous), padded with NaN boxes no ray enters; ``children`` (M, WIDTH) each slot's child: a wide
+node (>= 0), a leaf ``-2 - leaf`` or EMPTY; ``leaves`` (L, MAX_LEAF) each leaf's primitive
+ids, padded with -1.  Node 0 is the root, whose own box is ``root_box``.
 
 Traversal (``BVH.traverse``) is wavefront-style over (ray, node) pairs.  From the root down
-to the *treelet* level (TREELET_DEPTH or more levels above the leaves) every live pair is expanded
-to its children at once and kept where the ray's segment meets the child's box.  The
-(ray, treelet) pairs are then sorted by entry distance and visited front to back in rounds
-(the first treelet of each ray, then the next one, then two, four, ...): a round descends
-its treelets to their leaves, pruning by each ray's nearest hit so far, intersects the
-leaves' primitives, and a ray whose next treelet starts beyond its nearest hit is finished,
-so a ray stops at its nearest hit; for occlusion a ray is finished at its first blocker.
-Pairs stay grouped by ray throughout, so per-ray reductions are ``reduceat``.
+to the *treelets* (the nodes a few levels down, ``_treelet_depth``) every live pair is
+expanded to its children at once and kept where the ray's segment meets the child's box.
+The (ray, treelet) pairs are then sorted by entry distance and visited front to back in
+rounds (the first treelet of each ray, then the next one, then two, four, ...): a round
+descends its treelets to their leaves, pruning by each ray's nearest hit so far, intersects
+the leaves' primitives, and a ray whose next treelet starts beyond its nearest hit is
+finished, so a ray stops at its nearest hit; for occlusion a ray is finished at its first
+blocker.  Pairs are grouped by ray before each visit, so per-ray reductions are
+``reduceat``.
 
-Boxes are float64 and padded, so culling stays conservative for rays in either precision.
+Boxes are padded, so culling stays conservative for rays in either precision; slab tests
+run in float32 for rays that start near the origin (``ORIGIN_REACH``), else in float64.
 """
 
 from __future__ import annotations
@@ -25,23 +38,42 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .runs import rank_within_runs
+from .runs import rank_within_runs, run_starts
 
-#: Primitives per leaf, children per inner node, and the least depth (in levels above the
-#: leaves) of the subtrees ("treelets") visited front to back.
-#: (Leaves of 2 against 4, CPU time on one thread at 320x180: 1,000 spheres 0.63 vs 0.80 s,
-#: 100,000 2.09 vs 2.07 s, 1,000,000 4.49 vs 4.66 s; leaves of 8: 1.34 s and 2.80 s.)
-LEAF_SIZE = 2
+#: Most primitives in a leaf, children per inner node, and the least depth (in wide levels
+#: above a typical leaf) of the subtrees ("treelets") visited front to back.
+MAX_LEAF = 4
 WIDTH = 4
-TREELET_DEPTH = 3
-#: The treelets are the nodes TREELET_DEPTH levels above the leaves, or higher up while
-#: that level has more than MAX_TREELETS nodes (measured, CPU time at 320x180: 1e5 spheres
-#: 1.93 s at depth 3 vs 2.26 s at 4; 1e6 spheres 5.17 s at 3, 3.98 s at 4, 5.19 s at 5).
-MAX_TREELETS = 1000
-#: Rays traversed together: bounds the (ray, node) pairs held at once.
+TREELET_DEPTH = 2
+#: At most this many treelets (the front-to-back sort is over (ray, treelet) pairs).
+MAX_TREELETS = 10 ** 9
+#: Trees of CLUSTER_FROM primitives or more are built over Morton clusters of CLUSTER_SIZE
+#: (``BVH.build``).
+CLUSTER_FROM = 50_000
+CLUSTER_SIZE = 4
+#: Nodes of at most this many clusters split at their Morton median, not by SAH.
+CLUSTER_MEDIAN_UP_TO = 16
+#: Bins per axis of the SAH build, and the cost of a box test relative to a primitive test
+#: (pbrt's 1/2: a wide node's box tests cost about one primitive's here too).
+BINS = 16
+SMALL_BINS = 4
+TRAVERSAL_COST = 0.5
+#: Rays traversed together: bounds the (ray, node) pairs held at once (and the rays' local
+#: index fits the 16 bits of the radix sort that groups leaf pairs by ray).
 RAY_CHUNK = 4096
 #: Relative padding of every box (conservative culling under rounding).
 BOX_PADDING = 1e-7
+#: The slab tests run in float32 for rays whose origins lie within ORIGIN_REACH times the
+#: tree's reach R (its largest coordinate) of the origin (the camera's eye, in the canonical
+#: frame), on boxes grown by SLAB_PADDING_32 * ORIGIN_REACH * R: a slab distance's float32
+#: error (rounding the box, the origin, their difference and the product with 1 / d) is
+#: about 4 eps (|b| + |o| + |b - o|) / |d_axis| <= 4 eps * 2 (1 + ORIGIN_REACH) R / |d_axis|,
+#: and growing a box by g moves its planes by g / |d_axis| along the ray, so every entry
+#: stays at or before the float64 box's and every exit after it.  Other rays use float64.
+ORIGIN_REACH = 4.0
+SLAB_PADDING_32 = 16 * float(np.finfo(np.float32).eps)
+#: A slot without a child.
+EMPTY = -1
 
 
 def _spread21(values):
@@ -53,53 +85,303 @@ def _spread21(values):
     return v
 
 
-def morton_order(points: np.ndarray) -> np.ndarray:
-    """Indices that sort points (N, 3) along a 63-bit Morton curve over their bounding box."""
+def morton_codes(points: np.ndarray) -> np.ndarray:
+    """(N,) uint64 63-bit Morton codes of points (N, 3) over their bounding box (a cube of
+    its largest side, so that a code prefix is a cubic cell)."""
     low = points.min(axis=0)
-    extent = np.ptp(points, axis=0)
-    cells = ((points - low) / np.where(extent > 0, extent, 1) * (2 ** 21 - 1)).astype(np.uint64)
-    code = _spread21(cells[:, 0]) | (_spread21(cells[:, 1]) << np.uint64(1)) \
+    extent = np.ptp(points, axis=0).max()
+    cells = ((points - low) / (extent if extent > 0 else 1) * (2 ** 21 - 1)).astype(np.uint64)
+    return _spread21(cells[:, 0]) | (_spread21(cells[:, 1]) << np.uint64(1)) \
         | (_spread21(cells[:, 2]) << np.uint64(2))
-    return np.argsort(code, kind="stable")
+
+
+def _cells(sorted_codes: np.ndarray, per_cell: int) -> np.ndarray:
+    """(N,) bool: where a new cell starts in sorted Morton codes, for the finest cells
+    (code prefixes, 3 bits a level) that hold on average at least per_cell points."""
+    shifts = range(0, 64, 3)
+    for shift in shifts:
+        start = np.r_[True, (sorted_codes[1:] >> np.uint64(shift))
+                      != (sorted_codes[:-1] >> np.uint64(shift))]
+        if start.sum() * per_cell <= len(sorted_codes):
+            return start
+    return start
+
+
+def _row_max(a):
+    """(N,) the largest of each row of a (N, 3) (column by column: faster than max(axis=1))."""
+    return np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2])
+
+
+def _half_area(low, high):
+    """(...) half the surface area of boxes low, high (..., 3); 0 for empty boxes."""
+    d = np.maximum(high - low, 0)
+    return d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0]
+
+
+@dataclass(frozen=True)
+class BinaryTree:
+    """The SAH build's binary tree, nodes in breadth-first order (children of a node are
+    consecutive: ``left`` and ``left + 1``).  low, high (K, 3) node boxes; left (K,) first
+    child or -1 for a leaf; start, count (K,) the node's primitives ``order[start:start +
+    count]``; depth (K,); order (P,) primitive indices (into the build's input)."""
+
+    low: np.ndarray
+    high: np.ndarray
+    left: np.ndarray
+    start: np.ndarray
+    count: np.ndarray
+    depth: np.ndarray
+    order: np.ndarray
+
+
+def _leaf_table(ordered_ids, firsts, counts):
+    """(L, MAX_LEAF) leaf rows: ordered_ids[firsts[i]:firsts[i] + counts[i]], padded with -1."""
+    table = np.full((len(counts), MAX_LEAF), -1, np.intp)
+    within = rank_within_runs(counts)
+    table[np.repeat(np.arange(len(counts)), counts), within] = \
+        ordered_ids[np.repeat(firsts, counts) + within]
+    return table
+
+
+def _segment_boxes(low, high, starts):
+    return np.minimum.reduceat(low, starts, axis=0), np.maximum.reduceat(high, starts, axis=0)
+
+
+def _binned_splits(c, lo, hi, segment, counts, bins):
+    """(cost (k,), go_left (E,)): the best split of each of k nodes whose primitives (E,)
+    (centres c, boxes lo, hi (E, 3), grouped by node: ``segment`` (E,) their node, counts
+    (k,)) are put into ``bins`` bins along the longest axis of the node's centres (pbrt's
+    choice): the least sum of the two sides' box areas times their counts (inf where no
+    plane separates two primitives), and which side each primitive goes to."""
+    k = len(counts)
+    starts = run_starts(counts)
+    c_low = np.minimum.reduceat(c, starts, axis=0)
+    extent = np.maximum.reduceat(c, starts, axis=0) - c_low
+    axis = np.argmax(extent, axis=1)
+    rows = np.arange(k)
+    length = extent[rows, axis]
+    scale = np.where(length > 0, bins / np.where(length > 0, length, 1), 0)
+    along = c[np.arange(len(c)), axis[segment]] - c_low[rows, axis][segment]
+    index = np.minimum((along * scale[segment]).astype(np.intp), bins - 1)
+    key = segment * bins + index
+    n_bin = np.bincount(key, minlength=k * bins).reshape(k, bins)
+    b_low = np.full((3, k * bins), np.inf)
+    b_high = np.full((3, k * bins), -np.inf)
+    for j in range(3):
+        np.minimum.at(b_low[j], key, lo[:, j])
+        np.maximum.at(b_high[j], key, hi[:, j])
+    b_low = b_low.T.reshape(k, bins, 3)
+    b_high = b_high.T.reshape(k, bins, 3)
+    n_left = np.cumsum(n_bin, axis=1)[:, :-1]
+    n_right = counts[:, None] - n_left
+    a_left = _half_area(np.minimum.accumulate(b_low, axis=1),
+                        np.maximum.accumulate(b_high, axis=1))[:, :-1]
+    a_right = _half_area(np.minimum.accumulate(b_low[:, ::-1], axis=1),
+                         np.maximum.accumulate(b_high[:, ::-1], axis=1))[:, ::-1][:, 1:]
+    cost = np.where((n_left > 0) & (n_right > 0), a_left * n_left + a_right * n_right, np.inf)
+    best = np.argmin(cost, axis=1)
+    return cost[rows, best], index <= best[segment]
+
+
+def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF,
+                     median_up_to: int = 1) -> BinaryTree:
+    """A binned SAH tree over boxes low, high (P, 3), P >= 1, built a level at a time, with
+    leaves of at most ``max_leaf`` of them.  Nodes of at most ``median_up_to`` boxes split
+    at the median of their order instead (for boxes given in Morton order, which the
+    stable partitions keep within every node: a cheap split, as good for small nodes).
+
+    Each level works on the primitives of the nodes it splits, held in order (grouped by
+    node) as rows of ``data`` (centre, low, high) beside their indices ``prims``; a level's
+    partition moves the rows of the nodes that split on to the next level."""
+    count_all = len(low)
+    order = np.arange(count_all)
+    data = np.concatenate([(low + high) / 2, low, high], axis=1)
+    prims = np.arange(count_all)
+    # Per level: the nodes' boxes, first child (-1: leaf), first primitive, count, depth.
+    out_low, out_high, out_left, out_start, out_count, out_depth = [], [], [], [], [], []
+    level_low, level_high = low.min(axis=0)[None], high.max(axis=0)[None]
+    starts, counts = np.zeros(1, np.intp), np.array([count_all])
+    total, depth = 1, 0
+    while True:
+        k = len(counts)
+        lefts = np.full(k, -1, np.intp)
+        out_low.append(level_low)
+        out_high.append(level_high)
+        out_left.append(lefts)
+        out_start.append(starts)
+        out_count.append(counts)
+        out_depth.append(np.full(k, depth, np.intp))
+        local_starts = run_starts(counts)
+        segment = np.repeat(np.arange(k), counts)
+        rank = rank_within_runs(counts)
+        # SAH costs per size class (bins per axis: BINS, or SMALL_BINS for small nodes, so
+        # the bins' work stays within the primitives'); nodes of one primitive are leaves.
+        best_cost = np.full(k, np.inf)
+        go_left = np.zeros(len(prims), bool)
+        for bins, members in ((BINS, counts > max(BINS, median_up_to)),
+                              (SMALL_BINS, (counts > median_up_to) & (counts <= BINS))):
+            nodes = np.flatnonzero(members)
+            if len(nodes) == 0:
+                continue
+            mine = data if len(nodes) == k else data[members[segment]]
+            local = np.repeat(np.arange(len(nodes)), counts[nodes])
+            best_cost[nodes], left = _binned_splits(mine[:, :3], mine[:, 3:6], mine[:, 6:],
+                                                    local, counts[nodes], bins)
+            if len(nodes) == k:
+                go_left = left
+            else:
+                go_left[members[segment]] = left
+        area = _half_area(level_low, level_high)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            split_cost = TRAVERSAL_COST + best_cost / area
+        # A split is taken when it costs less than a leaf of N primitives (cost N), and
+        # always for a node too big for a leaf: at the median of its order when no plane
+        # separates its primitives (all centres in one bin: coincident primitives).
+        median = ~np.isfinite(split_cost)
+        splits = (counts > max_leaf) | (~median & (split_cost < counts))
+        parents = np.flatnonzero(splits)
+        if len(parents) == 0:
+            break
+        go_left = np.where(median[segment], rank < (counts // 2)[segment], go_left)
+        # Stable partition of each splitting node's rows, its lefts first, packed for the
+        # next level (rows of nodes that stay leaves drop out).
+        before = np.cumsum(go_left) - go_left
+        left_rank = before - before[local_starts][segment]
+        n_left = np.add.reduceat(go_left.astype(np.intp), local_starts)
+        within = np.where(go_left, left_rank, n_left[segment] + rank - left_rank)
+        splitting = splits[segment]
+        packed_starts = np.zeros(k, np.intp)
+        packed_starts[parents] = run_starts(counts[parents])
+        rows = np.flatnonzero(splitting)
+        moved = prims.take(rows)
+        order[(starts[segment] + within).take(rows)] = moved
+        source = np.empty_like(rows)
+        source[(packed_starts[segment] + within).take(rows)] = rows
+        prims = prims.take(source)
+        data = np.take(data, source, axis=0)
+        m = len(parents)
+        lefts[parents] = total + 2 * np.arange(m)
+        starts = np.column_stack([starts[parents], starts[parents] + n_left[parents]]).ravel()
+        counts = np.column_stack([n_left[parents], counts[parents] - n_left[parents]]).ravel()
+        level_low, level_high = _segment_boxes(data[:, 3:6], data[:, 6:], run_starts(counts))
+        total += 2 * m
+        depth += 1
+    return BinaryTree(*(np.concatenate(parts) for parts in (
+        out_low, out_high, out_left, out_start, out_count, out_depth)), order)
 
 
 @dataclass(frozen=True)
 class BVH:
-    """primitives: (P,) primitive ids in leaf order, padded with -1 to a whole number of
-    leaves; levels[0] the leaves' boxes, levels[-1] the root's: each (low (3, k), high
-    (3, k)) float64; blocks[k]: level k's boxes as (k-level parents, WIDTH, 6) rows."""
+    """A WIDTH-wide tree (module docstring): root_box (6,) low xyz, high xyz; blocks
+    (6, M, WIDTH); children (M, WIDTH); leaves (L, MAX_LEAF) primitive ids or -1;
+    child_counts (M,) real slots of each node; depths (M,) each node's depth (root 0)."""
 
-    primitives: np.ndarray
-    levels: tuple
-    blocks: tuple = ()       # per level below the root: (parents, WIDTH, 6) child boxes
+    root_box: np.ndarray
+    blocks: np.ndarray
+    children: np.ndarray
+    leaves: np.ndarray
+    child_counts: np.ndarray
+    depths: np.ndarray
+    origin_reach: float = np.inf     # float32 slabs for rays from within this of the origin
 
     @classmethod
     def build(cls, ids: np.ndarray, low: np.ndarray, high: np.ndarray) -> "BVH":
-        """A tree over primitives ``ids`` (P,) with boxes low, high (P, 3)."""
-        order = morton_order((low + high) / 2)
-        ids, low, high = ids[order], low[order], high[order]
-        pad = BOX_PADDING * (np.abs(low).max(axis=1) + np.abs(high).max(axis=1)
-                             + (high - low).max(axis=1))[:, None] + 1e-300
+        """A tree over primitives ``ids`` (P,) (P >= 1) with boxes low, high (P, 3).
+
+        Up to CLUSTER_FROM primitives the SAH build sees every primitive; above, it sees
+        clusters of CLUSTER_SIZE primitives consecutive in Morton order (of one size class:
+        their boxes' largest side within a factor of 4), which become the leaves: the build
+        then costs a CLUSTER_SIZE-th, and the clusters are as tight as Morton leaves."""
+        ids = np.asarray(ids)
+        pad = BOX_PADDING * (_row_max(np.abs(low)) + _row_max(np.abs(high))
+                             + _row_max(high - low))[:, None] + 1e-300
         low, high = low - pad, high + pad
-        starts = np.arange(0, len(ids), LEAF_SIZE)
-        levels = [(np.minimum.reduceat(low, starts).T.copy(),
-                   np.maximum.reduceat(high, starts).T.copy())]
-        while levels[-1][0].shape[1] > 1:
-            below_low, below_high = levels[-1]
-            starts = np.arange(0, below_low.shape[1], WIDTH)
-            levels.append((np.minimum.reduceat(below_low, starts, axis=1),
-                           np.maximum.reduceat(below_high, starts, axis=1)))
-        padded = np.full(levels[0][0].shape[1] * LEAF_SIZE, -1, np.intp)
-        padded[:len(ids)] = ids
-        # Each node's children as one contiguous block of rows (low xyz, high xyz), so that
-        # expanding a (ray, node) pair gathers its WIDTH child boxes at once.
-        blocks = []
-        for low_k, high_k in levels[:-1]:
-            count = low_k.shape[1]
-            rows = np.zeros((-(-count // WIDTH) * WIDTH, 6))
-            rows[:count, :3], rows[:count, 3:] = low_k.T, high_k.T
-            blocks.append(rows.reshape(-1, WIDTH, 6))
-        return cls(padded, tuple(levels), tuple(blocks))
+        if len(ids) < CLUSTER_FROM:
+            tree = build_binary_sah(low, high)
+            counts = tree.count[tree.left < 0]
+            firsts = tree.start[tree.left < 0]
+            return cls.collapse(tree, _leaf_table(ids[tree.order], firsts, counts))
+        size = np.log2(np.maximum(_row_max(high - low), 1e-300))
+        size_class = np.floor((size - size.min()) / 2).astype(np.intp)
+        codes = morton_codes((low + high) / 2)
+        order = np.argsort(codes)
+        classes = np.minimum(size_class.take(order), np.iinfo(np.uint16).max)
+        order = order.take(np.argsort(classes.astype(np.uint16), kind="stable"))
+        lows, highs = np.take(low, order, axis=0), np.take(high, order, axis=0)
+        size_class = size_class.take(order)
+        # Cluster boundaries: every CLUSTER_SIZE primitives within a run of one size class
+        # in one Morton cell (cells of about CLUSTER_SIZE primitives: a cluster never
+        # spans a jump of the curve).
+        run = np.flatnonzero(_cells(codes.take(order), CLUSTER_SIZE)
+                             | np.r_[True, size_class[1:] != size_class[:-1]])
+        lengths = np.diff(np.r_[run, len(order)])
+        cut = (rank_within_runs(lengths) % CLUSTER_SIZE) == 0
+        firsts = np.flatnonzero(cut)
+        counts = np.diff(np.r_[firsts, len(order)])
+        c_low, c_high = _segment_boxes(lows, highs, firsts)
+        tree = build_binary_sah(c_low, c_high, max_leaf=1, median_up_to=CLUSTER_MEDIAN_UP_TO)
+        leaves = _leaf_table(ids[order], firsts[tree.order], counts[tree.order])
+        # Each binary leaf holds one cluster: the one at its position in the build's order.
+        return cls.collapse(tree, leaves[tree.start[tree.left < 0]])
+
+    @classmethod
+    def collapse(cls, tree: BinaryTree, leaves: np.ndarray) -> "BVH":
+        """The WIDTH-wide tree of a binary one; leaves (L, MAX_LEAF): the primitives of its
+        leaves (in node order), padded with -1."""
+        inner = tree.left >= 0
+        leaf_nodes = np.flatnonzero(~inner)
+        leaf_index = np.full(len(tree.left), -1, np.intp)
+        leaf_index[leaf_nodes] = np.arange(len(leaf_nodes))
+        if not inner[0]:
+            # A single leaf: a root with one child.
+            wide = np.zeros(1, np.intp)
+            slots = np.full((1, WIDTH), -1, np.intp)
+            slots[0, 0] = 0
+        else:
+            # Wide nodes: the binary inner nodes at even depth; each one's slots are its
+            # children, opened once more where a child is inner.
+            wide = np.flatnonzero(inner & (tree.depth % 2 == 0))
+            first = tree.left[wide]
+            pair = np.stack([first, first + 1], axis=1)                       # (M, 2)
+            grand = tree.left[pair]                                           # (M, 2)
+            slots = np.full((len(wide), 2, 2), -1, np.intp)
+            opened = grand >= 0
+            slots[..., 0] = np.where(opened, grand, pair)
+            slots[..., 1] = np.where(opened, grand + 1, -1)
+            slots = slots.reshape(-1, WIDTH)
+        wide_index = np.full(len(tree.left), -1, np.intp)
+        wide_index[wide] = np.arange(len(wide))
+        real = slots >= 0
+        safe = np.where(real, slots, 0)
+        children = np.where(~real, EMPTY,
+                            np.where(inner[safe], wide_index[safe],
+                                     -2 - leaf_index[safe]))
+        # float32 boxes, grown by SLAB_PADDING_32 of the tree's reach (module docstring).
+        reach = max(float(np.abs(tree.low[0]).max()), float(np.abs(tree.high[0]).max()))
+        grow = SLAB_PADDING_32 * ORIGIN_REACH * reach
+        blocks = np.full((6,) + slots.shape, np.nan, np.float32)
+        blocks[:3, real] = (tree.low[slots[real]] - grow).T
+        blocks[3:, real] = (tree.high[slots[real]] + grow).T
+        root_box = np.concatenate([tree.low[0] - grow, tree.high[0] + grow]).astype(np.float32)
+        return cls(root_box, blocks, children, leaves, real.sum(axis=1),
+                   tree.depth[wide] // 2, ORIGIN_REACH * reach)
+
+    @property
+    def node_count(self) -> int:
+        return len(self.children)
+
+    def primitives(self) -> np.ndarray:
+        """(P,) every primitive id the leaves hold, in leaf order."""
+        return self.leaves[self.leaves >= 0]
+
+    def _treelet_depth(self) -> int:
+        """The depth of the treelets: the deepest whose nodes, each holding about
+        WIDTH ** TREELET_DEPTH leaves, are at most MAX_TREELETS."""
+        per_depth = np.bincount(self.depths)
+        fit = (per_depth * WIDTH ** TREELET_DEPTH <= len(self.leaves)) \
+            & (per_depth <= MAX_TREELETS)
+        fit[0] = True
+        return int(np.argmin(np.r_[fit, False])) - 1
 
     # ---- traversal ----------------------------------------------------------------------
 
@@ -117,111 +399,147 @@ class BVH:
         """
         n = inverse.shape[1]
         found = np.zeros(n, bool)
-        rows = (np.concatenate([origins, origins]).T.copy(),
-                np.concatenate([inverse, inverse]).T.copy())
+        # Per ray planes (x, y, z, x, y, z), to meet a node's (6, WIDTH) child planes.
+        near_origin = np.abs(origins).max(initial=0) <= self.origin_reach
+        dtype = np.float32 if near_origin else np.float64
+        rows = (np.concatenate([origins, origins]).astype(dtype),
+                np.concatenate([inverse, inverse]).astype(dtype))
+        treelet = self._treelet_depth()
         for first in range(0, n, RAY_CHUNK):
-            self._traverse(np.arange(first, min(first + RAY_CHUNK, n)), origins, inverse,
-                           rows, t_min, t_max, visit, accept, found, any_hit, stats)
+            self._traverse(first, min(first + RAY_CHUNK, n), treelet, rows, t_min, t_max,
+                           visit, accept, found, any_hit, stats)
         return found
 
-    def _traverse(self, rays, origins, inverse, rows, t_min, t_max, visit, accept, found,
+    def _traverse(self, first, stop, treelet, rows, t_min, t_max, visit, accept, found,
                   any_hit, stats):
-        top = len(self.levels) - 1
-        treelet = min(TREELET_DEPTH, top)
-        while self.levels[treelet][0].shape[1] > MAX_TREELETS and treelet < top:
-            treelet += 1
-        nodes = np.zeros(len(rays), np.intp)
-        keep, near = self._boxes(top, nodes, rays, origins, inverse, t_min, t_max, stats)
-        rays, nodes, near = rays[keep], nodes[keep], near[keep]
-        for level in range(top - 1, treelet - 1, -1):
-            rays, nodes, near = self._expand(level, rays, nodes, *rows, t_min, t_max, stats)
+        rays = np.arange(first, stop)
+        # (A copy: the slab test works in place on boxes it is given for one ray.)
+        near, hit = self._slabs(self.root_box[:, None, None].copy(), rays, *rows, t_min, t_max)
+        if stats is not None:
+            stats.node_tests += len(rays)
+        keep = hit[:, 0]
+        # Items: (ray, child reference, entry distance); a reference is a node or a leaf.
+        rays, refs, near = rays[keep], np.zeros(int(keep.sum()), np.intp), near[keep, 0]
+        for _ in range(treelet):
+            inner = refs >= 0
+            if inner.all():
+                rays, refs, near = self._expand(rays, refs, *rows, t_min, t_max, stats)
+            else:
+                r, c, e = self._expand(rays[inner], refs[inner], *rows, t_min, t_max, stats)
+                rays, refs, near = (np.concatenate([a[~inner], b])
+                                    for a, b in ((rays, r), (refs, c), (near, e)))
         if len(rays) == 0:
             return
-        order = np.lexsort((near, rays))
-        rays, nodes, near = rays[order], nodes[order], near[order]
-        first = np.r_[True, rays[1:] != rays[:-1]]
-        starts = np.flatnonzero(first)
+        # Each ray's items front to back (rank 0 nearest), then all items by rank, so that
+        # a round (ranks done .. done + size) is one slice, grouped by ray.
+        # (Sorts: near's quicksort, then radix sorts of 16-bit keys: the rays' index in the
+        # chunk, the ranks.)
+        order = np.argsort(near)
+        order = order.take(np.argsort((rays.take(order) - first).astype(np.uint16),
+                                      kind="stable"))
+        rays, refs, near = rays.take(order), refs.take(order), near.take(order)
+        starts = np.flatnonzero(np.r_[True, rays[1:] != rays[:-1]])
         rank = rank_within_runs(np.diff(np.r_[starts, len(rays)]))
+        order = np.argsort(rank.astype(np.uint16) if rank.max() < 1 << 16 else rank,
+                           kind="stable")
+        rays, refs, near = rays.take(order), refs.take(order), near.take(order)
+        bounds = np.searchsorted(rank.take(order), np.arange(rank.max() + 2))
         done_rank, size = 0, 1
-        while True:
-            chosen = (rank >= done_rank) & (rank < done_rank + size)
-            if not chosen.any():
-                break
-            pick = np.flatnonzero(chosen)
-            r, node, entry = rays[pick], nodes[pick], near[pick]
+        while done_rank < len(bounds) - 1:
+            pick = slice(bounds[done_rank], bounds[min(done_rank + size, len(bounds) - 1)])
+            r, ref, entry = rays[pick], refs[pick], near[pick]
+            if size > 1:
+                grouped = np.argsort((r - first).astype(np.uint16), kind="stable")
+                r, ref, entry = r[grouped], ref[grouped], entry[grouped]
             live = entry <= t_max[r]
             if any_hit:
                 live &= ~found[r]
-            r, node = r[live], node[live]
-            for level in range(treelet - 1, -1, -1):
-                r, node, _ = self._expand(level, r, node, *rows, t_min, t_max, stats)
+            r, ref = r[live], ref[live]
+            leaf = ref < 0
+            leaf_rays, leaf_refs = [r[leaf]], [ref[leaf]]
+            r, ref = r[~leaf], ref[~leaf]
+            while len(r):
+                r, ref, _ = self._expand(r, ref, *rows, t_min, t_max, stats)
+                leaf = ref < 0
+                leaf_rays.append(r[leaf])
+                leaf_refs.append(ref[leaf])
+                r, ref = r[~leaf], ref[~leaf]
+            reached = [i for i, part in enumerate(leaf_rays) if len(part)]
+            r, ref = np.concatenate(leaf_rays), np.concatenate(leaf_refs)
+            if len(reached) > 1:
+                # Leaves reached at different depths: grouped by ray again (a radix sort
+                # of the rays' 16-bit index within the chunk).
+                grouped = np.argsort((r - first).astype(np.uint16), kind="stable")
+                r, ref = r[grouped], ref[grouped]
             if len(r):
-                leaf_rays = np.repeat(r, LEAF_SIZE)
-                prims = self.primitives[(node[:, None] * LEAF_SIZE
-                                         + np.arange(LEAF_SIZE)).ravel()]
-                real = prims >= 0
-                leaf_rays, prims = leaf_rays[real], prims[real]
-                if len(prims):
-                    t = visit(leaf_rays, prims)
-                    group = np.flatnonzero(np.r_[True, leaf_rays[1:] != leaf_rays[:-1]])
-                    nearest = np.minimum.reduceat(t, group)
-                    owner = leaf_rays[group]
-                    hit = nearest < (np.inf if any_hit else t_max[owner])
-                    found[owner[hit]] = True
-                    if not any_hit and hit.any():
-                        lengths = np.diff(np.r_[group, len(t)])
-                        at_min = t == np.repeat(nearest, lengths)
-                        lowest = np.minimum.reduceat(np.where(at_min, prims, np.iinfo(np.intp).max),
-                                                     group)
-                        # A primitive is visited once per ray and round: one winner per ray.
-                        winner = np.flatnonzero(at_min & (prims == np.repeat(lowest, lengths)))
-                        t_max[owner[hit]] = nearest[hit]
-                        if accept is not None:
-                            accept(owner[hit], winner[hit])
+                self._visit_leaves(r, -2 - ref, t_max, visit, accept, found, any_hit)
             done_rank += size
             size *= 2
 
-    def _boxes(self, level, nodes, rays, origins, inverse, t_min, t_max, stats):
-        """(hit (E,), entry distance (E,)) of pairs (ray, node of ``level``)."""
-        low, high = self.levels[level]
-        o = origins if origins.shape[1] == 1 else origins[:, rays]
-        inv = inverse[:, rays]
-        a = (low[:, nodes] - o) * inv
-        b = (high[:, nodes] - o) * inv
-        with np.errstate(invalid="ignore"):
-            near = np.fmax(np.fmax(np.fmin(a[0], b[0]), np.fmin(a[1], b[1])),
-                           np.fmin(a[2], b[2]))
-            far = np.fmin(np.fmin(np.fmax(a[0], b[0]), np.fmax(a[1], b[1])),
-                          np.fmax(a[2], b[2]))
-        near = np.maximum(near, t_min[rays] if np.ndim(t_min) else t_min)
-        far = np.minimum(far, t_max[rays])
-        if stats is not None:
-            stats.node_tests += len(nodes)
-        return near <= far, near
+    def _visit_leaves(self, r, leaf, t_max, visit, accept, found, any_hit):
+        prims = np.take(self.leaves, leaf, axis=0).ravel()
+        leaf_rays = np.repeat(r, MAX_LEAF)
+        real = prims >= 0
+        leaf_rays, prims = leaf_rays[real], prims[real]
+        t = visit(leaf_rays, prims)
+        group = np.flatnonzero(np.r_[True, leaf_rays[1:] != leaf_rays[:-1]])
+        nearest = np.minimum.reduceat(t, group)
+        owner = leaf_rays[group]
+        hit = nearest < (np.inf if any_hit else t_max[owner])
+        found[owner[hit]] = True
+        if not any_hit and hit.any():
+            lengths = np.diff(np.r_[group, len(t)])
+            at_min = t == np.repeat(nearest, lengths)
+            lowest = np.minimum.reduceat(np.where(at_min, prims, np.iinfo(np.intp).max), group)
+            # A primitive is in one leaf, visited once per ray and round: one winner per ray.
+            winner = np.flatnonzero(at_min & (prims == np.repeat(lowest, lengths)))
+            t_max[owner[hit]] = nearest[hit]
+            if accept is not None:
+                accept(owner[hit], winner[hit])
 
-    def _expand(self, level, rays, nodes, origins, inverse, t_min, t_max, stats):
-        """The children at ``level`` of pairs (ray, node one level up) that the rays'
-        segments reach: (rays, children, entry distances), still grouped by ray.
+    @staticmethod
+    def _slabs(planes, rays, origins, inverse, t_min, t_max):
+        """(entry distance (m, W), hit (m, W)) of rays (m,) against boxes given as planes
+        (6, m or 1, W) (low xyz, high xyz).
 
-        origins, inverse: per ray (n, 6) rows (x, y, z, x, y, z), origins possibly (1, 6):
-        a pair gathers one row of each and its node's WIDTH child boxes as one block, and the
-        slab distances of all six planes come out of one subtraction and one product."""
-        count = self.levels[level][0].shape[1]
-        t = self.blocks[level][nodes]                                        # (m, W, 6)
-        t -= (origins if len(origins) == 1 else origins[rays])[:, None, :]
+        origins, inverse: per ray planes (6, n) (x, y, z, x, y, z), origins possibly (6, 1):
+        the slab distances of all six planes come out of one subtraction and one product.
+        A NaN box (an empty slot) is never hit.  (Gathers are ``take``: several times faster
+        than fancy indexing on these layouts.)"""
+        o = origins if origins.shape[1] == 1 else np.take(origins, rays, axis=1)
+        if planes.shape[1] == len(rays) and planes.dtype == o.dtype:
+            t = planes            # a gathered copy: worked on in place
+            t -= o[:, :, None]
+        else:
+            t = planes.astype(o.dtype) - o[:, :, None]
         with np.errstate(invalid="ignore"):
-            t *= inverse[rays][:, None, :]
+            if t.shape[1] == len(rays):
+                t *= np.take(inverse, rays, axis=1)[:, :, None]
+            else:       # one box against rays sharing their origin
+                t = t * np.take(inverse, rays, axis=1)[:, :, None]
             # fmin / fmax: a 0 * inf (a ray in a box's plane) is NaN and is ignored.
-            low = np.fmin(t[..., :3], t[..., 3:])
-            high = np.fmax(t[..., :3], t[..., 3:])
-            near = np.fmax(np.fmax(low[..., 0], low[..., 1]), low[..., 2])
-            far = np.fmin(np.fmin(high[..., 0], high[..., 1]), high[..., 2])
-        np.maximum(near, t_min[rays][:, None] if np.ndim(t_min) else t_min, out=near)
-        np.minimum(far, t_max[rays][:, None], out=far)
-        children = nodes[:, None] * WIDTH + np.arange(WIDTH)
-        exists = children < count
-        hit = (near <= far) & exists
+            low = np.fmin(t[:3], t[3:])
+            high = np.fmax(t[:3], t[3:])
+            near = np.fmax(np.fmax(low[0], low[1]), low[2])
+            far = np.fmin(np.fmin(high[0], high[1]), high[2])
+            # maximum / minimum propagate an empty slot's NaN, which then fails near <= far.
+            np.maximum(near, t_min.take(rays)[:, None] if np.ndim(t_min) else t_min, out=near)
+            np.minimum(far, t_max.take(rays)[:, None], out=far)
+            return near, near <= far
+
+    def _expand(self, rays, nodes, origins, inverse, t_min, t_max, stats):
+        """The children of pairs (ray, node) (m,) that the rays' segments reach: (rays,
+        child references, entry distances), still grouped by ray."""
+        near, hit = self._slabs(np.take(self.blocks, nodes, axis=1), rays, origins, inverse,
+                                t_min, t_max)
         if stats is not None:
-            stats.node_tests += int(exists.sum())
-        rows, slots = np.nonzero(hit)
-        return rays[rows], children[rows, slots], near[rows, slots]
+            stats.node_tests += int(self.child_counts.take(nodes).sum())
+        pair_slot = np.flatnonzero(hit)
+        pair = pair_slot // WIDTH
+        return (rays.take(pair), self._flat_children.take(nodes.take(pair) * WIDTH
+                                                           + pair_slot % WIDTH),
+                near.ravel().take(pair_slot))
+
+    @property
+    def _flat_children(self):
+        return self.children.ravel()

@@ -93,9 +93,9 @@ def _screen_rays(camera: ScreenCamera, xs, ys, dtype) -> CameraRays:
 
 
 def has_aperture(camera) -> bool:
-    """Whether the camera is a thin lens (depth of field), not a pinhole."""
-    return (isinstance(camera, BlenderCamera) and camera.projection == "PERSP"
-            and camera.aperture_radius > 0)
+    """Whether the camera is a thin lens (depth of field), not a pinhole (perspective or
+    orthographic)."""
+    return isinstance(camera, BlenderCamera) and camera.aperture_radius > 0
 
 
 def aperture_points(camera: BlenderCamera, lens: np.ndarray) -> np.ndarray:
@@ -129,13 +129,28 @@ def _blender_rays(camera: BlenderCamera, xs, ys, dtype, lens=None) -> CameraRays
     u = plane.offset_x + (2.0 * xs / camera.width - 1.0) * plane.half_width
     v = plane.offset_y + (2.0 * (camera.height - ys) / camera.height - 1.0) * plane.half_height
     rotation, translation = camera_to_world(camera)
+    thin_lens = lens is not None and has_aperture(camera)
     if camera.projection == "ORTHO":
         origins = rotation[:, :2] @ np.stack([u, v]) + translation[:, None]
+        if thin_lens:
+            # Cycles' orthographic thin lens (``camera_sample_orthographic``): from the pixel's
+            # point on the camera plane moved by an aperture point l, towards the pixel's
+            # point on the focus plane, so the circle of confusion at depth z has radius
+            # aperture_radius |1 - z / focus_distance| in scene units, whatever the scale.
+            offset = aperture_points(camera, np.asarray(lens, np.float64))
+            towards = np.stack([-offset[0], -offset[1],
+                                np.full(len(xs), -camera.focus_distance)])
+            directions, length = normalize(rotation @ towards)
+            origins = origins + rotation[:, :2] @ offset
+            per_depth = length / camera.focus_distance
+            return CameraRays(origins.astype(dtype), directions.astype(dtype),
+                              (camera.clip_start * per_depth).astype(dtype),
+                              (camera.clip_end * per_depth).astype(dtype))
         directions = np.repeat(-rotation[:, 2:3], len(xs), axis=1)
         return CameraRays(origins.astype(dtype), directions.astype(dtype),
                           camera.clip_start, camera.clip_end)
     local = np.stack([u, v, -np.ones_like(u)])
-    if lens is not None and has_aperture(camera):
+    if thin_lens:
         # Thin lens: from a point on the aperture towards where the pinhole ray crosses the
         # focus plane (depth focus_distance), so every ray of a pixel meets there.
         offset = np.zeros_like(local)

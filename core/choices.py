@@ -35,6 +35,17 @@ PARALLELISM_CHOICES = (
                                "falls back to threads where processes cannot start"),
 )
 
+#: What the image's alpha and background are (``core.trace``): Blender's Film > Transparent
+#: off ('opaque') and on ('transparent'), and the core's own image ('coverage').
+FILM_CHOICES = (
+    ("coverage", "Coverage", "The background where camera rays escape; alpha = the share of "
+                             "the pixel neither escaped nor held out"),
+    ("opaque", "Opaque", "Blender's Film > Transparent off: the background where camera rays "
+                         "escape; alpha 1 except where holdouts cut it"),
+    ("transparent", "Transparent", "Blender's Film > Transparent on: escaped camera rays add "
+                                   "nothing; alpha as for coverage"),
+)
+
 
 def help_text(choices) -> str:
     """A command-line option's help: each value with its description."""
@@ -50,3 +61,4 @@ SEMANTICS = values(SEMANTICS_CHOICES)
 PRECISIONS = values(PRECISION_CHOICES)
 ANTI_ALIASING = values(ANTI_ALIASING_CHOICES)
 PARALLELISM = values(PARALLELISM_CHOICES)
+FILMS = values(FILM_CHOICES)

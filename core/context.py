@@ -12,7 +12,7 @@ import numpy as np
 
 from .aggregate import Aggregate
 from .arrays import scene_arrays
-from .bsdf import SurfaceArrays, surface_arrays
+from .bsdf import SurfaceArrays, surface_arrays, translucent_view
 from .camera import eye_position
 from .rays import ARTICLE_OFFSET, RAY_EPSILON, RayStats, SharedOrigin, ray_offsets
 from .lights import PreparedLight, fibonacci_sphere, prepare_light
@@ -63,6 +63,7 @@ class LookContext:
     surfaces: SurfaceArrays
     lights: tuple[PreparedLight, ...]
     active: bool
+    translucent: SurfaceArrays | None = None   # ``bsdf.translucent_view``: None if none is
 
 
 @dataclass(frozen=True)
@@ -125,7 +126,8 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
         blender_lights = tuple(prepare_light(light, settings.light_samples, geometry)
                                for light in scene.lights if not isinstance(light, PointLight))
         look = LookContext(surfaces, blender_lights,
-                           active=bool(blender_lights) or surfaces.any_physical)
+                           active=bool(blender_lights) or surfaces.any_physical,
+                           translucent=translucent_view(surfaces))
         if look.active:
             # Blender's lights have no bound on what a bounce adds (watts, not the article's
             # unit intensities): paths then stop only where their weight is zero.

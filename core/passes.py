@@ -17,7 +17,13 @@ Conventions are Blender's render passes':
   then each SphereSet's, then each mesh's triangles instance by instance), -1 where missed;
   ``primitive_sources`` maps it to the scene entry it belongs to (Object Index);
 * material: the scene's material table index of the hit's material, -1 where missed
-  (Material Index).
+  (Material Index);
+* emission (when asked for, ``PrimaryPasses.empty(..., emission=True)``): the emission the
+  pixel centre's camera path meets (its first hit, and what it sees straight through
+  Transparent BSDFs), as Cycles' Emission pass holds it; emission seen in mirrors or through
+  refraction is not in it (Cycles counts that as glossy or transmission light), nor is the
+  world.  It needs the whole camera path, so the passes' trace then follows the render's
+  max_depth instead of stopping at the first hit.
 
 The tracer works in the scene's canonical frame (``core.frame``); positions and depths are
 mapped back to world units here.
@@ -48,17 +54,21 @@ class PrimaryPasses:
     normal: np.ndarray
     primitive: np.ndarray
     material: np.ndarray
+    emission: np.ndarray | None = None   # (H, W, 3) float32 when asked for
 
     #: depth, position and normal float32 (1 + 3 + 3), primitive and material int32.
     BYTES_PER_PIXEL = 4 * (1 + 3 + 3) + 4 + 4
+    #: The emission pass, float32 RGB.
+    EMISSION_BYTES_PER_PIXEL = 4 * 3
 
     @classmethod
-    def empty(cls, width: int, height: int) -> "PrimaryPasses":
+    def empty(cls, width: int, height: int, emission: bool = False) -> "PrimaryPasses":
         return cls(np.full((height, width), MISSED_DEPTH, np.float32),
                    np.zeros((height, width, 3), np.float32),
                    np.zeros((height, width, 3), np.float32),
                    np.full((height, width), -1, np.int32),
-                   np.full((height, width), -1, np.int32))
+                   np.full((height, width), -1, np.int32),
+                   np.zeros((height, width, 3), np.float32) if emission else None)
 
 
 def view_axis(camera) -> np.ndarray:
@@ -76,9 +86,11 @@ def fill_tile_passes(passes: PrimaryPasses, ctx, camera, tile, stats, world=None
     rows, cols = np.mgrid[y0:y1, x0:x1]
     rows, cols = rows.ravel(), cols.ravel()
     rays = camera_rays(camera, cols + 0.5, rows + 0.5, ctx.dtype)
-    first_hit_only = dataclasses.replace(ctx, settings=dataclasses.replace(ctx.settings,
-                                                                           max_depth=1))
-    hits = trace_bundle(first_hit_only, rays, stats, record_primary=True).primary
+    emission = passes.emission is not None
+    if not emission:  # the first hit is all the other passes need
+        ctx = dataclasses.replace(ctx, settings=dataclasses.replace(ctx.settings, max_depth=1))
+    traced = trace_bundle(ctx, rays, stats, record_primary=True, record_emission=emission)
+    hits = traced.primary
     hit = hits.primitive >= 0
     t = np.where(hit, hits.t, 0.0).astype(np.float64)
     position = rays.origins + t * rays.directions            # (3, n)
@@ -94,6 +106,8 @@ def fill_tile_passes(passes: PrimaryPasses, ctx, camera, tile, stats, world=None
     passes.normal[y0:y1, x0:x1] = hits.normal.T.reshape(*shape, 3)
     passes.primitive[y0:y1, x0:x1] = hits.primitive.reshape(shape)
     passes.material[y0:y1, x0:x1] = hits.material.reshape(shape)
+    if emission:
+        passes.emission[y0:y1, x0:x1] = traced.emission.T.reshape(*shape, 3)
 
 
 def primitive_sources(scene) -> np.ndarray:

@@ -56,11 +56,13 @@ class RenderResult:
     """image: (H, W, 4) in the render's precision (or the ``image_dtype`` asked for), row 0 =
     top; RGB: article semantics the article's display values clipped to [0, 1], default
     semantics unclipped scene-linear radiance (Cycles' units; Blender's colour management
-    turns it into display values); alpha = fraction of the pixel's samples whose camera ray
-    hit a sphere.  stats: RayStats.  precision: 'float64' or 'float32'.
+    turns it into display values); alpha: the mean over the pixel's samples of 1 - what
+    escaped or was held out (``RenderSettings.film``, ``core.trace``): without holdouts and
+    Transparent BSDFs, the fraction of samples whose camera ray hit something.  stats:
+    RayStats.  precision: 'float64' or 'float32'.
     missed_colour: (3,) float64, what a camera sample that hits nothing adds to its pixel's RGB
-    (the background in default semantics, black in the article's), so a caller can take the
-    background out of a pixel exactly: ``rgb - (1 - alpha) * missed_colour``.
+    (the background in default semantics, black in the article's and with film
+    'transparent').
     semantics: the semantics rendered.
     parallelism: how the tiles ran: 'threads' (the calling thread or a thread pool) or
     'processes' (``core.workers``), which can differ from the setting's (small renders, or
@@ -102,7 +104,7 @@ def _tiles(width: int, height: int, size: int):
 
 
 def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None):
-    """(rgb (n, 3), coverage (n,), signature (n,)) for sample positions xs, ys (n,); rgb
+    """(rgb (n, 3), alpha (n,), signature (n,)) for sample positions xs, ys (n,); rgb
     clipped to [0, 1] per sample in article semantics, unclipped radiance otherwise; lens:
     aperture positions (2, n) for a thin-lens camera."""
     start = time.perf_counter()
@@ -112,7 +114,7 @@ def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None):
     stats.seconds_camera += traced - start
     stats.seconds_bounces += time.perf_counter() - traced
     rgb = result.colour.T
-    return (np.clip(rgb, 0, 1) if ctx.article else rgb), result.coverage, result.signature
+    return (np.clip(rgb, 0, 1) if ctx.article else rgb), result.alpha, result.signature
 
 
 def _pixel_grid(y0, y1, x0, x1):
@@ -231,8 +233,8 @@ def render_tile(ctx: TraceContext, camera, tile, stop: Optional[threading.Event]
 def missed_colour(scene: Scene, settings: RenderSettings) -> np.ndarray:
     """(3,) what a camera sample that escapes adds to its pixel (see RenderResult): the
     tracer adds the background only in default semantics, unclipped (only the article's
-    samples are clipped, and it adds none)."""
-    if settings.semantics != "default":
+    samples are clipped, and it adds none), and not with film 'transparent'."""
+    if settings.semantics != "default" or settings.film == "transparent":
         return np.zeros(3)
     return np.asarray(scene.background, np.float64)
 
@@ -263,7 +265,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
            should_cancel: Optional[Callable[[], bool]] = None,
            image_dtype=None, reserve_bytes: int = 0,
            on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None,
-           passes: bool = False) -> RenderResult:
+           passes: "bool | PrimaryPasses" = False) -> RenderResult:
     """Render ``scene``; see ``core`` for the result's layout.  image_dtype: the image's
     dtype (default: the render's precision); float32 halves a float64 render's largest array
     for callers that keep no more than float32 anyway (Blender's render results).
@@ -273,7 +275,9 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     a view of the image: copy what must outlive the call.  Tiles land in any order; a
     cancelled render has passed on exactly the tiles that finished.
     passes: also fill ``RenderResult.passes`` (``core.passes``: depth, position, normal,
-    primitive and material of each pixel centre's first hit, in world units).
+    primitive and material of each pixel centre's first hit, in world units); a
+    PrimaryPasses of the image's size is filled in place, so ``on_tile`` can read each tile's
+    passes as the tile lands.
 
     Before anything is allocated, the render's memory is planned (``core.memory``) and a
     render that cannot fit raises memory.NotEnoughMemory, a SceneError."""
@@ -290,7 +294,10 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     threads = settings.threads or os.cpu_count() or 1
     image_dtype = dtype if image_dtype is None else np.dtype(image_dtype)
     if passes:  # the passes' arrays, beside the image
-        reserve_bytes += PrimaryPasses.BYTES_PER_PIXEL * width * height
+        per_pixel = PrimaryPasses.BYTES_PER_PIXEL
+        if isinstance(passes, PrimaryPasses) and passes.emission is not None:
+            per_pixel += PrimaryPasses.EMISSION_BYTES_PER_PIXEL
+        reserve_bytes += per_pixel * width * height
     tiles = _tiles(width, height, settings.tile_size)
     # Passes are filled beside each tile in this process (``work``), so they keep tiles here.
     in_processes = not passes and _in_processes(settings, width * height, len(tiles),
@@ -305,7 +312,13 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     ctx = make_context(scene, settings, dtype)
     shape = (height, width, 4)
     stats = RayStats()
-    primary = PrimaryPasses.empty(width, height) if passes else None
+    if isinstance(passes, PrimaryPasses):
+        if passes.depth.shape != (height, width):
+            raise SceneError(f"passes are {passes.depth.shape[1]}x{passes.depth.shape[0]}, "
+                             f"the image {width}x{height}")
+        primary = passes
+    else:
+        primary = PrimaryPasses.empty(width, height) if passes else None
 
     def work(ctx, camera, tile, stop=None):
         rgba, tile_stats = render_tile(ctx, camera, tile, stop)

@@ -27,8 +27,8 @@ from typing import Literal, Sequence, Union
 
 import numpy as np
 
-from .choices import (ANTI_ALIASING, PARALLELISM, PRECISIONS,  # noqa: F401  (defined
-                      SEMANTICS)                                # once there)
+from .choices import (ANTI_ALIASING, FILMS, PARALLELISM, PRECISIONS,  # noqa: F401
+                      SEMANTICS)                                # (defined once there)
 
 Vec3 = tuple[float, float, float]
 
@@ -194,7 +194,17 @@ class SurfaceMaterial:
     ior: index of refraction (inside / outside), > 0.
     emission: emitted radiance (colour x strength), seen by camera and reflection rays.
     transparency: colour of the light passing straight through (1 - alpha, Transparent BSDF).
-    holdout: weight of a Holdout shader: renders black (and is not otherwise modelled).
+    translucency: diffuse transmission (Translucent BSDF): radiance translucency E / pi for
+        irradiance E arriving through the surface from the other side (its back hemisphere),
+        each light's shadow ray crossing the surface.
+    holdout: weight h of a Holdout shader, as in Cycles: a camera ray (or one that reached
+        the surface straight through Transparent BSDFs only) makes h x its weight of the pixel
+        transparent (alpha, ``RenderSettings.film``); every ray sees the holdout part black
+        (the other lobes are scaled by 1 - h by whoever mixed them in).
+    holdout_object: the object is a holdout (Blender's Object > Visibility > Holdout, or a
+        holdout collection): camera rays (and rays straight through Transparent BSDFs) see
+        it as a holdout except for its transparency, which they pass through; every other
+        ray (mirrors, refraction, shadows) sees the material as it is.
     """
 
     diffuse: Vec3 = (0.8, 0.8, 0.8)
@@ -206,20 +216,26 @@ class SurfaceMaterial:
     ior: float = 1.5
     emission: Vec3 = (0.0, 0.0, 0.0)
     transparency: Vec3 = (0.0, 0.0, 0.0)
+    translucency: Vec3 = (0.0, 0.0, 0.0)
     holdout: float = 0.0
+    holdout_object: bool = False
 
     #: Roughness up to which a sharp mirror (and the world seen in it) is traced.
     MIRROR_ROUGHNESS = 0.2
 
     def validate(self, where: str = "surface material") -> "SurfaceMaterial":
         for name in ("diffuse", "specular_f0", "specular_f90", "transmission", "emission",
-                     "transparency"):
+                     "transparency", "translucency"):
             _set(self, name, _colour(f"{where}.{name}", getattr(self, name)))
         _set(self, "roughness", _fraction(f"{where}.roughness", self.roughness))
         _set(self, "transmission_fresnel",
              _fraction(f"{where}.transmission_fresnel", self.transmission_fresnel))
         _set(self, "ior", _positive(f"{where}.ior", self.ior))
         _set(self, "holdout", _fraction(f"{where}.holdout", self.holdout))
+        if not isinstance(self.holdout_object, (bool, np.bool_)):
+            raise SceneError(f"{where}.holdout_object must be True or False, got "
+                             f"{self.holdout_object!r}")
+        _set(self, "holdout_object", bool(self.holdout_object))
         return self
 
     def __post_init__(self):
@@ -538,9 +554,10 @@ class BlenderCamera:
     pixel_aspect_x, pixel_aspect_y: non-square pixels.
     Pixel (i, j) with j = 0 at the bottom has its centre at ((i + 0.5) / W, (j + 0.5) / H).
     aperture_radius, focus_distance, aperture_blades, aperture_rotation: a thin lens
-        (perspective only; Cycles' depth of field): rays leave a disc (or, with 3 or more
-        blades, a regular polygon turned by the rotation) of that radius and meet at the
-        plane at focus_distance along the view axis; 0 radius is a pinhole.
+        (Cycles' depth of field): rays leave a disc (or, with 3 or more blades, a regular
+        polygon turned by the rotation) of that radius around the eye (orthographic: around
+        the pixel's point on the camera plane) and meet at the plane at focus_distance along
+        the view axis; 0 radius is a pinhole.
     """
 
     matrix_world: tuple
@@ -559,7 +576,7 @@ class BlenderCamera:
     clip_end: float = 1000.0
     pixel_aspect_x: float = 1.0
     pixel_aspect_y: float = 1.0
-    aperture_radius: float = 0.0     # thin lens (perspective): 0 is a pinhole
+    aperture_radius: float = 0.0     # thin lens: 0 is a pinhole
     focus_distance: float = 10.0
     aperture_blades: int = 0
     aperture_rotation: float = 0.0
@@ -882,6 +899,13 @@ class RenderSettings:
         Measured on 2 cores, two threads render the article's 1080p frame 0.91x as fast as
         one (the GIL), two warm processes 1.75x (README: "Worker processes and malloc
         settings").  Results never depend on it.
+    film: the image's alpha and background (default semantics; ``core.choices.FILM_CHOICES``):
+        'coverage' (the core's own image): the background where camera rays escape, alpha =
+        1 - transparency, the share of the pixel's samples that escaped (directly or straight
+        through Transparent BSDFs, weighted by what passed) or met a holdout; 'opaque'
+        (Blender's Film > Transparent off): the same colours, alpha = 1 - the holdouts' share
+        only; 'transparent' (Film > Transparent on): escaped camera rays add no background,
+        alpha as for 'coverage'.  Article semantics: alpha is the coverage ('opaque': 1).
     """
 
     semantics: Literal["default", "article"] = "default"
@@ -895,12 +919,14 @@ class RenderSettings:
     tile_size: int = 128
     threads: int | None = None
     parallelism: Literal["auto", "threads", "processes"] = "auto"
+    film: Literal["coverage", "opaque", "transparent"] = "coverage"
 
     def __post_init__(self):
         _choice("settings.semantics", self.semantics, SEMANTICS)
         _choice("settings.precision", self.precision, PRECISIONS)
         _choice("settings.anti_aliasing", self.anti_aliasing, ANTI_ALIASING)
         _choice("settings.parallelism", self.parallelism, PARALLELISM)
+        _choice("settings.film", self.film, FILMS)
         _count("settings.max_depth", self.max_depth, maximum=MAX_DEPTH)
         _count("settings.samples", self.samples, maximum=MAX_SAMPLES)
         _count("settings.light_samples", self.light_samples, maximum=MAX_LIGHT_SAMPLES)

@@ -105,7 +105,8 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
     points, normals (shading normals, facing the incoming ray in default semantics),
     directions (incoming, unit): (3, m); materials: (m,) material ids (``ctx.materials``);
     exclude: (m,) the primitive each point's shadow segments ignore (-1: none;
-    ``Aggregate.exclusions``), None in article semantics.
+    ``Aggregate.exclusions``), None in article semantics.  (Light through translucent
+    surfaces: ``shade_translucent``.)
     """
     mat = ctx.materials
     ka, kd, ks = take(mat.ambient, materials), take(mat.diffuse, materials), take(mat.specular,
@@ -121,6 +122,39 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
                                                             stats)
         colour += blender_colour
     return colour, goes_on, shadow_code
+
+
+@timed("seconds_shading")
+def shade_translucent(ctx: TraceContext, points, normals, directions, materials,
+                      exclude_back, stats: RayStats):
+    """(radiance (3, m), shadow_code (m,) uint64) the translucent points pass through from
+    their back hemisphere (default semantics, ``ctx.look.translucent`` set; arguments as for
+    ``shade``, with exclude_back the primitive each segment reaching a point through its
+    surface ignores, ``Aggregate.exclusions`` of the other side; shadow_code: which lights
+    each point sees through its surface, 0 for points that are not translucent): the
+    Blender lights on the other side (shadow segments crossing the surface: a closed
+    sphere's own far side blocks them, as in Cycles' direct light) and the world seen
+    there, each times translucency / pi (``bsdf.translucent_view``)."""
+    view = ctx.look.translucent
+    colour = np.zeros_like(points)
+    shadow_code = np.zeros(points.shape[1], np.uint64)
+    chosen = np.flatnonzero(view.diffuse[:, materials].max(axis=0) > 0)
+    if len(chosen) == 0:
+        return colour, shadow_code
+    where, back = take(points, chosen), -take(normals, chosen)
+    material, exclude = materials[chosen], exclude_back[chosen]
+    light, shadow_code[chosen] = _shade_blender_lights(
+        ctx, where, back, take(directions, chosen), material, exclude,
+        np.zeros(len(chosen), np.uint64), stats, surfaces=view, world_terms=False)
+    world = _column(ctx.ambient, points.dtype)
+    if world.any():
+        seen = 1.0
+        if ctx.settings.world_samples:
+            seen = 1 - _world_occlusion(ctx, where, back, material, ray_offsets(where), exclude,
+                                        stats)
+        light += take(view.diffuse, material) * world * seen
+    colour[:, chosen] = light
+    return colour, shadow_code
 
 
 def _column(values, dtype):
@@ -251,7 +285,7 @@ def _sphere_sample_weights(light, towards):
 
 
 def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, shadow_code,
-                          stats):
+                          stats, surfaces=None, world_terms=True):
     """(radiance (3, m), shadow_code) from Blender's lights (``core.lights``) and the world's
     glossy, emitted and occluded terms (``core.bsdf``) at m points, default semantics.
 
@@ -259,13 +293,14 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
     Each light appends a digit to ``shadow_code`` for adaptive anti-aliasing: not reached,
     blocked, partly visible or visible.  (Not quarters of visibility as for the article's
     lights: an area light's penumbra changes smoothly from pixel to pixel, and every pixel of
-    it would count as an edge.)"""
+    it would count as an edge.)  surfaces: the lobes to shade with (default: the look's);
+    world_terms: False leaves the world's terms out."""
     look = ctx.look
-    surfaces = look.surfaces
+    surfaces = look.surfaces if surfaces is None else surfaces
     dtype = points.dtype
     m = points.shape[1]
     to_view = -directions
-    world = _column(ctx.ambient, dtype)
+    world = _column(ctx.ambient if world_terms else np.zeros(3), dtype)
     colour = np.zeros((3, m), dtype)
     colour += environment(surfaces, materials, normals, to_view, world)
     offset = ray_offsets(points)

@@ -6,6 +6,15 @@ shadows did not end, whose material reflects, and whose remaining weight can sti
 than ``contribution_cutoff`` go on as reflection rays (``ctx.geometry.spawn``).  Rays are
 (3, n) bundles (``core.vectors``); nothing per pixel runs in Python, and nothing here knows
 how the geometry finds its hits.
+
+Alpha and holdouts follow Cycles: a ray is on the camera's path while it is the camera ray or
+went on from it only straight through Transparent BSDFs (``Branch.straight``).  Such a ray that
+escapes makes the average of its weight's channels of its sample transparent (unless
+``RenderSettings.film`` is 'opaque'), and with film 'transparent' adds no background; one that
+meets a holdout makes ``holdout`` x that average transparent (an object holdout: all but its
+transparency, through which the ray goes on, and nothing of its shading shows).  Rays off the
+camera's path (mirrors, refraction, shadows) see a Holdout shader black and a holdout object
+as its material.  Alpha = 1 - transparency.
 """
 
 from __future__ import annotations
@@ -18,7 +27,7 @@ from .camera import CameraRays
 from .context import RayStats, TraceContext
 from .bsdf import scatter
 from .rays import RayBatch, SharedOrigin
-from .shading import shade
+from .shading import shade, shade_translucent
 from .vectors import take
 
 _SIGNATURE_PRIME = np.uint64(1_000_003)
@@ -43,15 +52,17 @@ class PrimaryHits:
 
 @dataclass
 class BundleResult:
-    """colour (3, n) unclipped; coverage (n,) whether the camera ray hit a sphere;
+    """colour (3, n) unclipped; alpha (n,) 1 - the sample's transparency (module docstring:
+    0 where the camera ray escaped or met a full holdout, 1 where it hit something opaque);
     signature (n,) uint64 hash of what the path hit (spheres and shadowing at every bounce):
     neighbours with different signatures straddle an edge; None unless adaptive AA asks.
     primary: PrimaryHits when asked for (``trace_bundle(record_primary=True)``), else None."""
 
     colour: np.ndarray
-    coverage: np.ndarray
+    alpha: np.ndarray
     signature: np.ndarray | None
     primary: PrimaryHits | None = None
+    emission: np.ndarray | None = None   # (3, n) record_emission: see trace_bundle
 
 
 def nearest_sphere(ctx: TraceContext, origins, directions, t_min, t_max, exclude,
@@ -80,12 +91,28 @@ def _accumulate(colour, path, values, unique: bool, whole: bool):
             colour[row] += np.bincount(path, values[row], colour.shape[1])
 
 
+def _accumulate_scalar(total, path, values, unique: bool):
+    """total[path] += values (k,), every repeat of a path index adding."""
+    if unique:
+        total[path] += values
+    else:
+        total += np.bincount(path, values, total.shape[0]).astype(total.dtype)
+
+
+def _mean_channel(weight):
+    """The average of a weight's channels (k,): Cycles' ``average`` of a throughput."""
+    return weight.mean(axis=0) if weight.ndim == 2 else weight
+
+
 def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
-                 record_primary: bool = False) -> BundleResult:
+                 record_primary: bool = False, record_emission: bool = False) -> BundleResult:
     """Follow the bundle: article semantics as the article does (one mirror ray per hit, a
     scalar weight); default semantics with Blender's look (``ctx.look``) with colour weights
     and, where ``core.bsdf`` says so, several secondary rays per hit (mirror, refraction,
-    straight through)."""
+    straight through).  record_emission: also sum, into ``BundleResult.emission``, the
+    emission the camera's path meets (module docstring: the camera ray and what it sees
+    straight through Transparent BSDFs, weighted; not what mirrors or refraction show), as
+    Cycles' Emission pass does."""
     dtype = ctx.dtype
     geometry = ctx.geometry
     n = rays.directions.shape[1]
@@ -93,7 +120,9 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
     colour = np.zeros((3, n), dtype)
     # Signatures feed adaptive anti-aliasing only: no work for them otherwise.
     signature = np.zeros(n, np.uint64) if ctx.settings.anti_aliasing == "adaptive" else None
-    coverage = np.zeros(n, bool)
+    transparency = np.zeros(n, dtype)
+    emission = np.zeros((3, n), dtype) if record_emission else None
+    film = ctx.settings.film
     background = ctx.background.astype(dtype)[:, None]
     add_background = not ctx.article and background.any()
     reflection = ctx.materials.reflection
@@ -103,6 +132,8 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
 
     path = np.arange(n)
     unique = True   # every path index appears once (until rays split)
+    camera_path = np.ones(n, bool)   # per ray of the batch: the camera's view (docstring)
+    holdouts = look is not None and look.surfaces.any_holdout
     # (n,) in article semantics and for the article's materials alone; (3, n) colour weights
     # for Blender's look.
     weight = np.ones((3, n) if look is not None else n, dtype)
@@ -114,15 +145,21 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
         if signature is not None:
             signature[path] = (signature[path] * _SIGNATURE_PRIME
                                + geometry.surface_keys(hits.primitive_per_ray))
-        if depth == 0:
-            coverage = hits.primitive_per_ray >= 0
-        if add_background and len(hits) < len(batch):
+        if len(hits) < len(batch):
             missed = np.flatnonzero(hits.primitive_per_ray < 0)
-            _accumulate(colour, path[missed], weight[..., missed] * background, unique, False)
+            escaped = missed[camera_path[missed]]
+            if film != "opaque" and len(escaped):
+                _accumulate_scalar(transparency, path[escaped],
+                                   _mean_channel(weight[..., escaped]), unique)
+            if add_background:
+                shown = missed[~camera_path[missed]] if film == "transparent" else missed
+                _accumulate(colour, path[shown], weight[..., shown] * background, unique,
+                            False)
         if len(hits) == 0:
             break
         if len(hits) < len(batch):
             path, weight = path[hits.rays], weight[..., hits.rays]
+            camera_path = camera_path[hits.rays]
 
         points, directions, primitive = hits.points, hits.directions, hits.primitive
         geometric, normals, front, cos_in = hits.normals, hits.shading, hits.front, hits.cos_in
@@ -137,7 +174,24 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
         exclude = None if ctx.article else geometry.exclusions(primitive, front)
         illumination, goes_on, shadow_code = shade(ctx, points, normals, directions,
                                                    hits.material, exclude, stats)
+        if look is not None and look.translucent is not None:
+            through, code = shade_translucent(ctx, points, normals, directions, hits.material,
+                                              geometry.exclusions(primitive, ~front), stats)
+            illumination += through
+            shadow_code = shadow_code * _SIGNATURE_PRIME + code  # edges of light shone through
         illumination *= weight
+        held_object = None
+        if holdouts and camera_path.any():
+            held_object = _hold_out(look.surfaces, hits.material, camera_path, path, weight,
+                                    transparency, unique)
+            if held_object is not None:
+                illumination[:, held_object] = 0
+        if emission is not None and look is not None and look.surfaces.any_emission:
+            seen = np.flatnonzero(camera_path)
+            if held_object is not None:
+                seen = np.setdiff1d(seen, held_object, assume_unique=True)
+            _accumulate(emission, path[seen], take(look.surfaces.emission, hits.material[seen])
+                        * weight[:, seen], unique, False)
         _accumulate(colour, path, illumination, unique, depth == 0 and len(path) == n)
         if signature is not None:
             signature[path] = signature[path] * _SIGNATURE_PRIME + shadow_code
@@ -147,10 +201,10 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
             if bounces_left == 0:
                 break
             batch = _secondary_rays(ctx, look, hits, normals, cos_in, path, weight,
-                                    bounces_left, cutoff)
+                                    bounces_left, cutoff, camera_path, held_object)
             if batch is None:
                 break
-            batch, path, weight = batch
+            batch, path, weight, camera_path = batch
             unique = unique and len(np.unique(path)) == len(path)
             stats.reflection_rays += len(path)
             continue
@@ -170,20 +224,51 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
         directions = directions - (2 * cos_in) * normals
         # Reflections leave on the side the ray came from.
         batch = geometry.spawn(points, geometric, primitive, directions, front)
+        camera_path = np.zeros(len(path), bool)  # mirror rays
         stats.reflection_rays += len(path)
-    return BundleResult(colour, coverage, signature, primary)
+    alpha = np.clip(1 - transparency, 0, 1)
+    return BundleResult(colour, alpha, signature, primary, emission)
 
 
-def _secondary_rays(ctx, look, hits, normals, cos_in, path, weight, bounces_left, cutoff):
+def _hold_out(surfaces, materials, camera_path, path, weight, transparency, unique):
+    """Add what the holdouts hit on the camera's path take of their samples to transparency
+    (module docstring); the indices (k,) of the hits on holdout objects, whose shading the
+    camera does not see, or None."""
+    viewed = np.flatnonzero(camera_path)
+    material = materials[viewed]
+    holdout, whole = surfaces.holdout[material], surfaces.holdout_object[material]
+    if not (holdout.any() or whole.any()):
+        return None
+    w = weight[:, viewed]
+    held = holdout * w.mean(axis=0)
+    if whole.any():
+        # Cycles keeps an object holdout's transparency: the rest of the sample is held out.
+        kept = 1 - take(surfaces.transparency, material)
+        held = np.where(whole, (kept * w).mean(axis=0), held)
+    _accumulate_scalar(transparency, path[viewed], held, unique)
+    return viewed[whole] if whole.any() else None
+
+
+def _secondary_rays(ctx, look, hits, normals, cos_in, path, weight, bounces_left, cutoff,
+                    camera_path, held_object=None):
     """The next bounce's rays for Blender's look (``core.bsdf.scatter``), or None:
-    (RayBatch, path (k,), weight (3, k)).  Mirror rays leave on the side the ray came from;
-    refracted and straight-through rays on the other (``Aggregate.spawn``)."""
+    (RayBatch, path (k,), weight (3, k), camera_path (k,)).  Mirror rays leave on the side
+    the ray came from; refracted and straight-through rays on the other
+    (``Aggregate.spawn``).  camera_path (m,): which hits the camera sees (module docstring);
+    held_object: indices of hits on holdout objects, which only pass their transparency on."""
     branches = scatter(look.surfaces, normals, hits.directions, cos_in, hits.material,
                        hits.front)
+    blocked = None
+    if held_object is not None:
+        blocked = np.zeros(len(path), bool)
+        blocked[held_object] = True
     parts = []
     for branch in branches:
         w = weight[:, branch.index] * branch.weights
-        alive = np.flatnonzero(w.max(axis=0) * (ctx.path_gain_bound * bounces_left) > cutoff)
+        going = w.max(axis=0) * (ctx.path_gain_bound * bounces_left) > cutoff
+        if blocked is not None and not branch.straight:
+            going &= ~blocked[branch.index]
+        alive = np.flatnonzero(going)
         if len(alive) == 0:
             continue
         index = branch.index[alive]
@@ -191,7 +276,8 @@ def _secondary_rays(ctx, look, hits, normals, cos_in, path, weight, bounces_left
         rays = ctx.geometry.spawn(take(hits.points, index), take(hits.normals, index),
                                   hits.primitive[index], take(branch.directions, alive),
                                   ~front if branch.through else front)
-        parts.append((rays, path[index], w[:, alive]))
+        seen = camera_path[index] if branch.straight else np.zeros(len(index), bool)
+        parts.append((rays, path[index], w[:, alive], seen))
     if not parts:
         return None
     if len(parts) == 1:
@@ -201,4 +287,4 @@ def _secondary_rays(ctx, look, hits, normals, cos_in, path, weight, bounces_left
                       exclude=np.concatenate([p[0].exclude for p in parts]),
                       source=np.concatenate([p[0].source for p in parts]))
     return (joined, np.concatenate([p[1] for p in parts]),
-            np.concatenate([p[2] for p in parts], axis=1))
+            np.concatenate([p[2] for p in parts], axis=1), np.concatenate([p[3] for p in parts]))

@@ -22,14 +22,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .vectors import take
+
 
 @dataclass(frozen=True)
 class Shear:
-    """Per-ray shear rows: x, y, z (3, n) each, so that sheared p = (x.p, y.p, z.p)."""
+    """Per-ray shear rows: x, y, z (3, n) each, so that sheared p = (x.p, y.p, z.p); and the
+    same shear as axes and factors for explicit (ray, triangle) pairs (``watertight_pairs``):
+    axes (3, n) kx, ky, kz; factors (3, n) x[kz], y[kz], z[kz] (the rows' other entries
+    are 1 at kx of x, 1 at ky of y, and 0)."""
 
     x: np.ndarray
     y: np.ndarray
     z: np.ndarray
+    axes: np.ndarray | None = None
+    factors: np.ndarray | None = None
 
     @classmethod
     def of(cls, directions: np.ndarray) -> "Shear":
@@ -45,15 +52,40 @@ class Shear:
         x = np.zeros((3, n), directions.dtype)
         y = np.zeros((3, n), directions.dtype)
         z = np.zeros((3, n), directions.dtype)
+        factors = np.stack([-(directions[kx, columns] / along),
+                            -(directions[ky, columns] / along), 1 / along])
         x[kx, columns] = 1
         y[ky, columns] = 1
-        x[kz, columns] = -(directions[kx, columns] / along)
-        y[kz, columns] = -(directions[ky, columns] / along)
-        z[kz, columns] = 1 / along
-        return cls(x, y, z)
+        x[kz, columns], y[kz, columns], z[kz, columns] = factors
+        return cls(x, y, z, np.stack([kx, ky, kz]), factors)
 
     def take(self, index) -> "Shear":
-        return Shear(self.x[:, index], self.y[:, index], self.z[:, index])
+        return Shear(take(self.x, index), take(self.y, index), take(self.z, index))
+
+
+def watertight_pairs(corners, triangle, origins, shear: Shear, rays, t_min, t_max):
+    """``watertight`` for E explicit (ray, triangle) pairs, with the same rounding (a shear
+    row's product with p is p[kx] + x[kz] p[kz] once its 1 and 0 entries are multiplied
+    out), by gathering each pair's sheared axes instead of multiplying by whole rows.
+
+    corners (9, T): corner j's axis k of every triangle in row 3 j + k; triangle, rays (E,);
+    origins (3, 1) or (3, n); shear: the rays' ``Shear``; t_min, t_max scalars or (E,).
+    Returns (t, b0, b1, b2, valid) (E,) each."""
+    count = corners.shape[1]
+    flat = corners.ravel()
+    k = take(shear.axes, rays)                                            # (3, E)
+    fx, fy, fz = take(shear.factors, rays)
+    if origins.shape[1] == 1:
+        o = origins[:, 0].take(k)
+    else:
+        o = origins.ravel().take(k * origins.shape[1] + rays)
+    base = k * count + triangle
+    sheared = []
+    for corner in range(3):
+        p = flat.take(base + 3 * corner * count)
+        p -= o
+        sheared += [p[0] + fx * p[2], p[1] + fy * p[2], fz * p[2]]
+    return _hit(*sheared, t_min, t_max)
 
 
 def _apply(row, p):
@@ -74,9 +106,13 @@ def watertight(v0, v1, v2, origins, shear: Shear, t_min, t_max):
     area seen along the ray) never hits.
     """
     a, b, c = v0 - origins, v1 - origins, v2 - origins
-    ax, ay = _apply(shear.x, a), _apply(shear.y, a)
-    bx, by = _apply(shear.x, b), _apply(shear.y, b)
-    cx, cy = _apply(shear.x, c), _apply(shear.y, c)
+    return _hit(_apply(shear.x, a), _apply(shear.y, a), _apply(shear.z, a),
+                _apply(shear.x, b), _apply(shear.y, b), _apply(shear.z, b),
+                _apply(shear.x, c), _apply(shear.y, c), _apply(shear.z, c), t_min, t_max)
+
+
+def _hit(ax, ay, az, bx, by, bz, cx, cy, cz, t_min, t_max):
+    """(t, b0, b1, b2, valid) from the sheared corners a, b, c (relative to the origin)."""
     u, v, w = _edges(ax, ay, bx, by, cx, cy)
     zero = (u == 0) | (v == 0) | (w == 0)
     if zero.any():
@@ -87,7 +123,7 @@ def watertight(v0, v1, v2, origins, shear: Shear, t_min, t_max):
             edge[zero] = exact.astype(edge.dtype)
     inside = ~(((u < 0) | (v < 0) | (w < 0)) & ((u > 0) | (v > 0) | (w > 0)))
     det = u + v + w
-    depth = u * _apply(shear.z, a) + v * _apply(shear.z, b) + w * _apply(shear.z, c)
+    depth = u * az + v * bz + w * cz
     with np.errstate(divide="ignore", invalid="ignore"):
         inverse = 1 / det
         t = depth * inverse

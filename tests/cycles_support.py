@@ -80,6 +80,18 @@ def add_ball(name: str, location, radius: float, material):
     return obj
 
 
+def add_plane(name: str, centre, size: float, material, angle: float = 0.0):
+    """A vertical square of ``material`` facing -Y (the camera), turned ``angle`` radians
+    about Z: at pi / 4 it faces (1, -1, 0)."""
+    mesh = bpy.data.meshes.new(name)
+    h = size / 2
+    mesh.from_pydata([(-h, 0, -h), (h, 0, -h), (h, 0, h), (-h, 0, h)], [], [(0, 1, 2, 3)])
+    mesh.materials.append(material)
+    obj = link(bpy.data.objects.new(name, mesh))
+    obj.location, obj.rotation_euler = centre, (0.0, 0.0, angle)
+    return obj
+
+
 def add_light(kind: str, location, rotation=(0.0, 0.0, 0.0), **settings):
     data = bpy.data.lights.new(kind.lower(), kind)
     for key, value in settings.items():

@@ -43,7 +43,7 @@ def inject(stage: str, core, job=None) -> None:
     elif stage == "tile":
         render_module.render_tile = fail("a tile ran out of memory", MemoryError)
     elif stage == "hand-over":
-        job.finish_image = fail("hand-over")
+        job.JobResult = fail("hand-over")
     elif stage == "write":
         png_module.ROW_BLOCK = 4  # several blocks even for a small image
         png_module._filtered = fail_on_second_call(png_module._filtered, "disk full")

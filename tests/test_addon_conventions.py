@@ -93,15 +93,22 @@ def test_scene_settings_glint_ignores_are_named_in_one_warning():
     assert not [w for w in prepare_job(depsgraph()).warnings if "Glint ignores" in w]
     scene.render.use_motion_blur = True
     scene.camera.data.dof.use_dof = True
-    bpy.data.objects["small"].is_holdout = True
+    bpy.data.objects["small"].is_shadow_catcher = True
+    bpy.data.objects["small"].is_holdout = True   # rendered: not named
     bpy.data.objects["big"].visible_shadow = False
 
     ignored = [w for w in prepare_job(depsgraph()).warnings if "Glint ignores" in w]
 
     assert len(ignored) == 1
-    for phrase in ("motion blur", "depth of field (camera 'camera')", "holdout objects 'small'",
-                   "objects invisible to shadow rays 'big'"):
+    for phrase in ("motion blur", "depth of field (camera 'camera')",
+                   "shadow catcher objects 'small'", "objects invisible to shadow rays 'big'"):
         assert phrase in ignored[0], phrase
+    assert "holdout" not in ignored[0]
+    # The article's model has no holdouts: there they are named.
+    simple_scene().glint.semantics = 'ARTICLE'
+    bpy.data.objects["small"].is_holdout = True
+    ignored = [w for w in prepare_job(depsgraph()).warnings if "Glint ignores" in w]
+    assert "holdout objects 'small' (article semantics)" in ignored[0]
 
 
 def test_a_blend_whose_engine_is_glint_opens_without_an_engine_error(tmp_path):
@@ -195,5 +202,48 @@ def test_depth_of_field_is_read_as_cycles_reads_it_and_blurs_like_cycles(tmp_pat
     print("partial pixels glint", partial(glint_alpha), "cycles", partial(cycles_alpha),
           "max alpha difference", np.abs(glint_alpha - cycles_alpha).max())
     assert partial(glint_alpha) >= 12   # both edges, about 7 px each (test_core_depth_of_field)
+    assert abs(partial(glint_alpha) - partial(cycles_alpha)) <= 2
+    assert np.abs(glint_alpha - cycles_alpha).max() < 0.15
+
+
+@pytest.mark.parametrize("fstop, focus", [(10.0, 5.0), (20.0, 2.5)])
+def test_orthographic_depth_of_field_blurs_like_cycles(tmp_path, fstop, focus):
+    """Cycles' orthographic lens has a radius of 1 / (2 F-stop) scene units (not lens /
+    (2 F-stop)): the circle of confusion at depth z is that times |1 - z / focus|."""
+    from addon_support import add_camera, add_point_light, empty_file
+
+    scene = empty_file()
+    scene.render.resolution_x, scene.render.resolution_y = 160, 80
+    scene.render.film_transparent = True
+    add_sphere("ball", (0.0, 0.0, 0.0), 1.0)
+    add_point_light()
+    cam = add_camera(location=(0.0, -10.0, 0.0))
+    cam.data.type, cam.data.ortho_scale = 'ORTHO', 4.0      # a pixel is 0.025 wide
+    dof = cam.data.dof
+    dof.use_dof, dof.focus_distance, dof.aperture_fstop = True, focus, fstop
+    scene.glint.anti_aliasing, scene.glint.samples = 'FIXED', 256
+    radius = 1.0 / (2 * fstop)
+    assert prepare_job(depsgraph()).scene.camera.aperture_radius == pytest.approx(radius)
+    assert not [w for w in prepare_job(depsgraph()).warnings if "Glint ignores" in w]
+
+    def alpha_row(engine):
+        scene.render.engine = engine
+        scene.render.filepath = str(tmp_path / f"{engine}.png")
+        scene.render.image_settings.color_mode = 'RGBA'
+        bpy.ops.render.render(write_still=True)
+        return read_png(str(tmp_path / f"{engine}.png"))[40, :, 3] / 255.0
+
+    scene.cycles.samples, scene.cycles.use_denoising = 256, False
+    scene.cycles.pixel_filter_type, scene.render.filter_size = 'BOX', 1.0
+    glint_alpha, cycles_alpha = alpha_row('GLINT'), alpha_row('CYCLES')
+    # The silhouette (depth 10) blurs over a circle of radius 0.05 * |1 - 10 / 5| = 0.05
+    # (F-stop 10) or 0.025 * |1 - 10 / 2.5| = 0.075 (F-stop 20): 2 or 3 pixels, so 4 or 6
+    # partial pixels per edge; lens / (2 F-stop) would give under 0.2 pixel.  Tolerances as
+    # for the perspective lens (test above): 256 samples leave about 0.03 of coverage noise.
+    partial = lambda row: ((row > 0.02) & (row < 0.98)).sum()   # noqa: E731
+    print("partial pixels glint", partial(glint_alpha), "cycles", partial(cycles_alpha),
+          "max alpha difference", np.abs(glint_alpha - cycles_alpha).max())
+    expected = 2 * 2 * radius * abs(1 - 10 / focus) / 0.025
+    assert abs(partial(cycles_alpha) - expected) <= 2
     assert abs(partial(glint_alpha) - partial(cycles_alpha)) <= 2
     assert np.abs(glint_alpha - cycles_alpha).max() < 0.15

@@ -462,6 +462,75 @@ def test_geometry_nodes_mesh_instances_share_one_triangle_mesh(scene, monkeypatc
     np.testing.assert_allclose(key(boxes.transforms), key(walked.transforms), atol=1e-5)
 
 
+def two_mesh_instancer(name, positions):
+    """Geometry Nodes instancing a fine UV sphere on even vertices and a cube on odd ones
+    (Pick Instance of a Geometry to Instance of both)."""
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata([tuple(p) for p in positions], [], [])
+    obj = add_mesh(name, mesh)
+
+    def build(tree, geometry_in, geometry_out):
+        nodes, links = tree.nodes, tree.links
+        sphere = nodes.new("GeometryNodeMeshUVSphere")
+        sphere.inputs["Segments"].default_value, sphere.inputs["Rings"].default_value = 64, 32
+        sphere.inputs["Radius"].default_value = 0.1
+        smooth = nodes.new("GeometryNodeSetShadeSmooth")
+        links.new(sphere.outputs[0], smooth.inputs[0])
+        cube = nodes.new("GeometryNodeMeshCube")
+        cube.inputs["Size"].default_value = (0.2, 0.2, 0.2)
+        both = nodes.new("GeometryNodeGeometryToInstance")
+        links.new(cube.outputs[0], both.inputs[0])  # a multi-input socket: last linked first
+        links.new(smooth.outputs[0], both.inputs[0])
+        parity = nodes.new("ShaderNodeMath")
+        parity.operation = 'MODULO'
+        parity.inputs[1].default_value = 2.0
+        links.new(nodes.new("GeometryNodeInputIndex").outputs[0], parity.inputs[0])
+        place = nodes.new("GeometryNodeInstanceOnPoints")
+        place.inputs["Pick Instance"].default_value = True
+        links.new(geometry_in, place.inputs["Points"])
+        links.new(both.outputs[0], place.inputs["Instance"])
+        links.new(parity.outputs[0], place.inputs["Instance Index"])
+        links.new(place.outputs[0], geometry_out)
+
+    geometry_nodes(obj, build)
+    return obj
+
+
+def test_walked_instances_equal_the_full_path_taken_for_every_instance(scene, monkeypatch):
+    # InstanceWalk works out how to export each (instancer, object, mesh) once and reuses
+    # it; the reference takes the full path (visibility, type, MeshUse) for every instance.
+    # Two meshes instanced through one temporary object (Geometry Nodes), vertex instances.
+    positions = grid_positions(12, 1.0)
+    two_mesh_instancer("mixed", positions)
+    placement = bpy.data.meshes.new("placement")
+    placement.from_pydata([tuple(p + 5.0) for p in grid_positions(5)], [], [])
+    parent = add_mesh("placement", placement)
+    parent.instance_type = 'VERTS'
+    add_mesh("ball", uv_sphere_mesh("ball", 0.1, 64, 32)).parent = parent
+
+    walked, _ = export_per_instance(monkeypatch)
+    with monkeypatch.context() as patch:
+        patch.setattr(instances_module.InstanceWalk, "_plan",
+                      lambda self, instance, obj: self.WHOLE)
+        reference, _ = export_per_instance(monkeypatch)
+
+    def shapes(exported):
+        return (sorted((len(s), tuple(np.sort(s.centers, axis=0).ravel().round(5)))
+                       for s in exported.sphere_sets),
+                sorted((m.name, len(m.triangles), tuple(np.sort(
+                    m.transforms.reshape(len(m.transforms), -1), axis=0).ravel().round(5)))
+                       for m in exported.meshes),
+                sorted(s.name for s in exported.spheres))
+
+    assert shapes(walked) == shapes(reference)
+    # Six spheres and six cubes from the instancer (not all of them the first mesh it
+    # met), five vertex instances; the instanced original ball is not drawn.
+    assert sorted(len(s) for s in walked.sphere_sets) == [5, 6]
+    (cubes,) = walked.meshes
+    assert len(cubes.transforms) == 6 and len(cubes.triangles) == 12
+    assert not walked.spheres
+
+
 def test_particles_instancing_a_sphere_become_a_sphere_set(scene):
     emitter = add_mesh("emitter", cube_mesh("emitter", 2.0))
     ball = bpy.data.objects.new("grain", uv_sphere_mesh("grain", 0.05, 64, 32))
@@ -486,6 +555,61 @@ def test_particles_instancing_a_sphere_become_a_sphere_set(scene):
     np.testing.assert_allclose(grains.radii, 0.05, rtol=1e-4)
     assert [s.name for s in exported.spheres] == ["grain"]  # the object itself, far away
     assert not exported.meshes  # the emitter is not rendered (show_instancer_for_render)
+
+
+def f12_scene():
+    """The scene Glint's render engine exports on F12 (a render depsgraph, not the
+    viewport's one ``export`` reads)."""
+    from glint.addon.engine.final import FrameRequest, requesting_frames
+
+    bpy.context.scene.render.engine = 'GLINT'
+    bpy.context.scene.render.resolution_x, bpy.context.scene.render.resolution_y = 32, 18
+    with requesting_frames(FrameRequest(fill_render_result=False)) as request:
+        bpy.ops.render.render()
+    ((job, _),) = request.frames
+    return job.scene
+
+
+def test_f12_draws_the_instances_of_an_instancer_not_rendered_itself(scene):
+    # A render depsgraph leaves a vertex instancer whose show_instancer_for_render is off out
+    # of depsgraph.objects, but yields its instances: they must be walked, not missed.
+    placement = bpy.data.meshes.new("placement")
+    placement.from_pydata([tuple(p) for p in grid_positions(8)], [], [])
+    parent = add_mesh("placement", placement)
+    parent.instance_type = 'VERTS'
+    parent.show_instancer_for_render = False
+    add_mesh("ball", uv_sphere_mesh("ball", 0.1, 64, 32)).parent = parent
+
+    (balls,) = f12_scene().sphere_sets
+    button, _ = export()  # the viewport's depsgraph, as the Render button exports
+
+    assert len(balls) == 8
+    np.testing.assert_allclose(np.sort(balls.centers, axis=0),
+                               np.sort(grid_positions(8), axis=0), atol=1e-6)
+    # The viewport shows the instanced original too; renders (and the button) do not.
+    assert [len(s) for s in button.sphere_sets] == [8] and not button.spheres
+
+
+def test_many_objects_sharing_a_sphere_mesh_become_one_set_of_the_same_spheres(scene,
+                                                                                monkeypatch):
+    from glint.addon.export import meshes as meshes_module
+
+    ball = uv_sphere_mesh("ball", 0.1, 64, 32)
+    places = [(0.0, 0.0, 0.0), (0.5, 0.0, 0.0), (0.0, 0.5, 0.2)]
+    for index, place in enumerate(places):
+        add_mesh(f"copy {index}", ball, place)
+
+    named, _ = export()
+    monkeypatch.setattr(meshes_module, "MAX_NAMED_SPHERES", 2)
+    grouped, _ = export()
+
+    assert sorted(s.name for s in named.spheres) == ["copy 0", "copy 1", "copy 2"]
+    assert not named.sphere_sets
+    (spheres,) = grouped.sphere_sets
+    assert not grouped.spheres and spheres.name == "copy 0 (3 instances)"
+    np.testing.assert_allclose(np.sort(spheres.centers, axis=0),
+                               np.sort([s.center for s in named.spheres], axis=0), atol=1e-7)
+    np.testing.assert_allclose(spheres.radii, [s.radius for s in named.spheres])
 
 
 def test_instances_of_a_hidden_instancer_are_not_exported(scene):

@@ -148,11 +148,20 @@ def test_enabled_passes_glint_cannot_produce_are_named_in_one_warning():
     assert "Depth" not in warning and "Normal" not in warning
 
 
-def test_enabling_passes_leaves_the_combined_image_as_it_is(tmp_path):
-    """Combined is written again beside the passes: it must get the same hand-over to Blender
-    (the default semantics' radiance unchanged), not the article's inverse sRGB."""
+def test_enabling_passes_leaves_the_combined_image_as_it_is(tmp_path, monkeypatch):
+    """The passes go to Blender with each tile, beside Combined: Combined must get the same
+    hand-over (the default semantics' radiance unchanged, not the article's inverse sRGB),
+    and is converted and written once, not again over the whole frame after the tiles."""
+    import glint.addon.engine.final as final
+
     scene = passes_scene()
+    converted = []
+    convert = final.blender_pixels
+    monkeypatch.setattr(final, "blender_pixels",
+                        lambda rows, semantics: converted.append(rows.shape[:2])
+                        or convert(rows, semantics))
     with_passes = render_exr(scene, tmp_path, 'GLINT', "with.exr")
+    assert sum(h * w for h, w in converted) == 96 * 72
     for flag in PASSES:
         setattr(scene.view_layers[0], flag, False)
     without = render_exr(scene, tmp_path, 'GLINT', "without.exr")
@@ -161,3 +170,74 @@ def test_enabling_passes_leaves_the_combined_image_as_it_is(tmp_path):
         key = f"ViewLayer.Combined.{channel}"
         np.testing.assert_array_equal(with_passes[key], without[key])
     assert without["ViewLayer.Combined.R"].max() > 0.05   # a lit picture, not a black one
+
+
+def test_the_emission_pass_holds_what_the_camera_path_meets_as_in_cycles(tmp_path,
+                                                                        monkeypatch):
+    """Cycles' Emission pass: emission seen by the camera, and through a Transparent BSDF
+    (weighted by what passes); not what a mirror shows (glossy light) nor the world, and
+    nothing of a holdout object.  Values are exact in both renderers on pixels well inside one
+    surface (emission has no sampling noise there; Cycles' filter is near zero): 1e-4."""
+    import cycles_support
+    from cycles_support import add_ball, cycles_scene, node_material, set_world, sphere_mask
+
+    scene = cycles_scene(bounces=2, samples=16)
+    # Twice cycles_support's size, so that each ball keeps pixels 2 in from its outline.
+    scene.render.resolution_x, scene.render.resolution_y = 96, 72
+    monkeypatch.setattr(cycles_support, "WIDTH", 96)
+    monkeypatch.setattr(cycles_support, "HEIGHT", 72)
+    scene.cycles.transparent_max_bounces = 8
+    scene.glint.max_depth = 4
+    set_world((0.3, 0.5, 0.9), 0.5)
+    glow = node_material("glow", "ShaderNodeEmission", Color=(1.0, 0.5, 0.2), Strength=3.0)
+    lamp = add_ball("lamp", (-1.2, 0.0, 0.0), 0.8, glow)
+    veil = add_ball("veil", (-0.75, -3.0, 0.0), 0.3, node_material(   # before the lamp
+        "veil", "ShaderNodeBsdfTransparent", Color=(0.5, 0.5, 0.5)))
+    mirror = add_ball("mirror", (1.2, 0.0, 0.0), 0.8, node_material(
+        "mirror", "ShaderNodeBsdfGlossy", Color=(0.9, 0.9, 0.9), Roughness=0.0))
+    held = add_ball("held", (0.0, 0.0, 1.4), 0.5, glow)
+    held.is_holdout = True
+    layer = scene.view_layers[0]
+    layer.use_pass_emit = True
+    settings = scene.render.image_settings
+    settings.media_type, settings.exr_codec, settings.color_depth = \
+        'MULTI_LAYER_IMAGE', 'NONE', '32'
+
+    def emission(engine):
+        channels = render_exr(scene, tmp_path, engine, f"{engine}.exr")
+        return np.stack([channels[f"ViewLayer.Emission.{c}"] for c in "RGB"], axis=-1)
+
+    glint, cycles = emission('GLINT'), emission('CYCLES')
+    inside = sphere_mask(lamp) & ~sphere_mask(veil, erode=-2)
+    np.testing.assert_allclose(cycles[inside], np.broadcast_to((3.0, 1.5, 0.6),
+                                                               (inside.sum(), 3)), rtol=1e-4)
+    through = sphere_mask(veil)          # 0.5 x 0.5 of the lamp behind it
+    np.testing.assert_allclose(cycles[through], np.broadcast_to((0.75, 0.375, 0.15),
+                                                                (through.sum(), 3)), rtol=1e-4)
+    for mask in (inside, through, sphere_mask(mirror), sphere_mask(held)):
+        assert mask.sum() >= 20
+        np.testing.assert_allclose(glint[mask], cycles[mask], rtol=1e-4, atol=1e-6)
+    assert cycles[sphere_mask(mirror)].max() == 0 and cycles[0:3, 0:3].max() == 0
+    np.testing.assert_array_equal(glint[0:3, 0:3], 0.0)
+
+
+def test_a_render_region_holds_that_part_of_the_full_frames_passes(tmp_path):
+    """The passes go to Blender tile by tile, each cut to the render region as Combined is:
+    a cropped region's multilayer EXR holds the full frame's pixels there, in every pass."""
+    scene = passes_scene()
+    scene.render.resolution_x, scene.render.resolution_y = 300, 160   # several tiles
+    full = render_exr(scene, tmp_path, 'GLINT', "full.exr")
+    render = scene.render
+    render.use_border, render.use_crop_to_border = True, True
+    render.border_min_x, render.border_max_x = 0.3, 0.8
+    render.border_min_y, render.border_max_y = 0.25, 0.9
+    region = render_exr(scene, tmp_path, 'GLINT', "region.exr")
+
+    # Blender's pixels: x in [int(0.3 * 300), int(0.8 * 300)), rows from the bottom likewise.
+    x0, x1, y0, y1 = 90, 240, 40, 144
+    top, bottom = 160 - y1, 160 - y0
+    for name in ("Combined.R", "Combined.A", "Depth.Z", "Normal.X", "Object Index.X"):
+        key = f"ViewLayer.{name}"
+        assert region[key].shape == (y1 - y0, x1 - x0), name
+        np.testing.assert_array_equal(region[key], full[key][top:bottom, x0:x1], err_msg=name)
+    assert (region["ViewLayer.Object Index.X"] > 0).sum() > 1000

@@ -39,3 +39,41 @@ def test_per_pixel_program_matches_the_article_image_on_a_crop():
     assert (reference[..., 1] > reference[..., 0] + 0.1).any()
     assert (reference[..., 0] > reference[..., 1] + 0.1).any()
     assert np.abs(crop - reference).max() <= 1e-9
+
+
+def test_scale_cases_render_the_same_scene_in_glint_and_cycles(tmp_path):
+    """bench.scale's cases (issue 9's scale rows), tiny: both engines draw the scene the case
+    built, Glint exports every point, instance or triangle of it, and the report's targets
+    read the results."""
+    from bench import report, scale
+    from bench.suite import QUICK, Bench, scale_rows
+
+    cases = [scale.Case.parse(spec) for spec in (
+        "points:200:48x27", "instances:50:48x27", "vertex-instances:50:48x27",
+        "duplicates:20:48x27", "suzanne:1:48x27")]
+    results = scale.run(cases, repeats=1, budget=0.0, out=str(tmp_path))
+
+    drawn = {r["kind"]: r["glint"]["drawn"] for r in results}
+    assert drawn["points"]["spheres"] == 200
+    # 64 x 32 UV spheres of radius 0.05 are far below a pixel here: analytic spheres.
+    assert drawn["instances"]["spheres"] == 50
+    assert drawn["vertex-instances"]["spheres"] == 50
+    assert drawn["duplicates"]["spheres"] == 20
+    # Suzanne at level 1 (968 triangles -> 1,968 quads) and the floor's 2 triangles.
+    assert drawn["suzanne"]["triangles"] == scale.suzanne_triangles(1) + 2 == 3938
+    for result in results:
+        assert not result["glint"]["warnings"], result["case"]
+        # Two renders of the same scene: alike in the 8 x 8 boxes (Cycles' one sample is
+        # noisy per pixel, not per box), and covering nearly the same pixels.
+        assert result["similarity"]["r"] > 0.8, result["case"]
+        assert result["similarity"]["coverage_mismatch"] < 0.02 * 48 * 27, result["case"]
+        assert os.path.exists(result["picture"])
+
+    bench = Bench(QUICK, str(tmp_path))
+    for result in results:
+        bench.scale_results.append(result)
+        bench.rows.extend(scale_rows("scale-points", result))
+    statuses = {t.name.split(")")[0]: t.status for t in report.scale_targets(bench)}
+    assert statuses["(scale 1"] in ("PASS", "FAIL") and statuses["(scale 2"] in ("PASS", "FAIL")
+    assert statuses["(scale 3"] == "MEASURED" and statuses["(scale 4"] == "NOT MEASURED"
+    assert len(report.table(bench)) == 2 + 2 * len(results)

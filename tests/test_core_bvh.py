@@ -107,22 +107,172 @@ def test_small_scenes_build_no_tree():
     assert stats.node_tests == 0
 
 
-def test_morton_tree_bounds_contain_their_primitives():
-    from core.bvh import BVH, LEAF_SIZE, WIDTH
+def _mixed_boxes(rng, small, large):
+    """Boxes (P, 3) of ``small`` tiny primitives in a unit ball among ``large`` big ones."""
+    centre = np.concatenate([rng.normal(scale=0.5, size=(small, 3)),
+                             rng.uniform(-20, 20, (large, 3))])
+    half = np.concatenate([rng.uniform(0.001, 0.02, (small, 3)), rng.uniform(1, 6, (large, 3))])
+    order = rng.permutation(small + large)
+    return (centre - half)[order], (centre + half)[order]
+
+
+def _check_tree(tree, ids, low, high):
+    """Every id in exactly one leaf; every slot's box holds what is below it."""
+    from core.bvh import EMPTY, WIDTH
+    assert sorted(tree.primitives().tolist()) == sorted(ids.tolist())
+    where = {int(i): k for k, i in enumerate(ids)}
+    box_low, box_high = tree.blocks[:3].astype(float), tree.blocks[3:].astype(float)
+    for node in range(tree.node_count):
+        for slot in range(WIDTH):
+            child = tree.children[node, slot]
+            if child == EMPTY:
+                assert np.isnan(tree.blocks[:, node, slot]).all()
+                continue
+            lo, hi = box_low[:, node, slot], box_high[:, node, slot]
+            if child >= 0:      # an inner node: its children's boxes
+                real = tree.children[child] != EMPTY
+                assert real.any()
+                assert (lo[:, None] <= box_low[:, child][:, real]).all()
+                assert (hi[:, None] >= box_high[:, child][:, real]).all()
+            else:               # a leaf: its primitives' boxes
+                members = [where[int(p)] for p in tree.leaves[-2 - child] if p >= 0]
+                assert members
+                assert (lo <= low[members]).all() and (hi >= high[members]).all()
+    assert (tree.root_box[:3] <= low.min(axis=0)).all()
+    assert (tree.root_box[3:] >= high.max(axis=0)).all()
+
+
+@pytest.mark.parametrize("cluster_from", [10 ** 9, 500])
+def test_sah_tree_holds_every_primitive_once_and_bounds_its_children(monkeypatch,
+                                                                     cluster_from):
+    """Tiny primitives among large ones, ids not 0..P-1, built over primitives and (with
+    CLUSTER_FROM lowered) over Morton clusters; also a single primitive and two that
+    coincide (no plane separates them)."""
+    from core import bvh
+    monkeypatch.setattr(bvh, "CLUSTER_FROM", cluster_from)
     rng = np.random.default_rng(3)
-    low = rng.normal(size=(1000, 3))
-    high = low + rng.uniform(0, 0.5, (1000, 3))
-    tree = BVH.build(np.arange(1000), low, high)
-    assert sorted(tree.primitives[tree.primitives >= 0]) == list(range(1000))
-    leaf_low, leaf_high = tree.levels[0]
-    slots = tree.primitives.reshape(-1, LEAF_SIZE)
-    for leaf, members in enumerate(slots):
-        members = members[members >= 0]
-        assert (leaf_low[:, leaf, None] <= low[members].T).all()
-        assert (leaf_high[:, leaf, None] >= high[members].T).all()
-    for level in range(1, len(tree.levels)):
-        below_low, below_high = tree.levels[level - 1]
-        up_low, up_high = tree.levels[level]
-        parent = np.arange(below_low.shape[1]) // WIDTH
-        assert (up_low[:, parent] <= below_low).all() and (up_high[:, parent] >= below_high).all()
-    assert tree.levels[-1][0].shape[1] == 1
+    low, high = _mixed_boxes(rng, 1500, 60)
+    ids = rng.permutation(5000)[:1560]
+    tree = bvh.BVH.build(ids, low, high)
+    _check_tree(tree, ids, low, high)
+    assert tree.depths.max() <= 12                  # log4 of 1,560 is 5.3
+    for count in (1, 2, 9):
+        same = np.zeros((count, 3)), np.ones((count, 3))
+        _check_tree(bvh.BVH.build(np.arange(count), *same), np.arange(count), *same)
+
+
+def _backdrop_and_ball():
+    """A 5,120-triangle ball (radius 1, at height 1.5) over a 20 x 20 backdrop of 512 large
+    triangles in the plane y = 0: CLEVR's case, a fine mesh on a coarse one."""
+    t = (1 + 5 ** 0.5) / 2
+    v = np.array([(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t),
+                  (0, -1, -t), (0, 1, -t), (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)],
+                 float)
+    f = np.array([(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9),
+                  (5, 11, 4), (11, 10, 2), (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2),
+                  (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5), (2, 4, 11), (6, 2, 10),
+                  (8, 6, 7), (9, 8, 1)])
+    corners = v[f]
+    for _ in range(4):       # 20 * 4^4 = 5,120 triangles
+        a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+        ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
+        corners = np.concatenate([np.stack(x, 1) for x in
+                                  ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
+    corners = corners / np.linalg.norm(corners, axis=2, keepdims=True) + (0, 1.5, 0)
+    grid = np.linspace(-10, 10, 17)
+    x0, z0 = np.meshgrid(grid[:-1], grid[:-1])
+    x0, z0, step = x0.ravel(), z0.ravel(), grid[1] - grid[0]
+    quad = [np.stack([x0 + dx, np.zeros_like(x0), z0 + dz], 1)
+            for dx, dz in ((0, 0), (0, step), (step, step), (step, 0))]
+    backdrop = np.concatenate([np.stack([quad[0], quad[1], quad[2]], 1),
+                               np.stack([quad[0], quad[2], quad[3]], 1)])
+    everything = np.concatenate([corners, backdrop])
+    mesh = core.TriangleMesh(everything.reshape(-1, 3), np.arange(3 * len(everything))
+                             .reshape(-1, 3), None, np.zeros(len(everything), np.int64),
+                             MATERIALS)
+    return core.Scene(camera=core.ScreenCamera(8, 6, eye=(0, 3, 12)), meshes=(mesh,),
+                      lights=(core.PointLight((3, 20, 8)),)), len(corners)
+
+
+def test_rays_away_from_a_fine_mesh_do_not_pay_for_it():
+    """Vertical rays and segments onto the backdrop at least 3 from the ball's axis: every
+    backdrop triangle's box is one cell, so such a ray's segment meets the boxes of at most
+    4 cells (8 triangles, in at most 8 leaves of MAX_LEAF), and a tree that keeps the ball's
+    small triangles in their own subtrees (SAH) lets it enter no box of theirs.  So it
+    tests at most 8 * MAX_LEAF triangles, and at most WIDTH box tests per node on at most 8
+    root-to-leaf paths of the tree's depth D (1 + 8 * WIDTH * (D + 1)).  A tree that mixed
+    the ball's triangles into the backdrop's boxes (the Morton tree did) exceeds both."""
+    from core.bvh import MAX_LEAF, WIDTH
+    scene, ball = _backdrop_and_ball()
+    ctx = make_context(scene, core.RenderSettings(), np.float64)
+    tree = ctx.geometry._tree
+    assert tree is not None and len(ctx.geometry._flat_triangles) == 0
+    rng = np.random.default_rng(5)
+    xz = rng.uniform(-9.5, 9.5, (20000, 2))
+    xz = xz[np.hypot(*xz.T) > 3][:8000]
+    n = len(xz)
+    tops = np.stack([xz[:, 0], np.full(n, 5.0), xz[:, 1]])
+    down = np.tile([[0.0], [-1.0], [0.0]], n)
+    bound_nodes = (1 + 8 * WIDTH * (tree.depths.max() + 2)) * n
+    stats = RayStats()
+    t, primitive, _ = ctx.geometry.intersect(RayBatch(tops, down), stats)
+    assert (primitive >= ball).all() and np.allclose(t, 5.0)
+    assert stats.triangle_tests <= 8 * MAX_LEAF * n and stats.node_tests <= bound_nodes
+    stats = RayStats()
+    assert not ctx.geometry.occluded(RayBatch(tops, down, 0.0, np.full(n, 4.999)), stats).any()
+    assert stats.triangle_tests <= 8 * MAX_LEAF * n and stats.node_tests <= bound_nodes
+
+
+@pytest.mark.parametrize("cluster_from", [10 ** 9, 200])
+def test_tree_agrees_with_brute_force_on_mixed_sizes(monkeypatch, cluster_from):
+    """The ball on its backdrop, 600 small spheres around it and 3 large ones, against the
+    flat paths (every primitive tested): nearest hits and occlusion, ray for ray."""
+    from core import bvh
+    monkeypatch.setattr(bvh, "CLUSTER_FROM", cluster_from)
+    mesh_scene, _ = _backdrop_and_ball()
+    rng = np.random.default_rng(8)
+    centres = np.concatenate([rng.normal(scale=1.5, size=(600, 3)) + (0, 1.5, 0),
+                              [(6, 2, 6), (-6, 3, 0), (0, 2.5, -7)]])
+    radii = np.concatenate([rng.uniform(0.02, 0.1, 600), [2.0, 3.0, 2.5]])
+    balls = core.SphereSet(centres, radii, rng.integers(0, 2, 603), MATERIALS)
+    scene = core.Scene(camera=mesh_scene.camera, meshes=mesh_scene.meshes,
+                       sphere_sets=(balls,), lights=mesh_scene.lights)
+    tree, flat = _contexts(scene, monkeypatch)
+    for shared in (None, (0.5, 6.0, 11.0)):
+        origins, directions = _rays(rng, 3000, np.float64, shared)
+        origins = origins + np.array([[0], [3], [0]])
+        exclude = rng.integers(-1, len(tree.geometry), 3000)
+        lengths = rng.uniform(0.5, 15, 3000)
+        results = []
+        for ctx in (tree, flat):
+            origin = ctx.geometry.shared_origin(np.add(shared, (0, 3, 0))) \
+                if shared is not None else None
+            batch = RayBatch(origins, directions, 0.0, np.inf, origin, exclude)
+            t, primitive, _ = ctx.geometry.intersect(batch, RayStats())
+            segments = RayBatch(origins, directions, 0.0, lengths, origin, exclude)
+            results.append((t, primitive, ctx.geometry.occluded(segments, RayStats())))
+        (t1, p1, o1), (t2, p2, o2) = results
+        assert np.array_equal(p1, p2) and np.array_equal(t1, t2) and np.array_equal(o1, o2)
+        assert (p1 >= 603).any() and ((p1 >= 0) & (p1 < 603)).any()
+        assert o1.any() and not o1.all()
+
+
+def test_single_rays_leave_the_tree_as_it_was():
+    """A batch (or a last chunk) of one ray gets the same hits as the batch it came from, and
+    tracing it changes none of the tree's boxes (the slab test works in place on the boxes
+    it gathers, never on the tree's own)."""
+    scene, _ = _backdrop_and_ball()
+    ctx = make_context(scene, core.RenderSettings(), np.float64)
+    tree = ctx.geometry._tree
+    root, blocks = tree.root_box.copy(), tree.blocks.copy()
+    rng = np.random.default_rng(2)
+    origins, directions = _rays(rng, 40, np.float64)
+    origins = origins + np.array([[0], [3], [0]])
+    together = ctx.geometry.intersect(RayBatch(origins, directions), RayStats())[:2]
+    for ray in range(40):
+        one = RayBatch(origins[:, ray:ray + 1], directions[:, ray:ray + 1])
+        t, primitive, _ = ctx.geometry.intersect(one, RayStats())
+        assert t[0] == together[0][ray] and primitive[0] == together[1][ray]
+    assert np.array_equal(tree.root_box, root)
+    assert np.array_equal(tree.blocks, blocks, equal_nan=True)
+    assert (together[1] >= 0).any()

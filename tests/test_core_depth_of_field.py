@@ -51,6 +51,29 @@ def test_every_ray_of_a_pixel_meets_the_pinhole_ray_on_the_focus_plane(blades):
     assert np.hypot(rays.origins[0], rays.origins[1]).max() <= 0.3 + 1e-12
 
 
+def test_orthographic_rays_of_a_pixel_meet_on_the_focus_plane_from_the_camera_plane():
+    """Cycles' orthographic thin lens: a pixel's rays leave its point on the camera plane
+    moved by an aperture point and meet its pinhole ray on the focus plane, so the clip
+    planes stay depths along the axis."""
+    lensed = camera(projection='ORTHO', ortho_scale=4.0, aperture_radius=0.3,
+                    focus_distance=7.0, clip_start=0.5, clip_end=20.0)
+    count = 64
+    xs, ys = np.full(count, 123.25), np.full(count, 31.5)
+    lens = np.random.default_rng(4).random((2, count))
+    rays = camera_rays(lensed, xs, ys, lens=lens)
+    pinhole = camera_rays(dataclasses.replace(lensed, aperture_radius=0.0), xs[:1], ys[:1])
+    start = pinhole.origins[:, 0]
+    assert np.all(rays.origins[2] == 0)
+    assert np.hypot(*(rays.origins[:2] - start[:2, None])).max() <= 0.3 + 1e-12
+    t = (-7.0 - rays.origins[2]) / rays.directions[2]
+    meet = rays.origins + t * rays.directions
+    np.testing.assert_allclose(meet, np.repeat((start + [0, 0, -7.0])[:, None], count, axis=1),
+                               atol=1e-12)
+    # t_min, t_max reach depths 0.5 and 20 along -Z.
+    np.testing.assert_allclose(rays.t_min * -rays.directions[2], 0.5)
+    np.testing.assert_allclose(rays.t_max * -rays.directions[2], 20.0)
+
+
 def test_aperture_points_cover_the_disc_or_the_polygon_uniformly():
     samples = np.random.default_rng(3).random((2, 200_000))
     disc = aperture_points(camera(aperture_radius=2.0), samples)

@@ -3,7 +3,7 @@ point, must leave the previous output byte-for-byte intact, be reported in one l
 leave no partial or temporary file.
 
 Stages: export (the scene -> core step), tile (a MemoryError inside a tile, as a huge render
-raises it), hand-over (the core's image -> the job's finished image, and for the engine the
+raises it), hand-over (the core's image -> the job's result, and for the engine the
 job's image -> Blender's render result), write (the image file: render.py and python -m core
 write through core.png, which fails on its second block of rows, as a full disk would).
 Blender writes the engine's files itself (C code), so there the write stage is Blender's and
@@ -48,7 +48,7 @@ def _raise(error):
 ADDON_FAULTS = {
     "export": (job, "export_scene", Injected("injected fault: export")),
     "tile": (core_render, "render_tile", MemoryError("injected fault: tile")),
-    "hand-over": (job, "finish_image", Injected("injected fault: hand-over")),
+    "hand-over": (job, "JobResult", Injected("injected fault: hand-over")),
 }
 
 

@@ -39,7 +39,9 @@ from ...core import RenderCancelled
 from ..utils.colour import render_result_pixels
 from ..export import ExportError
 from .job import failure_message, prepare_job
-from .passes import enabled_passes, pass_warning, register_passes, write_result_with_passes
+from ...core.passes import PrimaryPasses, primitive_sources
+from .passes import enabled_passes, pass_pixels, pass_warning, register_passes, \
+    scene_pass_indices
 from .preview import prepare_preview_job
 from .viewport import ViewportEngine
 
@@ -162,11 +164,15 @@ class GlintRenderEngine(bpy.types.RenderEngine):
         # Tiles go to Blender as they land (F12 fills in tile by tile, and a cancel keeps
         # them), unless the script asking for the frames writes it itself.
         fill = request is None or request.fill_render_result
-        tiles = TileHandOver(self, region, height, view_layer.name,
-                             job.settings.semantics) if fill else None
+        # The passes, when enabled, are filled tile by tile and handed over with each tile.
+        primary = PrimaryPasses.empty(
+            width, height, emission=any(spec.name == "Emission" for spec in passes)
+        ) if passes and fill else None
+        tiles = TileHandOver(self, region, height, view_layer.name, job.settings.semantics,
+                             TilePasses.of(job.scene, passes, primary)) if fill else None
         result = job.run(progress=progress, should_cancel=should_cancel,
                          on_tile=tiles.hand_over if tiles is not None else None,
-                         passes=bool(passes) and fill,
+                         passes=primary if primary is not None else False,
                          # Beside the job's frame, Blender holds a float32 frame (the
                          # render result, or render.py's colour-managed Image) and, while it
                          # saves, its display buffers: measured, render.py peaks at 3.35
@@ -177,10 +183,6 @@ class GlintRenderEngine(bpy.types.RenderEngine):
             self.report({'WARNING'}, f"Glint: {result.fallback}")
         if request is not None:
             request.frames.append((job, result))
-        if passes and fill:
-            # The passes, with Combined again, over the whole region at once.
-            write_result_with_passes(self, result.image, result.passes, passes, job.scene,
-                                     region, view_layer.name, job.settings.semantics)
 
     def update_render_passes(self, scene=None, renderlayer=None):
         register_passes(self, scene, renderlayer)
@@ -191,16 +193,39 @@ class GlintRenderEngine(bpy.types.RenderEngine):
             self.error_set(message)
 
 
+@dataclass
+class TilePasses:
+    """The enabled passes (``passes.PassSpec``) and what their pixels are read from: the
+    PrimaryPasses the render fills tile by tile, and the scene's pass indices (read once)."""
+
+    specs: list
+    primary: PrimaryPasses
+    indices: tuple        # (object index per entry, material index per table entry)
+    sources: np.ndarray   # the scene entry of each primitive
+
+    @classmethod
+    def of(cls, scene, specs, primary) -> Optional["TilePasses"]:
+        if not specs or primary is None:
+            return None
+        return cls(specs, primary, scene_pass_indices(scene), primitive_sources(scene))
+
+    def pixels(self, region) -> dict:
+        return pass_pixels(self.primary, self.specs, *self.indices, self.sources, region)
+
+
 class TileHandOver:
     """Each tile, as it lands, into Blender's render result (``begin_result`` for the tile's
     part of the render region, ``end_result`` merges it and F12 shows it), the way Cycles hands
-    over tiles.  Tiles arrive from ``RenderJob.run(on_tile=...)``: rows from the top of the
-    frame, finished job values of ``semantics``; Blender wants premultiplied scene-linear rows
-    from the bottom, counted from the render region's corner."""
+    over tiles: Combined and, when enabled, the passes (``TilePasses``), so each is written
+    once.  Tiles arrive from ``RenderJob.run(on_tile=...)``: rows from the top of the frame,
+    finished job values of ``semantics``; Blender wants premultiplied scene-linear rows from
+    the bottom, counted from the render region's corner."""
 
-    def __init__(self, engine, region, frame_height: int, layer: str, semantics: str):
+    def __init__(self, engine, region, frame_height: int, layer: str, semantics: str,
+                 passes: Optional[TilePasses] = None):
         self.engine, self.region, self.frame_height, self.layer = engine, region, frame_height, layer
         self.semantics = semantics
+        self.passes = passes
 
     def hand_over(self, tile, rgba: np.ndarray) -> None:
         y0, y1, x0, x1 = tile
@@ -213,10 +238,14 @@ class TileHandOver:
             return
         pixels = blender_pixels(rgba[top - high:top - low, left - x0:right - x0],
                                 self.semantics)
+        extra = self.passes.pixels((left, low, right, high)) if self.passes else {}
         result = self.engine.begin_result(left - rx0, low - ry0, right - left, high - low,
                                           layer=self.layer)
         try:
-            result.layers[0].passes["Combined"].rect.foreach_set(pixels.reshape(-1))
+            passes = result.layers[0].passes
+            passes["Combined"].rect.foreach_set(pixels.reshape(-1))
+            for name, values in extra.items():
+                passes[name].rect.foreach_set(values)
         except BaseException:
             self.engine.end_result(result, cancel=True)
             raise

@@ -1,11 +1,11 @@
 """Scene settings that change what Cycles renders and that Glint does not honour, named in one
 warning per render (``ignored_settings_warning``), so nothing is dropped silently.
 
-Glint has no motion blur, no depth of field for orthographic cameras (nor with
-anti-aliasing off, whose one ray per pixel cannot sample the lens), no anamorphic aperture,
-holdouts, shadow catchers, indirect-only collections, Freestyle, multiview, view-layer
-material overrides, per-object ray visibility or lights without shadows; each of these,
-where the scene uses it, is listed.
+Glint has no motion blur, no depth of field with anti-aliasing off (whose one ray per
+pixel cannot sample the lens), no anamorphic aperture,
+shadow catchers, indirect-only collections, Freestyle, multiview, view-layer material
+overrides, per-object ray visibility or lights without shadows, and the article semantics
+has no holdouts; each of these, where the scene uses it, is listed.
 """
 
 from __future__ import annotations
@@ -41,9 +41,7 @@ def ignored_settings(depsgraph, camera_override=None) -> list[str]:
         found.append("motion blur")
     camera = camera_override if camera_override is not None else scene.camera
     if camera is not None and camera.type == 'CAMERA' and camera.data.dof.use_dof:
-        if camera.data.type != 'PERSP':
-            found.append(f"depth of field of an orthographic camera ('{camera.name}')")
-        elif scene.glint.anti_aliasing == 'OFF':
+        if scene.glint.anti_aliasing == 'OFF':
             found.append(f"depth of field (camera '{camera.name}'), which needs anti-aliasing "
                          f"samples")
         if camera.data.dof.aperture_ratio != 1.0:
@@ -54,26 +52,29 @@ def ignored_settings(depsgraph, camera_override=None) -> list[str]:
         found.append("stereoscopy (multiview)")
     if getattr(view_layer, "material_override", None) is not None:
         found.append(f"the material override of view layer '{view_layer.name}'")
+    # Holdouts are rendered (``export``), except in the article's model.
+    article = scene.glint.semantics == 'ARTICLE'
     holdout, indirect = [], []
     for layer_collection in _layer_collections(view_layer.layer_collection):
         if layer_collection.exclude:
             continue
-        if layer_collection.holdout:
+        if layer_collection.holdout and article:
             holdout.append(layer_collection.name)
         if layer_collection.indirect_only:
             indirect.append(layer_collection.name)
     if holdout:
-        found.append(f"holdout collections {_names(holdout)}")
+        found.append(f"holdout collections {_names(holdout)} (article semantics)")
     if indirect:
         found.append(f"indirect-only collections {_names(indirect)}")
     objects = [instance.object for instance in depsgraph.object_instances
                if not instance.is_instance]
     lights = [obj for obj in objects if obj.type == 'LIGHT']
     objects = [obj for obj in objects if obj.type not in NOT_GEOMETRY]
-    for flag, label in (("is_holdout", "holdout"), ("is_shadow_catcher", "shadow catcher")):
+    flags = (("is_holdout", "holdout", " (article semantics)"),) if article else ()
+    for flag, label, note in flags + (("is_shadow_catcher", "shadow catcher", ""),):
         marked = {obj.name for obj in objects if getattr(obj, flag, False)}
         if marked:
-            found.append(f"{label} objects {_names(marked)}")
+            found.append(f"{label} objects {_names(marked)}{note}")
     hidden_from = {}
     for obj in objects:
         for flag, ray in RAY_VISIBILITY.items():

@@ -7,16 +7,16 @@ run on any thread; it returns a ``JobResult`` whose image is
 * (H, W, 4) float32, row 0 = top, the core's values: default semantics unclipped
   scene-linear radiance, article semantics the article's display values (what its PNG
   stores); ``RenderJob.scene_linear`` turns either into what Blender's render result holds;
-* Film > Transparent off: alpha 1, the background is the world colour;
-* Film > Transparent on: alpha = sphere coverage, and the background the camera rays saw is
-  removed, leaving premultiplied colour (Blender's convention for render results): the core
-  reports what a camera sample that misses added (``RenderResult.missed_colour``), so
-  subtracting (1 - coverage) times that removes those samples exactly; reflections of the
-  world stay.
+* Film > Transparent off (the core's film 'opaque'): the background is the world colour,
+  alpha 1 except where holdouts cut holes;
+* Film > Transparent on (film 'transparent'): camera rays that escape (directly or straight
+  through Transparent BSDFs) add nothing and leave alpha < 1, as do holdouts; colour is
+  premultiplied (Blender's convention for render results); reflections of the world stay.
 
-The core renders straight into a float32 image and ``finish_image`` works on it in place, so
-a job holds one frame-sized array whatever the resolution.  ``failure_message`` turns any
-exception a render can raise into the one line every entry point reports.
+The core computes both itself (``RenderSettings.film``, ``core.trace``) and renders straight
+into a float32 image, so a job holds one frame-sized array whatever the resolution.
+``failure_message`` turns any exception a render can raise into the one line every entry
+point reports.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from ...core import RenderCancelled, RenderSettings, Scene, SceneError, render
-from ...core.render import RayStats, missed_colour
+from ...core.render import RayStats
 from ..export import ExportError, export_scene
 from .ignored import ignored_settings_warning
 from ..utils.colour import render_result_pixels
@@ -42,10 +42,14 @@ DEBUG_VARIABLE = "GLINT_DEBUG"
 def render_settings(settings, render=None) -> RenderSettings:
     """``Scene.glint`` (a GlintRenderSettings) -> core RenderSettings; ``render`` (the scene's
     RenderSettings), if given, sets the threads: Blender's Performance > Threads, so a farm
-    node running several jobs is not oversubscribed (Auto-detect: one per core)."""
+    node running several jobs is not oversubscribed (Auto-detect: one per core), and the film
+    (Film > Transparent; without ``render``, the core's own 'coverage')."""
     threads = None
-    if render is not None and render.threads_mode == 'FIXED':
-        threads = render.threads
+    film = "coverage"
+    if render is not None:
+        film = "transparent" if render.film_transparent else "opaque"
+        if render.threads_mode == 'FIXED':
+            threads = render.threads
     return RenderSettings(
         semantics=settings.semantics.lower(),
         precision=settings.precision.lower(),
@@ -54,6 +58,7 @@ def render_settings(settings, render=None) -> RenderSettings:
         samples=settings.samples,
         light_samples=settings.light_samples,
         threads=threads,
+        film=film,
         parallelism=settings.parallelism.lower(),
     )
 
@@ -76,8 +81,7 @@ class JobResult:
 @dataclass
 class RenderJob:
     scene: Scene
-    settings: RenderSettings
-    transparent: bool
+    settings: RenderSettings   # its film: Film > Transparent (``render_settings``)
     warnings: list[str] = field(default_factory=list)
 
     @property
@@ -102,46 +106,24 @@ class RenderJob:
             should_cancel: Optional[Callable[[], bool]] = None,
             reserve_bytes: int = 0,
             on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None,
-            passes: bool = False) -> JobResult:
+            passes=False) -> JobResult:
         """The finished frame (module docstring).  Raises core.RenderCancelled if
         should_cancel() answers True, core.SceneError for settings the core rejects or a
         render that cannot fit in memory with ``reserve_bytes`` more (the caller's copies).
         on_tile(tile, rgba): each tile as it lands (``core.render``'s tile, rows from the top),
         its pixels finished as the frame's will be (a copy the callee may keep).
-        passes: also compute the render passes (``core.passes``) into JobResult.passes."""
-        missed = missed_colour(self.scene, self.settings)
-
+        passes: also compute the render passes (``core.passes``) into JobResult.passes (a
+        ``PrimaryPasses`` given here is filled in place, tile by tile, before on_tile)."""
         def finished_tile(tile, rgba):
-            pixels = np.array(rgba, np.float32, copy=True)
-            finish_image(pixels, missed, self.transparent)
-            on_tile(tile, pixels)
+            on_tile(tile, np.array(rgba, np.float32, copy=True))
 
         result = render(self.scene, self.settings, progress=progress,
                         should_cancel=should_cancel, image_dtype=np.float32,
                         reserve_bytes=reserve_bytes,
                         on_tile=finished_tile if on_tile is not None else None,
                         passes=passes)
-        finish_image(result.image, result.missed_colour, self.transparent)
         return JobResult(result.image, result.precision, result.stats, result.passes,
                          result.parallelism, result.fallback)
-
-
-#: Rows handled at a time by whole-frame steps, so their temporaries stay small.
-ROW_BLOCK = 64
-
-
-def finish_image(image: np.ndarray, missed_colour: np.ndarray, transparent: bool) -> None:
-    """The core's (H, W, 4) float32 image -> the job's image (module docstring), in place."""
-    if not transparent:
-        image[..., 3] = 1.0
-        return
-    if not np.any(missed_colour):
-        return
-    missed = np.asarray(missed_colour, np.float32)
-    for first in range(0, image.shape[0], ROW_BLOCK):
-        rows = image[first:first + ROW_BLOCK]
-        rows[..., :3] -= (1.0 - rows[..., 3:4]) * missed
-        np.maximum(rows[..., :3], 0.0, out=rows[..., :3])
 
 
 def failure_message(error: BaseException) -> str:
@@ -172,7 +154,7 @@ def prepare_job(depsgraph, camera_override=None) -> RenderJob:
     blender_scene = depsgraph.scene_eval
     return RenderJob(scene=scene,
                      settings=render_settings(blender_scene.glint, blender_scene.render),
-                     transparent=blender_scene.render.film_transparent, warnings=warnings)
+                     warnings=warnings)
 
 
 class ThreadedRender:

@@ -3,10 +3,11 @@
 ``PrimaryPasses`` (``core.passes``) into Blender's pass pixels.
 
 Glint produces Depth (Z), Position, Normal, Object Index and Material Index from each pixel
-centre's first hit (the Combined pass's alpha is the spheres' coverage).  The other passes a
-view layer can enable (mist, vector, UV, shadow, AO, emission, environment, the light
-components, cryptomatte, grease pencil, AOVs and light groups) are named in one warning, never
-silently left empty.
+centre's first hit, and Emission from its camera path (``core.passes``); the Combined pass's
+alpha is the coverage less holdouts.  The other passes a view layer can enable (mist, vector,
+UV, shadow, AO, environment, the light components, cryptomatte, grease pencil, AOVs and light
+groups) are named in one warning, never silently left empty.  (Shadow: Cycles writes no
+Shadow pass, only EEVEE does, so there is nothing here to check one against.)
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ SUPPORTED_PASSES = (
     PassSpec("use_pass_normal", "Normal", "XYZ", 'VECTOR'),
     PassSpec("use_pass_object_index", "Object Index", "X", 'VALUE'),
     PassSpec("use_pass_material_index", "Material Index", "X", 'VALUE'),
+    PassSpec("use_pass_emit", "Emission", "RGB", 'COLOR'),
 )
 
 #: Enabled view-layer passes Glint cannot produce, by the ViewLayer property, as the UI names
@@ -41,7 +43,7 @@ SUPPORTED_PASSES = (
 UNSUPPORTED_PASSES = {
     "use_pass_mist": "Mist", "use_pass_vector": "Vector", "use_pass_uv": "UV",
     "use_pass_shadow": "Shadow", "use_pass_ambient_occlusion": "Ambient Occlusion",
-    "use_pass_emit": "Emission", "use_pass_environment": "Environment",
+    "use_pass_environment": "Environment",
     "use_pass_diffuse_direct": "Diffuse Direct", "use_pass_diffuse_indirect": "Diffuse Indirect",
     "use_pass_diffuse_color": "Diffuse Color", "use_pass_glossy_direct": "Glossy Direct",
     "use_pass_glossy_indirect": "Glossy Indirect", "use_pass_glossy_color": "Glossy Color",
@@ -140,29 +142,7 @@ def pass_pixels(primary, specs, object_index, material_index, sources, region) -
         "Normal": lambda: region_of(primary.normal),
         "Object Index": lambda: lookup(entries, object_index),
         "Material Index": lambda: lookup(region_of(primary.material), material_index),
+        "Emission": lambda: region_of(primary.emission),
     }
     return {spec.name: np.ascontiguousarray(values[spec.name](), np.float32).reshape(-1)
             for spec in specs}
-
-
-def write_result_with_passes(engine, image, primary, specs, scene, region, layer,
-                             semantics: str) -> None:
-    """The whole render region of ``layer`` at once: Combined (the finished image: job values
-    of ``semantics``, rows from the top) and the enabled passes of the core scene's render."""
-    from .final import blender_pixels
-
-    x0, y0, x1, y1 = region
-    height = image.shape[0]
-    combined = blender_pixels(image[height - y1:height - y0, x0:x1], semantics)
-    pixels = pass_pixels(primary, specs, *scene_pass_indices(scene),
-                         primitive_sources(scene), region)
-    result = engine.begin_result(0, 0, x1 - x0, y1 - y0, layer=layer)
-    try:
-        passes = result.layers[0].passes
-        passes["Combined"].rect.foreach_set(combined.reshape(-1))
-        for name, values in pixels.items():
-            passes[name].rect.foreach_set(values)
-    except BaseException:
-        engine.end_result(result, cancel=True)
-        raise
-    engine.end_result(result)

@@ -33,7 +33,7 @@ import numpy as np
 
 from ...core import BlenderCamera, RenderCancelled, RenderSettings, Scene, SceneError, render
 from .ignored import ignored_settings_warning
-from .job import failure_message, finish_image
+from .job import failure_message
 
 #: The coarse pass traces at most this many pixels (a power-of-two fraction of the view's
 #: resolution), so the first picture of a small scene comes back in a few hundredths of a
@@ -302,7 +302,6 @@ class ProgressiveRender:
             except BaseException as error:  # shown in the viewport's status line
                 self.error = error
                 return
-            finish_image(result.image, result.missed_colour, self.transparent)
             image = result.image
             with self._lock:
                 if self._stop.is_set():

@@ -18,12 +18,13 @@ sphere (``geometry``).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
 
-from ...core import SceneError
+from ...core import SceneError, SurfaceMaterial
 from ...core.camera import blender_view_plane, camera_to_world
 from .errors import ExportError
 from .materials import export_article_material, export_material
@@ -119,6 +120,7 @@ class ExportContext:
     meshes: list = field(default_factory=list)         # core.TriangleMesh
     lights: list = field(default_factory=list)         # core lights
     article: bool = False     # article semantics: the article's Material and PointLight
+    view_layer: object = None  # the evaluated view layer, for holdouts (``is_holdout``)
 
     @classmethod
     def for_camera(cls, camera, judged_from=..., article: bool = False) -> "ExportContext":
@@ -130,11 +132,32 @@ class ExportContext:
             CameraFootprint.unbounded()
         return cls(camera=camera, footprint=footprint, article=article)
 
-    def material(self, material, owner: str):
+    def is_holdout(self, obj) -> bool:
+        """Whether an evaluated object is a holdout in the view layer (Object > Visibility >
+        Holdout, or in a holdout collection); never in the article semantics, whose model has
+        no holdouts (``ignored`` names them)."""
+        if self.article or self.view_layer is None:
+            return False
+        return bool(obj.holdout_get(view_layer=self.view_layer))
+
+    def material(self, material, owner: str, holdout: bool = False):
         """The core material for a bpy Material (None: Blender's default surface), converted
         once per export; the converter's note, if any, is kept for the warnings.  An invalid
-        value raises ExportError naming ``owner`` (the object), the material and the field."""
+        value raises ExportError naming ``owner`` (the object), the material and the field.
+        holdout: for a holdout object (``is_holdout``): the same material marked
+        ``holdout_object``."""
         key = material.name_full if material is not None else None
+        if holdout:
+            held = (key, "holdout")
+            if held not in self.materials:
+                surface = self.material(material, owner)
+                if isinstance(surface, SurfaceMaterial):
+                    surface = dataclasses.replace(surface, holdout_object=True)
+                else:
+                    self.note(f"holdout object '{owner}': its Custom (article) material "
+                              f"'{key}' is not held out")
+                self.materials[held] = surface
+            return self.materials[held]
         if key not in self.materials:
             try:
                 exporter = export_article_material if self.article else export_material

@@ -73,12 +73,34 @@ class SphereFit:
     deviation: float = 0.0
 
 
-def read_array(collection, attribute: str, width: int, dtype=np.float64) -> np.ndarray:
-    """A bpy collection's attribute as an (n, width) array (or (n,) when width is 1), read
-    with one ``foreach_get``."""
-    values = np.empty(len(collection) * width, dtype)
+#: The types Blender stores float properties and integer attributes in.  ``foreach_get``
+#: copies in bulk only into an array of the stored type, and converts item by item into any
+#: other (pip bpy 5.0.1, a mesh of 504,482 vertices: ``vertices.co`` 0.10 s into float32
+#: against 0.42 s into float64; 2 M ``corner_normals`` 0.036 s against 1.34 s; the
+#: ``.corner_vert`` attribute 0.001 s into int32 against 0.24 s into int64).
+STORED_FLOAT, STORED_INT = np.float32, np.int32
+
+
+def read_array(collection, attribute: str, width: int, dtype=np.float64,
+               stored=None) -> np.ndarray:
+    """A bpy collection's attribute as an (n, width) array (or (n,) when width is 1) of
+    ``dtype``, read with one ``foreach_get``; stored: the type Blender keeps it in
+    (STORED_FLOAT, STORED_INT), read as such and then converted, which is much faster."""
+    values = np.empty(len(collection) * width, stored or dtype)
     collection.foreach_get(attribute, values)
+    if stored is not None and np.dtype(stored) != np.dtype(dtype):
+        values = values.astype(dtype)
     return values.reshape(-1, width) if width > 1 else values
+
+
+def corner_values(mesh, attribute: str, fallback, field: str) -> np.ndarray:
+    """(n,) int64: one of a mesh's integer attributes (``.corner_vert``, ``.corner_edge``),
+    read from the attribute in bulk; where a mesh has none of that name, the same values
+    through ``fallback``'s ``field`` (the slower per-element property)."""
+    stored = mesh.attributes.get(attribute)
+    if stored is not None and stored.data_type == 'INT':
+        return read_array(stored.data, "value", 1, np.int64, stored=STORED_INT)
+    return read_array(fallback, field, 1, np.int64, stored=STORED_INT)
 
 
 def fit_sphere(points: np.ndarray) -> Optional[SphereFit]:
@@ -114,18 +136,18 @@ def mesh_sphere(mesh, vertices: Optional[np.ndarray] = None) -> Optional[SphereF
     if len(mesh.vertices) < 4 or len(mesh.polygons) == 0:
         return None
     if vertices is None:
-        vertices = read_array(mesh.vertices, "co", 3)
+        vertices = read_array(mesh.vertices, "co", 3, stored=STORED_FLOAT)
     fit = fit_sphere(vertices)
     if fit is None:
         return None
-    edge_use = np.bincount(read_array(mesh.loops, "edge_index", 1, np.int64),
+    edge_use = np.bincount(corner_values(mesh, ".corner_edge", mesh.loops, "edge_index"),
                            minlength=len(mesh.edges))
     if (edge_use != 2).any():
         return None
     face_materials = read_array(mesh.polygons, "material_index", 1, np.int64)
     if (face_materials != face_materials[0]).any():
         return None
-    face_centers = read_array(mesh.polygons, "center", 3)
+    face_centers = read_array(mesh.polygons, "center", 3, stored=STORED_FLOAT)
     sag = fit.radius - np.linalg.norm(face_centers - np.asarray(fit.center), axis=1)
     if np.abs(sag).max() > MAX_FACE_SAGITTA * fit.radius:
         return None

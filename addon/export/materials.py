@@ -186,12 +186,13 @@ class Lobes:
     fresnel_sum: float
     emission: np.ndarray
     transparency: np.ndarray
+    translucency: np.ndarray
     holdout: float
 
     @classmethod
     def none(cls) -> "Lobes":
         zero = np.zeros(3)
-        return cls(zero, zero, zero, 0.0, 0.0, zero, 0.0, 0.0, 0.0, zero, zero, 0.0)
+        return cls(zero, zero, zero, 0.0, 0.0, zero, 0.0, 0.0, 0.0, zero, zero, zero, 0.0)
 
     def scaled(self, k: float) -> "Lobes":
         return Lobes(*(value * k for value in vars(self).values()))
@@ -228,6 +229,7 @@ class Lobes:
             transmission=positive(self.transmission),
             transmission_fresnel=float(np.clip(fresnel, 0, 1)), ior=max(float(ior), 1e-3),
             emission=positive(self.emission), transparency=positive(self.transparency),
+            translucency=positive(self.translucency),
             holdout=float(np.clip(self.holdout, 0, 1)))
 
 
@@ -427,7 +429,11 @@ class NodeEvaluator:
                 specular=value("Specular IOR Level"), tint=colour("Specular Tint"),
                 transmission=value("Transmission Weight"),
                 emission=colour("Emission Color") * value("Emission Strength")))
-        if kind in ("ShaderNodeBsdfDiffuse", "ShaderNodeBsdfTranslucent",
+        if kind == "ShaderNodeBsdfTranslucent":
+            lobes = Lobes.none()
+            lobes.translucency = colour("Color")
+            return lobes
+        if kind in ("ShaderNodeBsdfDiffuse",
                     "ShaderNodeSubsurfaceScattering", "ShaderNodeBsdfToon",
                     "ShaderNodeBsdfSheen", "ShaderNodeBsdfVelvet"):
             if kind != "ShaderNodeBsdfDiffuse":

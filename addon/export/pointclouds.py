@@ -52,8 +52,9 @@ def export_point_cloud(context, obj, matrix_world, name: str) -> None:
         positions, radii, slots = positions[keep], radii[keep], slots[keep]
     if len(radii) == 0:
         return
-    materials = [context.material(slot.material, name) for slot in obj.material_slots] or \
-        [context.material(None, name)]
+    holdout = context.is_holdout(obj)
+    materials = [context.material(slot.material, name, holdout)
+                 for slot in obj.material_slots] or [context.material(None, name, holdout)]
     centers = positions.astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
     try:
         context.sphere_sets.append(SphereSet(
