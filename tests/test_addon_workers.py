@@ -200,3 +200,14 @@ def test_render_py_where_workers_cannot_start_falls_back_with_one_line(tmp_path)
     assert run_render_py([*RENDER_PY_SIZE, "--parallelism", "threads", "--output",
                           str(reference)]).returncode == 0
     assert np.array_equal(read_png(str(output)), read_png(str(reference)))
+
+
+def test_blender_rendering_one_frame_from_its_command_line_is_told_so():
+    from glint.addon import renders_one_frame
+
+    assert bpy.app.background   # headless, as on a render farm
+    assert renders_one_frame(["blender", "-b", "scene.blend", "-f", "7"])
+    assert renders_one_frame(["blender", "-b", "scene.blend", "--render-frame", "+1"])
+    for several in (["-f", "1,3"], ["-f", "1..5"], ["-a"], ["-s", "1", "-e", "9", "-a"],
+                    ["--python", "render.py", "--", "--frames", "1-9"], []):
+        assert not renders_one_frame(["blender", "-b", "scene.blend", *several]), several
