@@ -15,6 +15,8 @@ MIB = 2 ** 20
 ACCURATE = 1e-6
 BASELINE_SPEEDUP, CYCLES1_SPEEDUP = 8.0, 6.0
 ADAPTIVE_TIME_FRACTION, CYCLES16_SPEEDUP = 0.25, 20.0
+#: Target (2b): on the dense field adaptive AA reaches fixed 16's RMS in this share of its time.
+DENSE_TIME_FRACTION = 1 / 3
 SPHERES_SLOWDOWN = 5.0
 #: Time linear in pixels: time per pixel at the largest size over that at the reference size.
 LINEAR_RANGE = (0.8, 1.25)
@@ -151,6 +153,30 @@ def target_adaptive(bench: Bench) -> Target:
                   f"{head}; fastest reaching it: {best.contender}, {fraction:.2f} of fixed-16's "
                   f"time (needs <= {ADAPTIVE_TIME_FRACTION:g}); Cycles 16 spp {cycles.seconds:.3g} s "
                   f"-> {vs_cycles:.2f}x (needs {CYCLES16_SPEEDUP:g}x)")
+
+
+def target_dense_adaptive(bench: Bench) -> Target:
+    width, height = bench.plan.dense_size
+    name = (f"(2b) on {bench.plan.dense_count:,} spheres ({width}x{height}), adaptive AA "
+            f"reaches fixed-16's RMS error (vs {bench.plan.dense_reference_samples} spp) in "
+            f"<= 1/3 of its time")
+    fixed = _find(bench, "aa-dense", Glint("article", "float64", "fixed", 16).label)
+    adaptive = [r for r in bench.rows if r.workload == "aa-dense" and r.glint is not None
+                and r.glint.semantics == "article" and r.glint.anti_aliasing == "adaptive"]
+    if fixed is None or not adaptive:
+        return _missing(name, "the aa-dense workload")
+    tried = ", ".join(f"{r.contender}: RMS {r.rms_error:.3g} in {r.seconds:.3g} s"
+                      for r in adaptive)
+    head = (f"fixed 16 spp: RMS {fixed.rms_error:.3g} (8-bit steps) in {fixed.seconds:.3g} s; "
+            f"{tried}")
+    reaching = [r for r in adaptive if r.rms_error <= fixed.rms_error]
+    if not reaching:
+        return Target(name, "FAIL", f"{head}; no adaptive setting reached fixed-16's RMS")
+    best = min(reaching, key=lambda r: r.seconds)
+    fraction = best.seconds / fixed.seconds
+    return Target(name, _status(fraction <= DENSE_TIME_FRACTION),
+                  f"{head}; fastest reaching it: {best.contender}, {fraction:.2f} of fixed-16's "
+                  f"time (needs <= {DENSE_TIME_FRACTION:.2f})")
 
 
 def _reference_point(points: list[CurvePoint]) -> CurvePoint:
@@ -292,8 +318,8 @@ def target_scale_export(bench: Bench) -> Target:
 
 
 def targets(bench: Bench) -> list[Target]:
-    return [target_accurate_speed(bench), target_adaptive(bench), target_scaling(bench),
-            target_float32(bench)] + scale_targets(bench)
+    return [target_accurate_speed(bench), target_adaptive(bench), target_dense_adaptive(bench),
+            target_scaling(bench), target_float32(bench)] + scale_targets(bench)
 
 
 def scale_targets(bench: Bench) -> list[Target]:

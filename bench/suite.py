@@ -8,6 +8,9 @@ Workloads (``--only NAME``):
 * spheres-nofloor: the same spheres without the floor: an ordinary small scene, the kind
   precision 'auto' renders in float32.
 * aa-adaptive, aa-fixed16: the article's scene at 1920x1080 with anti-aliasing.
+* aa-dense: a dense field of 10,000 random spheres (``bench.scenes``' sphere set) at 640x360,
+  where almost every pixel is an edge: adaptive against fixed 16, time and RMS error against
+  fixed AA at ``dense_reference_samples`` (errors at the same size as the times).
 * cost-pixels, cost-spheres: time and peak memory against pixel count (up to 7680x4320) and
   against sphere count (1 to 100,000 ``core.Sphere`` objects).
 * cost-sphere-sets: time and peak memory of Glint default/auto against sphere count when the
@@ -87,6 +90,9 @@ class Plan:
     aa_error_size: Size            # AA errors (against the 256-spp reference) at this size
     aa_reference_samples: int
     adaptive_samples: tuple
+    dense_size: Size               # aa-dense: timed and compared at this size
+    dense_count: int
+    dense_reference_samples: int
     per_pixel_article_size: Size
     per_pixel_spheres_size: Size
     cycles16_max_pixels: int       # Cycles at 16 spp only up to this many pixels
@@ -111,6 +117,7 @@ FULL = Plan(
     spheres_size=(1920, 1080), spheres_error_size=(480, 270), sphere_count=1000,
     aa_size=(1920, 1080), aa_error_size=(640, 360), aa_reference_samples=256,
     adaptive_samples=(16, 32),
+    dense_size=(640, 360), dense_count=10_000, dense_reference_samples=64,
     per_pixel_article_size=(60, 40), per_pixel_spheres_size=(16, 9),
     cycles16_max_pixels=1920 * 1080,
     pixel_curve=((160, 90), (320, 180), (640, 360), (1280, 720), (1920, 1080), (3840, 2160),
@@ -127,6 +134,7 @@ QUICK = Plan(
     spheres_size=(480, 270), spheres_error_size=(96, 54), sphere_count=1000,
     aa_size=(300, 200), aa_error_size=(160, 90), aa_reference_samples=256,
     adaptive_samples=(16, 32),
+    dense_size=(320, 180), dense_count=10_000, dense_reference_samples=64,
     per_pixel_article_size=(30, 20), per_pixel_spheres_size=(6, 4),
     cycles16_max_pixels=300 * 200,
     pixel_curve=((160, 90), (320, 180), (640, 360), (960, 540)),
@@ -150,7 +158,7 @@ QUICK = replace(QUICK, scale_cases={
 SCALE_WORKLOADS = ("scale-points", "scale-instances", "scale-suzanne", "scale-export")
 
 SCENE_WORKLOADS = ("article-small", "article-hd", "article-uhd", "spheres", "spheres-nofloor")
-AA_WORKLOADS = ("aa-adaptive", "aa-fixed16")
+AA_WORKLOADS = ("aa-adaptive", "aa-fixed16", "aa-dense")
 CURVES = ("cost-pixels", "cost-spheres", "cost-sphere-sets")
 WORKLOADS = SCENE_WORKLOADS + AA_WORKLOADS + CURVES + ("parallelism", "malloc")
 WORKLOADS = WORKLOADS + SCALE_WORKLOADS
@@ -577,7 +585,53 @@ class Bench:
         self._set_errors(row, image, baseline.render_in_chunks(small, MAX_DEPTH))
         return row
 
+    def dense_reference(self, semantics: str) -> np.ndarray:
+        """The dense field in Glint float64 with fixed AA at ``dense_reference_samples``
+        (cached, keyed by the core's and the scenes' source)."""
+        (width, height), samples = self.plan.dense_size, self.plan.dense_reference_samples
+        name = (f"reference-dense-{semantics}-{self.plan.dense_count}-{width}x{height}-"
+                f"{samples}spp-{_source_hash('core/*.py', 'bench/scenes.py')}.npy")
+        scene = random_sphere_set_scene(self.plan.dense_count, width, height)
+        settings = Glint(semantics, "float64", "fixed", samples).settings()
+        return self._cached(name, lambda: render(scene, settings).image)
+
+    def dense_workload(self, name: str) -> None:
+        """Adaptive against fixed 16 where nearly every pixel is an edge."""
+        width, height = self.plan.dense_size
+        count = self.plan.dense_count
+        scene = random_sphere_set_scene(count, width, height)
+        title = f"{count:,} spheres {width}x{height}, AA"
+        glints = [Glint("article", "float64", "fixed", 16)]
+        glints += [Glint("article", "float64", "adaptive", samples)
+                   for samples in self.plan.adaptive_samples]
+        glints += [Glint("default", "auto", "fixed", 16),
+                   Glint("default", "auto", "adaptive", self.plan.adaptive_samples[0])]
+        rows = {}
+        for glint in glints:
+            log(f"{title}: {glint.label}")
+            result, timing, _ = self.measure_glint(("sphere-set", count, width, height), scene,
+                                                   glint)
+            if result is None:
+                result = render(scene, glint.settings())
+            row = Row(name, title, glint.label, "glint", timing, timing.median,
+                      semantics=glint.semantics, precision=result.precision, glint=glint)
+            self._set_errors(row, result.image, self.dense_reference(glint.semantics),
+                             f"errors vs Glint {self.plan.dense_reference_samples} spp")
+            pixels = width * height
+            row.notes.append(f"supersampled {result.stats.supersampled_pixels / pixels:.0%} "
+                             f"of pixels, {result.stats.camera_rays / pixels:.1f} camera "
+                             f"rays per pixel")
+            rows[glint] = row
+        for glint, row in rows.items():
+            fixed = rows[Glint(glint.semantics, glint.precision, "fixed", 16)]
+            if glint.anti_aliasing == "adaptive":
+                row.notes.append(f"{row.seconds / fixed.seconds:.2f} of fixed 16's time, RMS "
+                                 f"{row.rms_error:.3g} vs its {fixed.rms_error:.3g}")
+        self.rows.extend(rows.values())
+
     def aa_workload(self, name: str) -> None:
+        if name == "aa-dense":
+            return self.dense_workload(name)
         width, height = self.plan.aa_size
         error_size = self.plan.aa_error_size
         scene = article_scene(width, height)

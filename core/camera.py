@@ -63,12 +63,16 @@ class CameraRays:
     directions: (3, n) unit vectors.
     t_min, t_max: (n,) distances along each ray where hits count (Blender's clip planes,
         measured along the view axis, become per-ray distances); scalars 0 / inf if unclipped.
+    shares: which share of the soft lights' samples each ray's path traces, for
+        anti-aliasing samples (``core.lights.SampleShares``, set by ``core.render``); None:
+        pixel centres, which trace all of them.
     """
 
     origins: np.ndarray
     directions: np.ndarray
     t_min: np.ndarray | float
     t_max: np.ndarray | float
+    shares: object = None
 
     @property
     def shared_origin(self) -> bool:

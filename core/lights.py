@@ -17,7 +17,8 @@ cos(theta_i) = N.w_j, so that a Lambertian albedo a reflects radiance ``scale a 
   its solid angle pi r^2 / (d^2 + r^2) replaces pi r^2 / d^2, so E = I cos(theta) /
   (d^2 + r^2) (measured: r = 0.6 at d = 3.5 is 3 % dimmer in Cycles than the point formula,
   and (r / d)^2 = 2.9 %), and shadows are soft: visibility is the share of that disc the
-  point sees, estimated from 2 S fixed points spread over the sphere (so that their shadow
+  point sees, estimated from 2 S fixed points spread over the sphere (S Fibonacci points and
+  their antipodes, so that their shadow
   rays share origins): each point j of the hemisphere facing P counts with weight
   n_j . w, w the unit direction from the light's centre to P, which turns the hemisphere's
   uniform spread into a uniform spread over the disc it projects to.
@@ -42,6 +43,17 @@ cos(theta_i) = N.w_j, so that a Lambertian albedo a reflects radiance ``scale a 
 
 Shadow rays from a light's samples share an origin (a ``SharedOrigin`` per sample, as for the
 article's lights); a sun's rays leave the points instead.
+
+Sample shares.  A pixel given S anti-aliasing samples does not trace all of a light's F
+samples from each of them (S F shadow rays per pixel and light): as a path tracer takes one
+light sample per camera sample, its AA sample of slot s (``SampleShares``) traces only the
+light samples j = s (mod min(S, F)), about F / S of them (at least one), each weighted so
+that the pixel's mean weighs every sample as the full estimate does (``share_weights``).
+The S slots cover the F samples, so the pixel as a whole sees every stratum of the light
+(each once when S <= F), with max(F, S) shadow rays.  A pixel's slots are its AA sample indices
+rotated by a hash of the pixel (``pixel_shares``), so that which sub-pixel position sees which
+part of the light differs from pixel to pixel instead of repeating one pattern.  Pixel-centre
+passes (no AA, adaptive AA's first pass) have no shares: every point traces every sample.
 """
 
 from __future__ import annotations
@@ -81,6 +93,50 @@ class PreparedLight:
     axis: np.ndarray | None = None
     cos_half: float = -1.0
     blend: float = 0.0
+
+
+@dataclass(frozen=True)
+class SampleShares:
+    """Which share of every light's samples each of n rays' paths traces (module docstring):
+    slot (n,) intp in [0, count), count the S anti-aliasing samples of the ray's pixel."""
+
+    slot: np.ndarray
+    count: int
+
+    def take(self, index) -> "SampleShares":
+        """The shares of rays ``index`` (k,) (the paths that go on, the points shaded)."""
+        return SampleShares(self.slot[index], self.count)
+
+
+def pixel_shares(cols, rows, count: int) -> SampleShares:
+    """The shares of ``count`` AA samples in each pixel (cols, rows) (n,), pixel by pixel
+    (n * count rays, a pixel's samples side by side as ``core.render`` traces them): sample k
+    of a pixel takes slot (k + h) mod count, h an integer hash of the pixel's position (so the
+    slots do not depend on tiles, bundles or threads)."""
+    x = np.asarray(cols, np.int64).astype(np.uint64)
+    y = np.asarray(rows, np.int64).astype(np.uint64)
+    h = x * np.uint64(0x9E3779B1) ^ y * np.uint64(0x85EBCA77)
+    h ^= h >> np.uint64(15)
+    h *= np.uint64(0x2C1B3C6D)
+    h ^= h >> np.uint64(12)
+    shift = (h % np.uint64(count)).astype(np.intp)
+    slot = (np.arange(count)[None, :] + shift[:, None]) % count
+    return SampleShares(slot.ravel(), count)
+
+
+def share_weights(shares: SampleShares, count: int) -> np.ndarray:
+    """(count, m): how much each of a light's ``count`` samples j counts at each of m points
+    whose shares are ``shares`` (m slots): 0 where the point does not trace it, else S / u_j,
+    u_j the number of a pixel's S slots that trace sample j.  A sample weighted w_j in the
+    full estimate then adds w_j S / u_j in each of the u_j samples of a pixel that trace it,
+    so the pixel's mean weighs it w_j exactly, as a pixel centre tracing all samples does."""
+    total = shares.count
+    period = min(total, count)
+    sample = np.arange(count)
+    uses = 1 if total <= count else total // count + (sample < total % count)
+    chosen = (sample % period)[:, None] == (shares.slot % period)[None, :]
+    return np.where(chosen, (total / np.asarray(uses, np.float64) * np.ones(count))[:, None],
+                    0.0)
 
 
 def _grid(count: int) -> np.ndarray:
@@ -145,7 +201,12 @@ def prepare_light(light, light_samples: int, geometry) -> PreparedLight:
                              terms_at(samples), normal=np.asarray(light.direction, np.float64))
     if isinstance(light, (SphereLight, SpotLight)):
         centre = np.asarray(light.position, np.float64)
-        normals = fibonacci_sphere(2 * light_samples) if light.radius > 0 else None
+        normals = None
+        if light.radius > 0:
+            # Samples j and j + S are antipodes, so a sample share (module docstring) of
+            # j = s (mod S) always holds as many samples facing a point as not.
+            normals = fibonacci_sphere(light_samples)
+            normals = np.concatenate([normals, -normals])
         samples = centre[None, :] if normals is None else centre + light.radius * normals
         prepared = dict(kind="sphere", scale=colour * light.power / (4 * math.pi),
                         centre=centre, samples=samples, terms=terms_at(samples),

@@ -82,13 +82,13 @@ class RayStats:
 
 def timed(counter: str):
     """Decorator: add the call's wall time to ``stats.<counter>``, stats being the call's
-    last positional argument (a RayStats)."""
+    last positional argument (a RayStats; keyword arguments may follow it)."""
     def decorate(function):
         @functools.wraps(function)
-        def timed_call(*args):
+        def timed_call(*args, **keywords):
             start = time.perf_counter()
             try:
-                return function(*args)
+                return function(*args, **keywords)
             finally:
                 stats = args[-1]
                 setattr(stats, counter, getattr(stats, counter) + time.perf_counter() - start)

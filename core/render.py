@@ -7,7 +7,8 @@ each tile writing only its own slice of the image, so the result does not depend
 of threads.  Anti-aliasing happens inside a tile: 'fixed' traces every pixel with ``samples``
 stratified sub-pixel positions; 'adaptive' traces the tile and a one-pixel apron at pixel
 centres, and re-traces with ``samples`` positions only the pixels whose path signature (the
-spheres hit and the shadows met at every bounce) differs from a 4-neighbour's.
+surfaces hit and the shadows met at every bounce) differs from a 4-neighbour's whose display
+value differs from theirs by more than EDGE_CONTRAST.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from .passes import PrimaryPasses, fill_tile_passes
 from .cull import PACKET_SIZE
 from . import memory
 from .frame import canonical_scene, scene_frame
+from .lights import pixel_shares
 from .precision import choose_precision
 from .scene import RenderSettings, Scene, SceneError
 from .trace import trace_bundle
@@ -40,6 +42,24 @@ from . import allocator, workers
 BLOCK = math.isqrt(PACKET_SIZE)
 #: How often the thread loop polls should_cancel while tiles are running.
 CANCEL_POLL_SECONDS = 0.1
+#: Adaptive AA supersamples a pixel whose path signature differs from a 4-neighbour's only
+#: where the colour also *steps* between their centres by more than this: the difference of
+#: their display values (``_display``: sRGB-encoded radiance or the article's values, and
+#: alpha) that the colour's slope on either side (the next pixels' differences along the same
+#: line) does not explain, in some channel.  Why a step, and why this much: a pixel's
+#: anti-aliased value is the mean over its area; where the colour across it is a gradient
+#: (a lit floor's falloff, however many facets it has) that mean is the centre's value, and
+#: where it steps by s somewhere in the pixel the mean is off the centre's by at most s (s / 2
+#: for a step through the middle).  So a pixel whose steps to every neighbour are at most
+#: EDGE_CONTRAST errs by at most 2 of the 256 levels of an 8-bit image, about what an eye can
+#: tell between two neighbouring pixels.  Silhouettes step in alpha (0 against 1) and are
+#: always kept; a thin feature steps on both sides.  Without it, a backdrop of many flat
+#: facets of nearly one orientation (``Aggregate.surface_keys`` keys each facet) is an "edge"
+#: at every pixel.
+EDGE_CONTRAST = 2 / 255
+#: Pixels of centres traced around a tile for adaptive AA: its neighbours, and theirs for the
+#: slopes EDGE_CONTRAST compares with.
+APRON = 2
 
 
 class RenderCancelled(Exception):
@@ -103,12 +123,15 @@ def _tiles(width: int, height: int, size: int):
             for y in range(0, height, size) for x in range(0, width, size)]
 
 
-def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None):
+def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None, shares=None):
     """(rgb (n, 3), alpha (n,), signature (n,)) for sample positions xs, ys (n,); rgb
     clipped to [0, 1] per sample in article semantics, unclipped radiance otherwise; lens:
-    aperture positions (2, n) for a thin-lens camera."""
+    aperture positions (2, n) for a thin-lens camera; shares: the soft lights' sample
+    shares of anti-aliasing samples (``core.lights.pixel_shares``), None at pixel centres."""
     start = time.perf_counter()
     rays = camera_rays(camera, xs, ys, ctx.dtype, lens)
+    if shares is not None:
+        rays = dataclasses.replace(rays, shares=shares)
     traced = time.perf_counter()
     result = trace_bundle(ctx, rays, stats)
     stats.seconds_camera += traced - start
@@ -143,7 +166,9 @@ def _supersample(ctx, camera, cols, rows, count, stats, stop=None):
     """Mean (rgb (n, 3), coverage (n,)) over ``count`` samples in each pixel (cols, rows).
 
     All samples are traced together, a pixel's samples side by side (so packets stay
-    coherent), in bundles of at most tile_size^2 rays so memory stays bounded by the tile."""
+    coherent), in bundles of at most tile_size^2 rays so memory stays bounded by the tile.
+    Each sample traces its share of the soft lights' samples (``core.lights.pixel_shares``),
+    so a pixel traces about as many shadow rays per light as its centre alone would."""
     offsets = sample_offsets(count)
     rgb = np.empty((len(cols), 3), ctx.dtype)
     coverage = np.empty(len(cols), ctx.dtype)
@@ -155,7 +180,8 @@ def _supersample(ctx, camera, cols, rows, count, stats, stop=None):
         xs = (cols[part, None] + offsets[None, :, 0]).ravel()
         ys = (rows[part, None] + offsets[None, :, 1]).ravel()
         lens = lens_samples(cols[part], rows[part], offsets) if has_aperture(camera) else None
-        colour, hit, _ = _trace_positions(ctx, camera, xs, ys, stats, lens)
+        shares = pixel_shares(cols[part], rows[part], count) if count > 1 else None
+        colour, hit, _ = _trace_positions(ctx, camera, xs, ys, stats, lens, shares)
         rgb[part] = colour.reshape(-1, count, 3).mean(axis=1)
         coverage[part] = hit.reshape(-1, count).mean(axis=1)
     stats.supersampled_pixels += len(cols)
@@ -174,11 +200,45 @@ def lens_samples(cols, rows, offsets) -> np.ndarray:
     return lens.reshape(-1, 2).T
 
 
-def _edges(signature: np.ndarray) -> np.ndarray:
-    """(h, w) bool: pixels whose signature differs from a 4-neighbour's."""
+def _display(ctx: TraceContext, rgb, coverage) -> np.ndarray:
+    """(n, 4) the display values (RGB, 1 at white, and alpha) that adaptive AA compares
+    (EDGE_CONTRAST): the article's values, or radiance through the sRGB curve up to 1 and
+    1 + ln(radiance) / 2.4 above it (the curve's own slope at 1, continued in stops as
+    view transforms such as AgX and Filmic show highlights: an edge between two highlights
+    stays an edge, while a highlight's smooth gradient counts no more than a midtone's)."""
+    if ctx.article:
+        display = rgb
+    else:
+        radiance = np.maximum(rgb, 0)
+        display = np.where(radiance <= 1, linear_to_srgb(np.minimum(radiance, 1)),
+                           1 + np.log(np.maximum(radiance, 1)) / 2.4)
+    return np.concatenate([display, coverage[:, None]], axis=1)
+
+
+def _steps(display: np.ndarray, axis: int) -> np.ndarray:
+    """How much the colour steps between neighbours along ``axis`` (0: rows, 1: columns) of
+    display values (h, w, 4): each difference less the nearer of its two neighbouring
+    differences along the same line (the slope on either side; none past the image's
+    border), largest over the channels; shape (h - 1, w) or (h, w - 1)."""
+    difference = np.diff(display, axis=axis)
+    pad = [(0, 0)] * difference.ndim
+    pad[axis] = (1, 1)
+    padded = np.pad(difference, pad, constant_values=np.inf)
+    count = difference.shape[axis]
+    before = np.take(padded, np.arange(count), axis=axis)
+    after = np.take(padded, np.arange(2, count + 2), axis=axis)
+    with np.errstate(invalid="ignore"):
+        unexplained = np.minimum(np.abs(difference - before), np.abs(difference - after))
+    return unexplained.max(axis=-1)
+
+
+def _edges(signature: np.ndarray, display: np.ndarray) -> np.ndarray:
+    """(h, w) bool: pixels whose signature (h, w) differs from a 4-neighbour's where the
+    colour between their display values (h, w, 4) steps by more than EDGE_CONTRAST
+    (``_steps``)."""
     edge = np.zeros(signature.shape, bool)
-    vertical = signature[1:, :] != signature[:-1, :]
-    horizontal = signature[:, 1:] != signature[:, :-1]
+    vertical = (signature[1:, :] != signature[:-1, :]) & (_steps(display, 0) > EDGE_CONTRAST)
+    horizontal = (signature[:, 1:] != signature[:, :-1]) & (_steps(display, 1) > EDGE_CONTRAST)
     edge[1:, :] |= vertical
     edge[:-1, :] |= vertical
     edge[:, 1:] |= horizontal
@@ -206,11 +266,11 @@ def render_tile(ctx: TraceContext, camera, tile, stop: Optional[threading.Event]
     elif mode == "off":
         rgb, coverage, _ = _trace_positions(ctx, camera, cols + 0.5, rows + 0.5, stats)
     else:
-        # Trace the tile and a one-pixel apron at pixel centres, then supersample the pixels
-        # whose path signature differs from a 4-neighbour's.
+        # Trace the tile and an apron at pixel centres, then supersample the pixels whose
+        # path signature differs from a 4-neighbour's where the colour steps (_edges).
         width, height = camera.width, camera.height
-        ay0, ax0 = max(y0 - 1, 0), max(x0 - 1, 0)
-        apron = (min(y1 + 1, height) - ay0, min(x1 + 1, width) - ax0)
+        ay0, ax0 = max(y0 - APRON, 0), max(x0 - APRON, 0)
+        apron = (min(y1 + APRON, height) - ay0, min(x1 + APRON, width) - ax0)
         apron_cols, apron_rows = _pixel_grid(ay0, ay0 + apron[0], ax0, ax0 + apron[1])
         centre_rgb, centre_coverage, signature = _trace_positions(
             ctx, camera, apron_cols + 0.5, apron_rows + 0.5, stats)
@@ -219,7 +279,9 @@ def render_tile(ctx: TraceContext, camera, tile, stop: Optional[threading.Event]
         order[(apron_rows - ay0) * apron[1] + (apron_cols - ax0)] = np.arange(len(apron_cols))
         rgb = centre_rgb[order[inner]]
         coverage = centre_coverage[order[inner]].astype(ctx.dtype)
-        edge = _edges(_scatter(signature, apron_cols, apron_rows, ax0, ay0, apron)).ravel()[inner]
+        display = _display(ctx, centre_rgb, centre_coverage)
+        edge = _edges(_scatter(signature, apron_cols, apron_rows, ax0, ay0, apron),
+                      _scatter(display, apron_cols, apron_rows, ax0, ay0, apron)).ravel()[inner]
         chosen = np.flatnonzero(edge)
         if len(chosen):
             rgb[chosen], coverage[chosen] = _supersample(

@@ -24,6 +24,10 @@ Default semantics, each quirk fixed:
   * a light with radius > 0 casts soft shadows: visibility is the fraction of
     ``light_samples`` points on its sphere that P sees.
 
+Soft lights and the world are sampled in full at pixel centres; an anti-aliasing sample
+traces only its share of their samples (``shares``: ``core.lights.SampleShares``), so that a
+pixel of S samples traces about max(F, S) shadow rays per light of F samples, not S F.
+
 Shadow rays are traced from the light towards the points: every shadow ray of a light then
 shares one origin, so the geometry's terms are computed once per light, not once per ray.
 Visibility is asked of the scene's aggregate (``ctx.geometry.occluded``), segment by segment.
@@ -40,7 +44,8 @@ import numpy as np
 
 from .bsdf import diffuse_seen, environment, light_response
 from .context import TraceContext
-from .lights import area_sample_irradiance, centre_irradiance, cosine_directions
+from .lights import (SampleShares, area_sample_irradiance, centre_irradiance,
+                     cosine_directions, share_weights)
 from .rays import ARTICLE_OFFSET, RayBatch, RayStats, ray_offsets, timed
 from .vectors import dot, length, normalize, take
 
@@ -95,7 +100,7 @@ def light_blocked(ctx: TraceContext, origin, directions, distance, exclude, stat
 
 @timed("seconds_shading")
 def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
-          stats: RayStats):
+          stats: RayStats, *, shares: SampleShares | None = None):
     """(colour (3, m), goes_on (m,), shadow_code (m,) uint64) at m hit points.
 
     goes_on: whether the path continues (article shadows end it).  shadow_code: which lights
@@ -105,9 +110,13 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
     points, normals (shading normals, facing the incoming ray in default semantics),
     directions (incoming, unit): (3, m); materials: (m,) material ids (``ctx.materials``);
     exclude: (m,) the primitive each point's shadow segments ignore (-1: none;
-    ``Aggregate.exclusions``), None in article semantics.  (Light through translucent
-    surfaces: ``shade_translucent``.)
+    ``Aggregate.exclusions``), None in article semantics.  shares: which share of each soft
+    light's samples (and of the world's directions) each point traces, for points reached by
+    anti-aliasing samples (``core.lights.SampleShares``, m slots); None: all of them.
+    (Light through translucent surfaces: ``shade_translucent``.)
     """
+    if shares is not None and shares.count == 1:
+        shares = None
     mat = ctx.materials
     ka, kd, ks = take(mat.ambient, materials), take(mat.diffuse, materials), take(mat.specular,
                                                                                 materials)
@@ -115,18 +124,18 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
     if ctx.article:
         return _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats)
     colour, goes_on, shadow_code = _shade_default(ctx, points, normals, directions, exclude,
-                                                  ka, kd, ks, exponent, stats)
+                                                  ka, kd, ks, exponent, shares, stats)
     if ctx.look is not None and ctx.look.active:
         blender_colour, shadow_code = _shade_blender_lights(ctx, points, normals, directions,
                                                             materials, exclude, shadow_code,
-                                                            stats)
+                                                            shares, stats)
         colour += blender_colour
     return colour, goes_on, shadow_code
 
 
 @timed("seconds_shading")
 def shade_translucent(ctx: TraceContext, points, normals, directions, materials,
-                      exclude_back, stats: RayStats):
+                      exclude_back, stats: RayStats, *, shares: SampleShares | None = None):
     """(radiance (3, m), shadow_code (m,) uint64) the translucent points pass through from
     their back hemisphere (default semantics, ``ctx.look.translucent`` set; arguments as for
     ``shade``, with exclude_back the primitive each segment reaching a point through its
@@ -135,6 +144,8 @@ def shade_translucent(ctx: TraceContext, points, normals, directions, materials,
     Blender lights on the other side (shadow segments crossing the surface: a closed
     sphere's own far side blocks them, as in Cycles' direct light) and the world seen
     there, each times translucency / pi (``bsdf.translucent_view``)."""
+    if shares is not None and shares.count == 1:
+        shares = None
     view = ctx.look.translucent
     colour = np.zeros_like(points)
     shadow_code = np.zeros(points.shape[1], np.uint64)
@@ -143,15 +154,16 @@ def shade_translucent(ctx: TraceContext, points, normals, directions, materials,
         return colour, shadow_code
     where, back = take(points, chosen), -take(normals, chosen)
     material, exclude = materials[chosen], exclude_back[chosen]
+    shares = None if shares is None else shares.take(chosen)
     light, shadow_code[chosen] = _shade_blender_lights(
         ctx, where, back, take(directions, chosen), material, exclude,
-        np.zeros(len(chosen), np.uint64), stats, surfaces=view, world_terms=False)
+        np.zeros(len(chosen), np.uint64), shares, stats, surfaces=view, world_terms=False)
     world = _column(ctx.ambient, points.dtype)
     if world.any():
         seen = 1.0
         if ctx.settings.world_samples:
             seen = 1 - _world_occlusion(ctx, where, back, material, ray_offsets(where), exclude,
-                                        stats)
+                                        shares, stats)
         light += take(view.diffuse, material) * world * seen
     colour[:, chosen] = light
     return colour, shadow_code
@@ -161,7 +173,14 @@ def _column(values, dtype):
     return np.asarray(values, dtype)[:, None]
 
 
-def _shade_default(ctx, points, normals, directions, exclude, ka, kd, ks, exponent, stats):
+def _subset(weights, sample):
+    """Indices (k,) of the points that trace sample ``sample`` (weights: (F, m) from
+    ``share_weights``), or None when every point traces every sample (weights None)."""
+    return None if weights is None else np.flatnonzero(weights[sample])
+
+
+def _shade_default(ctx, points, normals, directions, exclude, ka, kd, ks, exponent, shares,
+                   stats):
     lights = ctx.lights
     dtype = points.dtype
     m = points.shape[1]
@@ -185,14 +204,24 @@ def _shade_default(ctx, points, normals, directions, exclude, ka, kd, ks, expone
         lit_points, lit_from_light = pick(points), pick(from_light)
         visibility = np.ones(len(lit), dtype)
         samples = lights.samples[light]
-        for sample, origin in zip(samples, lights.origins[light]):
+        shared = None
+        if shares is not None and len(samples) > 1:
+            shared = share_weights(shares if everywhere else shares.take(lit), len(samples))
+        for index, (sample, origin) in enumerate(zip(samples, lights.origins[light])):
+            part = _subset(shared, index)
             if len(samples) == 1:
                 towards, reach = lit_from_light, pick_row(distance)
-            else:
+            elif part is None:
                 towards, reach = normalize(lit_points - _column(sample, dtype))
-            blocked = light_blocked(ctx, origin, towards, reach, pick_row(exclude), stats,
-                                    end=pick_row(offset))
-            visibility -= blocked.astype(dtype) / len(samples)
+            else:
+                towards, reach = normalize(take(lit_points, part) - _column(sample, dtype))
+            ahead = (lambda a: a) if part is None else (lambda a: a[part])
+            blocked = light_blocked(ctx, origin, towards, reach, ahead(pick_row(exclude)),
+                                    stats, end=ahead(pick_row(offset)))
+            if part is None:
+                visibility -= blocked.astype(dtype) / len(samples)
+            else:
+                visibility[part] -= blocked * (shared[index, part] / len(samples))
         lit_normals = pick(normals)
         half, _ = normalize(-pick(directions) - lit_from_light)
         cos_half = np.maximum(dot(lit_normals, half), 0)
@@ -247,11 +276,12 @@ def _rays_blocked(ctx, points, towards, offset, reach, exclude, stats):
     return hit >= 0
 
 
-def _world_occlusion(ctx, points, normals, materials, offset, exclude, stats):
+def _world_occlusion(ctx, points, normals, materials, offset, exclude, shares, stats):
     """(m,) the cosine-weighted share of the world hidden from each point (0 for the
     article's Materials), from ``world_samples`` fixed directions turned into each point's
     normal frame.  The ambient term (``_shade_default``) adds diffuse x world unoccluded;
-    this share of it is taken back."""
+    this share of it is taken back.  With ``shares`` (anti-aliasing samples of S per pixel)
+    the directions are max(world_samples, S), each point tracing its share of them."""
     physical = ctx.look.surfaces.physical[materials]
     hidden = np.zeros(points.shape[1], points.dtype)
     chosen = np.flatnonzero(physical)
@@ -264,13 +294,27 @@ def _world_occlusion(ctx, points, normals, materials, offset, exclude, stats):
     first, _ = normalize(first)
     second = np.stack([n[1] * first[2] - n[2] * first[1], n[2] * first[0] - n[0] * first[2],
                        n[0] * first[1] - n[1] * first[0]])
-    directions = cosine_directions(ctx.settings.world_samples).astype(points.dtype)
+    count = ctx.settings.world_samples
+    if shares is not None:
+        count = max(count, shares.count)
+    directions = cosine_directions(count).astype(points.dtype)
     origins = take(points, chosen)
-    for x, y, z in directions:
-        along = x * first + y * second + z * n
-        blocked = _rays_blocked(ctx, origins, along, offset[chosen], np.inf, exclude[chosen],
-                                stats)
-        hidden[chosen] += blocked / len(directions)
+    shared = None if shares is None else share_weights(shares.take(chosen), len(directions))
+    for index, (x, y, z) in enumerate(directions):
+        part = _subset(shared, index)
+        if part is None:
+            along = x * first + y * second + z * n
+            blocked = _rays_blocked(ctx, origins, along, offset[chosen], np.inf,
+                                    exclude[chosen], stats)
+            hidden[chosen] += blocked / len(directions)
+            continue
+        if len(part) == 0:
+            continue
+        along = x * take(first, part) + y * take(second, part) + z * take(n, part)
+        rows = chosen[part]
+        blocked = _rays_blocked(ctx, take(origins, part), along, offset[rows], np.inf,
+                                exclude[rows], stats)
+        hidden[rows] += blocked * (shared[index, part] / len(directions))
     return hidden
 
 
@@ -285,7 +329,7 @@ def _sphere_sample_weights(light, towards):
 
 
 def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, shadow_code,
-                          stats, surfaces=None, world_terms=True):
+                          shares, stats, surfaces=None, world_terms=True):
     """(radiance (3, m), shadow_code) from Blender's lights (``core.lights``) and the world's
     glossy, emitted and occluded terms (``core.bsdf``) at m points, default semantics.
 
@@ -306,27 +350,40 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
     offset = ray_offsets(points)
     if ctx.settings.world_samples and world.any() and len(ctx.geometry) > 1:
         seen_diffuse = diffuse_seen(surfaces, materials, np.clip(dot(normals, to_view), 0, 1))
-        colour -= _world_occlusion(ctx, points, normals, materials, offset, exclude, stats) * (
-            seen_diffuse * world)
+        colour -= _world_occlusion(ctx, points, normals, materials, offset, exclude, shares,
+                                   stats) * (seen_diffuse * world)
     for light in look.lights:
         scale = _column(light.scale, dtype)
         shadow_code = shadow_code * np.uint64(_CODE_BASE)
         visibility = np.zeros(m, dtype)
         reached = np.zeros(m, bool)
         if light.kind == "area":
+            count = len(light.terms)
+            shared = None if shares is None else share_weights(shares, count)
             for sample, origin in enumerate(light.terms):
-                towards, distance, e = area_sample_irradiance(light, sample, points, normals)
-                lit = np.flatnonzero(e > 0)
+                part = _subset(shared, sample)
+                if part is None:
+                    towards, distance, e = area_sample_irradiance(light, sample, points,
+                                                                  normals)
+                    lit = np.flatnonzero(e > 0)
+                else:
+                    towards, distance, e = area_sample_irradiance(
+                        light, sample, take(points, part), take(normals, part))
+                    inside = np.flatnonzero(e > 0)
+                    lit = part[inside]
+                    towards, distance, e = take(towards, inside), distance[inside], e[inside]
+                    e = e * shared[sample, lit]
                 if len(lit) == 0:
                     continue
                 reached[lit] = True
-                blocked = light_blocked(ctx, origin, -take(towards, lit), distance[lit],
+                local = lit if part is None else np.arange(len(lit))   # into towards, e
+                blocked = light_blocked(ctx, origin, -take(towards, local), distance[local],
                                         exclude[lit], stats, end=offset[lit])
-                seen = lit[~blocked]
-                visibility[seen] += 1 / len(light.terms)
+                seen, seen_local = lit[~blocked], local[~blocked]
+                visibility[seen] += (1 if shared is None else shared[sample, seen]) / count
                 colour[:, seen] += scale * light_response(
                     surfaces, materials[seen], take(normals, seen), take(to_view, seen),
-                    take(towards, seen), e[seen])
+                    take(towards, seen_local), e[seen_local])
         else:
             towards, distance, e = centre_irradiance(light, points, normals)
             lit = np.flatnonzero(e > 0)
@@ -335,6 +392,11 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
             reached[lit] = True
             lit_points, lit_towards = take(points, lit), take(towards, lit)
             weights = _sphere_sample_weights(light, lit_towards)
+            shared = None
+            if shares is not None and len(light.samples) > 1:
+                shared = share_weights(shares.take(lit), len(light.samples))
+                if weights is not None:
+                    weights, shared = weights * shared, None
             for sample, position in enumerate(light.samples):
                 if weights is not None:
                     facing = np.flatnonzero(weights[sample] > 0)
@@ -344,6 +406,14 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
                                             exclude[lit[facing]], stats,
                                             end=offset[lit[facing]])
                     visibility[lit[facing]] += weights[sample, facing] * ~blocked
+                    continue
+                if shared is not None:   # a sun's share of its directions
+                    part = np.flatnonzero(shared[sample])
+                    rows = lit[part]
+                    along = np.repeat(position.astype(dtype)[:, None], len(part), axis=1)
+                    blocked = _rays_blocked(ctx, take(lit_points, part), along, offset[rows],
+                                            np.inf, exclude[rows], stats)
+                    visibility[rows] += (~blocked) * (shared[sample, part] / len(light.samples))
                     continue
                 if light.kind == "sun":
                     along = (lit_towards if len(light.samples) == 1 else

@@ -131,6 +131,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
     cutoff = ctx.settings.contribution_cutoff
 
     path = np.arange(n)
+    shares = None if ctx.article else rays.shares   # the article's lights are points
     unique = True   # every path index appears once (until rays split)
     camera_path = np.ones(n, bool)   # per ray of the batch: the camera's view (docstring)
     holdouts = look is not None and look.surfaces.any_holdout
@@ -172,11 +173,14 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
             primary.t[path], primary.normal[:, path] = hits.t, normals
             primary.primitive[path], primary.material[path] = primitive, hits.material
         exclude = None if ctx.article else geometry.exclusions(primitive, front)
+        point_shares = None if shares is None else shares.take(path)
         illumination, goes_on, shadow_code = shade(ctx, points, normals, directions,
-                                                   hits.material, exclude, stats)
+                                                   hits.material, exclude, stats,
+                                                   shares=point_shares)
         if look is not None and look.translucent is not None:
             through, code = shade_translucent(ctx, points, normals, directions, hits.material,
-                                              geometry.exclusions(primitive, ~front), stats)
+                                              geometry.exclusions(primitive, ~front), stats,
+                                              shares=point_shares)
             illumination += through
             shadow_code = shadow_code * _SIGNATURE_PRIME + code  # edges of light shone through
         illumination *= weight
