@@ -4,6 +4,8 @@
 register again), as Blender does when an extension is disabled and enabled.
 """
 
+import sys
+
 import bpy
 
 from ..core import workers
@@ -18,11 +20,28 @@ _classes = (
 )
 
 
+def renders_one_frame(argv) -> bool:
+    """Whether Blender's command line renders one frame and exits (``blender -b file.blend
+    -f 7``, the usual render-farm job): then 'auto' weighs the workers' start-up, as
+    render.py does for one frame (``core.workers.one_render``).  ``-f 1,3`` or ``-f 1..5``,
+    or ``-a``, render more than one."""
+    if not bpy.app.background or any(arg in ("-a", "--render-anim") for arg in argv):
+        return False
+    for flag in ("-f", "--render-frame"):
+        if flag in argv:
+            index = argv.index(flag)
+            frames = argv[index + 1] if index + 1 < len(argv) else ""
+            return "," not in frames and ".." not in frames
+    return False
+
+
 def register():
     for cls in _classes:
         bpy.utils.register_class(cls)
     properties.register_pointers()
     final.register_panels()
+    if renders_one_frame(sys.argv):
+        workers.expect_one_render()
 
 
 def unregister():

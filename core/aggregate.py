@@ -121,12 +121,18 @@ class Aggregate:
                 lows.append(c - r)
                 highs.append(c + r)
             if len(tree_triangles):
-                corners = np.stack([v[:, tree_triangles] for v in (triangles.v0, triangles.v1,
-                                                                   triangles.v2)])
-                lows.append(corners.min(axis=0).T)
-                highs.append(corners.max(axis=0).T)
+                v0, v1, v2 = (take(v, tree_triangles) for v in (triangles.v0, triangles.v1,
+                                                                 triangles.v2))
+                lows.append(np.minimum(np.minimum(v0, v1), v2).T)
+                highs.append(np.maximum(np.maximum(v0, v1), v2).T)
+                del v0, v1, v2
             ids = np.concatenate([tree_spheres, tree_triangles + self.sphere_count])
-            self._tree = BVH.build(ids, np.concatenate(lows), np.concatenate(highs))
+            # (One kind only: its boxes as they are, no concatenated copy held beside them.)
+            low = lows[0] if len(lows) == 1 else np.concatenate(lows)
+            high = highs[0] if len(highs) == 1 else np.concatenate(highs)
+            del lows, highs
+            self._tree = BVH.build(ids, low, high)
+            del low, high
 
     def __len__(self) -> int:
         return self.sphere_count + self.triangle_count

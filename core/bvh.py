@@ -293,9 +293,6 @@ class BVH:
         their boxes' largest side within a factor of 4), which become the leaves: the build
         then costs a CLUSTER_SIZE-th, and the clusters are as tight as Morton leaves."""
         ids = np.asarray(ids)
-        pad = BOX_PADDING * (_row_max(np.abs(low)) + _row_max(np.abs(high))
-                             + _row_max(high - low))[:, None] + 1e-300
-        low, high = low - pad, high + pad
         if len(ids) < CLUSTER_FROM:
             tree = build_binary_sah(low, high)
             counts = tree.count[tree.left < 0]
@@ -319,6 +316,7 @@ class BVH:
         firsts = np.flatnonzero(cut)
         counts = np.diff(np.r_[firsts, len(order)])
         c_low, c_high = _segment_boxes(lows, highs, firsts)
+        del lows, highs, codes, size, classes, run, lengths, cut, low, high
         tree = build_binary_sah(c_low, c_high, max_leaf=1, median_up_to=CLUSTER_MEDIAN_UP_TO)
         leaves = _leaf_table(ids[order], firsts[tree.order], counts[tree.order])
         # Each binary leaf holds one cluster: the one at its position in the build's order.
@@ -360,9 +358,18 @@ class BVH:
         reach = max(float(np.abs(tree.low[0]).max()), float(np.abs(tree.high[0]).max()))
         grow = SLAB_PADDING_32 * ORIGIN_REACH * reach
         blocks = np.full((6,) + slots.shape, np.nan, np.float32)
-        blocks[:3, real] = (tree.low[slots[real]] - grow).T
-        blocks[3:, real] = (tree.high[slots[real]] + grow).T
-        root_box = np.concatenate([tree.low[0] - grow, tree.high[0] + grow]).astype(np.float32)
+        # Each box padded by BOX_PADDING of its own magnitude and extent, which grow with the
+        # box (so a box's padding covers its primitives', and parents still hold children),
+        # then grown for the float32 slabs.
+        low, high = tree.low[slots[real]], tree.high[slots[real]]
+        pad = BOX_PADDING * (2 * np.maximum(_row_max(np.abs(low)), _row_max(np.abs(high)))
+                             + _row_max(high - low))[:, None] + 1e-300
+        blocks[:3, real] = (low - pad - grow).T
+        blocks[3:, real] = (high + pad + grow).T
+        low, high = tree.low[0], tree.high[0]
+        pad = BOX_PADDING * (2 * max(np.abs(low).max(), np.abs(high).max())
+                             + (high - low).max()) + 1e-300
+        root_box = np.concatenate([low - pad - grow, high + pad + grow]).astype(np.float32)
         return cls(root_box, blocks, children, leaves, real.sum(axis=1),
                    tree.depth[wide] // 2, ORIGIN_REACH * reach)
 

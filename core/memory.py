@@ -34,8 +34,10 @@ from .scene import RenderSettings, Scene, SceneError
 BYTES_PER_BUNDLE_RAY = 1024
 #: Peak bytes per sphere through the aggregate (measured 320-1,200).
 BYTES_PER_SPHERE = 2 * 1024
-#: Peak bytes per triangle of a mesh instance (measured 404).
-BYTES_PER_TRIANGLE = 512
+#: Peak bytes per triangle of a mesh instance (measured 404 before the SAH build; with it,
+#: 511 for 300,000 random triangles through the clustered build, the path of every mesh
+#: of 50,000 triangles or more; below that up to 869, at most 43 MB in all).
+BYTES_PER_TRIANGLE = 640
 #: Per-origin terms per sphere and light sample (float64 values a ray/sphere test reuses).
 BYTES_PER_SPHERE_TERMS = 8 * 8
 #: What the process needs besides the render (interpreter, NumPy, Blender): not planned for,

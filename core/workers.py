@@ -34,6 +34,12 @@ tile), so large renders run their tiles in ``count`` worker processes instead:
   everywhere already.  The parent lands every tile itself (a tile with NaN is the same
   RenderError as with threads; on_tile, progress), in the order they land, as the thread
   pool does: the image does not depend on the number of workers or on how they are run.
+* while a worker is still starting (its first render), the parent renders tiles itself
+  from the same queue, so a cold start does not idle the frame; if the workers then fail
+  to start, the parent renders the rest and the render says so (``render_tiles``'s
+  fallback).  A worker still starting when the frame is done answers that render later;
+  its next render reads the answers first (``owes_end``).  Where a process renders only
+  once, 'auto' avoids a cold start that would not pay (``one_render``).
 * the parent polls ``should_cancel`` at least every ``CANCEL_POLL_SECONDS``; a cancel (or any
   exception in the parent, KeyboardInterrupt included) sets a stop byte that running tiles
   check at every bundle of rays (byte 0 of a control page every worker maps), and the
@@ -330,8 +336,11 @@ class _Frame:
         return self._handed_out is not None and self._handed_out() is not None
 
     def image(self, shape, dtype) -> np.ndarray:
-        """A new (H, W, 4) image over this frame; its mapping lives as long as the image."""
-        mapping = _map(self.descriptor, self.size, populate=True)
+        """A new (H, W, 4) image over this frame; its mapping lives as long as the image.
+        A frame used before has its pages already: they are mapped at once (one system
+        call, not a fault per page).  A new one's pages are allocated where they are first
+        written, by the workers in parallel, not all here before the first tile."""
+        mapping = _map(self.descriptor, self.size, populate=self._handed_out is not None)
         self._handed_out = weakref.ref(mapping)
         return _frame_image(mapping, shape, dtype)
 

@@ -211,7 +211,7 @@ def test_ctrl_c_to_the_process_group_stops_parent_and_workers(tmp_path):
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + 30
     children = []
-    while len(children) < 3 and time.monotonic() < deadline:   # 2 workers + resource tracker
+    while len(children) < 2 and time.monotonic() < deadline:   # the 2 workers
         time.sleep(0.2)
         children = subprocess.run(["ps", "-o", "pid=", "--ppid", str(process.pid)],
                                   capture_output=True, text=True).stdout.split()
