@@ -177,14 +177,47 @@ def dielectric_f0(ior: float) -> float:
     return ((ior - 1.0) / (ior + 1.0)) ** 2
 
 
+def ior_from_f0(f0):
+    """The index >= 1 whose ``dielectric_f0`` is f0 (f0 capped at 0.999; a float or an
+    array)."""
+    root = np.sqrt(np.clip(f0, 0.0, 0.999))
+    index = (1.0 + root) / (1.0 - root)
+    return float(index) if np.ndim(index) == 0 else index
+
+
+def principled_fresnel(base, tint, metallic, alpha, level, f0_dielectric):
+    """(specular_dielectric, specular_ior) of a Principled BSDF's glossy lobe: the share of
+    its rise from f0 to f90 (grey means) that is the dielectric layer's rather than the
+    metal's, and the index whose f0 that layer has (Cycles' ``ior_from_F0``)."""
+    dielectric = (1.0 - metallic) * alpha * (min(1.0, 2.0 * level) - f0_dielectric)
+    rise_dielectric = dielectric * float(np.mean(tint))
+    rise = rise_dielectric + metallic * alpha * (1.0 - float(np.mean(base)))
+    share = min(1.0, max(0.0, rise_dielectric / rise)) if rise > 0 else 0.0
+    return share, ior_from_f0(f0_dielectric)
+
+
 @dataclass(frozen=True)
 class SurfaceMaterial:
     """A physically based surface as a sum of lobes, in Cycles' units (scene-linear colours).
 
     diffuse: Lambertian albedo a (radiance a E / pi under irradiance E).
+    layer, layer_f0: the share (in [0, 1]) of ``diffuse`` that lies under a dielectric
+        specular layer (a Principled BSDF's: 1; a Diffuse BSDF's: 0) and that layer's
+        reflectance at normal incidence (its f90 is 1, as in Cycles).  Cycles' Principled
+        BSDF weights its diffuse by 1 - A(N.V), A the specular layer's directional albedo
+        (``closure_layering_weight``), so seen at a grazing angle it shows less diffuse and
+        more gloss.  ``diffuse`` holds that lobe as base x (1 - f0) (the normal-incidence
+        value, which view-independent code uses); ``core.bsdf.diffuse_seen`` turns the
+        layered share into base x (1 - A(N.V)).  layer_f0 = 0: no layer (Cycles makes no
+        specular closure for a Principled BSDF whose f0 is 0).
     specular_f0, specular_f90: the glossy lobe's reflectance at normal and grazing incidence;
         Schlick's curve F(c) = f0 + (f90 - f0) (1 - c)^5 between them.  A Glossy BSDF of colour
         c is f0 = f90 = c; Principled's dielectric layer f0 = ((ior - 1) / (ior + 1))^2.
+    specular_dielectric, specular_ior: the share (in [0, 1]) of the lobe's rise from f0 to f90
+        that follows the exact Fresnel curve of a dielectric of index specular_ior (>= 1)
+        instead of Schlick's: Cycles' Principled specular layer (its generalized Schlick with
+        exponent -ior; ``core.bsdf.dielectric_rise``), whose albedo is up to 20 % above
+        Schlick's at N.V 0.3-0.7.  Metals and the Glossy BSDF keep Schlick's (share 0).
     roughness: Blender's roughness (alpha = roughness^2).  Lights give a GGX highlight
         (``core.bsdf``); surfaces with roughness <= ``MIRROR_ROUGHNESS`` also trace a mirror
         ray.
@@ -208,8 +241,12 @@ class SurfaceMaterial:
     """
 
     diffuse: Vec3 = (0.8, 0.8, 0.8)
+    layer: float = 0.0
+    layer_f0: float = 0.0
     specular_f0: Vec3 = (0.0, 0.0, 0.0)
     specular_f90: Vec3 = (0.0, 0.0, 0.0)
+    specular_dielectric: float = 0.0
+    specular_ior: float = 1.5
     roughness: float = 0.5
     transmission: Vec3 = (0.0, 0.0, 0.0)
     transmission_fresnel: float = 1.0
@@ -228,6 +265,13 @@ class SurfaceMaterial:
                      "transparency", "translucency"):
             _set(self, name, _colour(f"{where}.{name}", getattr(self, name)))
         _set(self, "roughness", _fraction(f"{where}.roughness", self.roughness))
+        _set(self, "layer", _fraction(f"{where}.layer", self.layer))
+        _set(self, "layer_f0", _fraction(f"{where}.layer_f0", self.layer_f0))
+        _set(self, "specular_dielectric",
+             _fraction(f"{where}.specular_dielectric", self.specular_dielectric))
+        _set(self, "specular_ior", _finite(f"{where}.specular_ior", self.specular_ior))
+        if self.specular_ior < 1.0:
+            raise SceneError(f"{where}.specular_ior must be >= 1, got {self.specular_ior!r}")
         _set(self, "transmission_fresnel",
              _fraction(f"{where}.transmission_fresnel", self.transmission_fresnel))
         _set(self, "ior", _positive(f"{where}.ior", self.ior))
@@ -264,12 +308,16 @@ class SurfaceMaterial:
         ior = _positive("principled.ior", ior)
         f0_dielectric = min(1.0, dielectric_f0(ior) * 2.0 * level)
         dielectric = (1.0 - m) * a
+        share, specular_ior = principled_fresnel(base, tint, m, a, level, f0_dielectric)
         return cls(
             diffuse=tuple(dielectric * (1.0 - t) * (1.0 - f0_dielectric) * c for c in base),
+            layer=1.0 if f0_dielectric > 0 else 0.0,
+            layer_f0=min(1.0, f0_dielectric * max(tint)),
             specular_f0=tuple(dielectric * f0_dielectric * k + m * a * c
                               for c, k in zip(base, tint)),
             specular_f90=tuple(dielectric * min(1.0, 2.0 * level) * k + m * a
                                for k in tint),
+            specular_dielectric=share, specular_ior=specular_ior,
             roughness=roughness,
             transmission=tuple(dielectric * t * c for c in base),
             ior=ior,

@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .bsdf import environment, light_response
+from .bsdf import diffuse_seen, environment, light_response
 from .context import TraceContext
 from .lights import (SampleShares, area_sample_irradiance, centre_irradiance,
                      cosine_directions, share_weights)
@@ -349,9 +349,9 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
     colour += environment(surfaces, materials, normals, to_view, world)
     offset = ray_offsets(points)
     if ctx.settings.world_samples and world.any() and len(ctx.geometry) > 1:
+        seen_diffuse = diffuse_seen(surfaces, materials, np.clip(dot(normals, to_view), 0, 1))
         colour -= _world_occlusion(ctx, points, normals, materials, offset, exclude, shares,
-                                   stats) * (
-            take(surfaces.diffuse, materials) * world)
+                                   stats) * (seen_diffuse * world)
     for light in look.lights:
         scale = _column(light.scale, dtype)
         shadow_code = shadow_code * np.uint64(_CODE_BASE)

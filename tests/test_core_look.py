@@ -163,8 +163,35 @@ def test_world_light_is_occluded_by_other_spheres_unless_world_samples_is_0():
 
 
 def test_the_tabulated_ggx_albedo_is_its_quadrature():
-    from core.bsdf import _ALBEDO_TABLE, directional_albedo_quadrature
+    from core.bsdf import (_ALBEDO_COSINES, _ALBEDO_TABLE, _SCHLICK_TABLE, _schlick_rise,
+                           dielectric_rise, dielectric_table, directional_albedo_quadrature)
 
     np.testing.assert_allclose(_ALBEDO_TABLE, directional_albedo_quadrature(), atol=6e-6)
     # alpha = 1 at normal incidence: 1 - ln 2, the closed form of the single-scattering lobe.
     assert _ALBEDO_TABLE[-1, -1] == pytest.approx(1 - math.log(2), abs=2e-3)
+    np.testing.assert_allclose(_SCHLICK_TABLE, directional_albedo_quadrature(_schlick_rise),
+                               atol=6e-6)
+    np.testing.assert_allclose(dielectric_table(1.5), directional_albedo_quadrature(
+        lambda c: dielectric_rise(c, 1.5)), atol=6e-6)
+    # Another index is integrated on first use; water's curve rises less than glass's.
+    assert (dielectric_table(1.33) < dielectric_table(1.5))[:, :-1].all()
+    # A near-mirror (alpha 1e-3) reflects V about N itself: (1 - N.V)^5 of E.
+    np.testing.assert_allclose(_SCHLICK_TABLE[0], (1 - _ALBEDO_COSINES) ** 5 * _ALBEDO_TABLE[0],
+                               atol=1e-3)
+
+
+def test_a_white_principled_ball_under_a_white_world_reflects_it_unchanged_to_its_rim():
+    """White furnace: what the specular layer reflects (its directional albedo A(N.V)) the
+    diffuse under it loses (Cycles' layering: base x (1 - A)), so a white Principled ball in
+    a world of radiance 1 is 1 from its centre to its grazing rim, through the ambient,
+    glossy-world and layering terms together.  (With the glossy lobe reflecting Schlick's
+    F(N.V) over an unlayered diffuse, its rim pixels were 1.5 and more.)  A white Diffuse
+    BSDF ball is 1 too, its diffuse not layered."""
+    principled = core.SurfaceMaterial.principled(base_color=(1.0, 1.0, 1.0), roughness=0.5)
+    for material in (principled, core.SurfaceMaterial(diffuse=(1.0, 1.0, 1.0))):
+        scene = core.Scene(camera(size=48, lens=120.0), grey_ball(material),
+                           background=(1, 1, 1), ambient=(1, 1, 1))
+        image = core.render(scene).image
+        covered = image[..., 3] == 1
+        assert covered.sum() > 300
+        np.testing.assert_allclose(image[covered, :3], 1.0, atol=2e-3)

@@ -45,7 +45,7 @@ from typing import Optional
 import numpy as np
 
 from ...core import Material, SceneError, SurfaceMaterial
-from ...core.scene import MAX_COLOUR, dielectric_f0
+from ...core.scene import MAX_COLOUR, dielectric_f0, principled_fresnel
 from ..utils.colour import colour_from_blender, srgb_to_linear
 
 AMBIENT_FRACTION = 0.1
@@ -188,11 +188,16 @@ class Lobes:
     transparency: np.ndarray
     translucency: np.ndarray
     holdout: float
+    layered_sum: float         # sum of the layered diffuse lobes' strengths (mean colour)
+    layer_f0_sum: float        # sum of strength x their specular layer's f0
+    dielectric_sum: float      # sum of the glossy rises (f90 - f0) of dielectric curve
+    specular_ior_sum: float    # sum of those rises x their index
 
     @classmethod
     def none(cls) -> "Lobes":
         zero = np.zeros(3)
-        return cls(zero, zero, zero, 0.0, 0.0, zero, 0.0, 0.0, 0.0, zero, zero, zero, 0.0)
+        return cls(zero, zero, zero, 0.0, 0.0, zero, 0.0, 0.0, 0.0, zero, zero, zero, 0.0,
+                   0.0, 0.0, 0.0, 0.0)
 
     def scaled(self, k: float) -> "Lobes":
         return Lobes(*(value * k for value in vars(self).values()))
@@ -223,8 +228,18 @@ class Lobes:
         ior = self.ior_sum / self.refraction_weight if self.refraction_weight > 0 else 1.5
         fresnel = (self.fresnel_sum / self.refraction_weight if self.refraction_weight > 0
                    else 1.0)
+        diffuse_weight = float(np.mean(np.maximum(self.diffuse, 0.0)))
+        layer = self.layered_sum / diffuse_weight if diffuse_weight > 0 else 0.0
+        layer_f0 = self.layer_f0_sum / self.layered_sum if self.layered_sum > 0 else 0.0
+        rise = float(np.mean(np.maximum(self.f90 - self.f0, 0.0)))
+        dielectric = self.dielectric_sum / rise if rise > 0 else 0.0
+        specular_ior = (self.specular_ior_sum / self.dielectric_sum if self.dielectric_sum > 0
+                        else 1.5)
         return SurfaceMaterial(
-            diffuse=positive(self.diffuse), specular_f0=positive(self.f0),
+            diffuse=positive(self.diffuse), layer=float(np.clip(layer, 0, 1)),
+            layer_f0=float(np.clip(layer_f0, 0, 1)), specular_f0=positive(self.f0),
+            specular_dielectric=float(np.clip(dielectric, 0, 1)),
+            specular_ior=max(float(specular_ior), 1.0),
             specular_f90=positive(self.f90), roughness=float(np.clip(roughness, 0, 1)),
             transmission=positive(self.transmission),
             transmission_fresnel=float(np.clip(fresnel, 0, 1)), ior=max(float(ior), 1e-3),
@@ -249,6 +264,12 @@ def _principled_lobes(values: dict) -> Lobes:
                          dielectric * min(1.0, 2.0 * level) * tint + m * a * np.ones(3),
                          roughness)
     lobes.diffuse = dielectric * (1.0 - t) * (1.0 - f0_dielectric) * base
+    if f0_dielectric > 0:  # the diffuse lies under the specular layer (``SurfaceMaterial``)
+        lobes.layered_sum = float(np.mean(lobes.diffuse))
+        lobes.layer_f0_sum = lobes.layered_sum * min(1.0, f0_dielectric * float(np.max(tint)))
+    share, specular_ior = principled_fresnel(base, tint, m, a, level, f0_dielectric)
+    lobes.dielectric_sum = share * float(np.mean(np.maximum(lobes.f90 - lobes.f0, 0.0)))
+    lobes.specular_ior_sum = lobes.dielectric_sum * specular_ior
     if t > 0:
         refraction = Lobes.refraction(dielectric * t * base, ior, 1.0)
         lobes = lobes + refraction
