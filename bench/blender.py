@@ -73,6 +73,25 @@ def quiet_output():
             os.close(fd)
 
 
+def render_result_rgba(bpy, scene, path: str) -> np.ndarray:
+    """(H, W, 4) float64 of Blender's last render ("Render Result" saved through ``scene``'s
+    colour management to the PNG ``path``, removed after), row 0 = top, RGB composited over
+    black like Glint's images; alpha = coverage."""
+    bpy.data.images["Render Result"].save_render(path, scene=scene)
+    image = bpy.data.images.load(path, check_existing=False)
+    try:
+        image.colorspace_settings.name = 'Non-Color'
+        width, height = image.size
+        pixels = np.empty(width * height * 4, np.float32)
+        image.pixels.foreach_get(pixels)
+    finally:
+        bpy.data.images.remove(image)
+        os.remove(path)
+    rgba = pixels.reshape(height, width, 4)[::-1].astype(np.float64)
+    rgba[..., :3] *= rgba[..., 3:]  # PNG alpha is straight; Glint's RGB is over black
+    return rgba
+
+
 class BlenderSession:
     """bpy imported and the add-on registered, once per process."""
 
@@ -130,22 +149,9 @@ class BlenderSession:
     def last_image(self, job: BlenderJob) -> np.ndarray:
         """(H, W, 4) float64 of the last render, row 0 = top: RGB as displayed (view transform
         Standard), composited over black like Glint's images; alpha = coverage."""
-        bpy = self._bpy
-        path = os.path.join(self._folder, "result.png")
         with quiet_output():
-            bpy.data.images["Render Result"].save_render(path, scene=self.scene(job))
-        image = bpy.data.images.load(path, check_existing=False)
-        try:
-            image.colorspace_settings.name = 'Non-Color'
-            width, height = image.size
-            pixels = np.empty(width * height * 4, np.float32)
-            image.pixels.foreach_get(pixels)
-        finally:
-            bpy.data.images.remove(image)
-            os.remove(path)
-        rgba = pixels.reshape(height, width, 4)[::-1].astype(np.float64)
-        rgba[..., :3] *= rgba[..., 3:]  # PNG alpha is straight; Glint's RGB is over black
-        return rgba
+            return render_result_rgba(self._bpy, self.scene(job),
+                                      os.path.join(self._folder, "result.png"))
 
 
 def _status_kib(field: str) -> int:

@@ -307,20 +307,9 @@ def _render_image(engine: str, folder: str) -> np.ndarray:
     """(H, W, 4) float64 of the last render, row 0 = top, RGB over black (as bench.blender)."""
     import bpy
 
-    path = os.path.join(folder, f"scale-{engine.lower()}.png")
-    bpy.data.images["Render Result"].save_render(path, scene=bpy.context.scene)
-    image = bpy.data.images.load(path, check_existing=False)
-    try:
-        image.colorspace_settings.name = 'Non-Color'
-        width, height = image.size
-        pixels = np.empty(width * height * 4, np.float32)
-        image.pixels.foreach_get(pixels)
-    finally:
-        bpy.data.images.remove(image)
-        os.remove(path)
-    rgba = pixels.reshape(height, width, 4)[::-1].astype(np.float64)
-    rgba[..., :3] *= rgba[..., 3:]
-    return rgba
+    from .blender import render_result_rgba
+    return render_result_rgba(bpy, bpy.context.scene,
+                              os.path.join(folder, f"scale-{engine.lower()}.png"))
 
 
 def _boxes(rgb: np.ndarray, box: int = SIMILARITY_BOX) -> np.ndarray:
