@@ -98,7 +98,8 @@ class PreparedLight:
 @dataclass(frozen=True)
 class SampleShares:
     """Which share of every light's samples each of n rays' paths traces (module docstring):
-    slot (n,) intp in [0, count), count the S anti-aliasing samples of the ray's pixel."""
+    slot (n,) intp in [0, count), count the S >= 2 anti-aliasing samples of the ray's pixel
+    (``pixel_shares``)."""
 
     slot: np.ndarray
     count: int
@@ -108,11 +109,14 @@ class SampleShares:
         return SampleShares(self.slot[index], self.count)
 
 
-def pixel_shares(cols, rows, count: int) -> SampleShares:
+def pixel_shares(cols, rows, count: int) -> SampleShares | None:
     """The shares of ``count`` AA samples in each pixel (cols, rows) (n,), pixel by pixel
     (n * count rays, a pixel's samples side by side as ``core.render`` traces them): sample k
     of a pixel takes slot (k + h) mod count, h an integer hash of the pixel's position (so the
-    slots do not depend on tiles, bundles or threads)."""
+    slots do not depend on tiles, bundles or threads).  None for one sample per pixel: it
+    traces every light sample, as a pixel centre does."""
+    if count <= 1:
+        return None
     x = np.asarray(cols, np.int64).astype(np.uint64)
     y = np.asarray(rows, np.int64).astype(np.uint64)
     h = x * np.uint64(0x9E3779B1) ^ y * np.uint64(0x85EBCA77)

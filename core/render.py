@@ -180,7 +180,7 @@ def _supersample(ctx, camera, cols, rows, count, stats, stop=None):
         xs = (cols[part, None] + offsets[None, :, 0]).ravel()
         ys = (rows[part, None] + offsets[None, :, 1]).ravel()
         lens = lens_samples(cols[part], rows[part], offsets) if has_aperture(camera) else None
-        shares = pixel_shares(cols[part], rows[part], count) if count > 1 else None
+        shares = pixel_shares(cols[part], rows[part], count)
         colour, hit, _ = _trace_positions(ctx, camera, xs, ys, stats, lens, shares)
         rgb[part] = colour.reshape(-1, count, 3).mean(axis=1)
         coverage[part] = hit.reshape(-1, count).mean(axis=1)

@@ -115,8 +115,6 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
     anti-aliasing samples (``core.lights.SampleShares``, m slots); None: all of them.
     (Light through translucent surfaces: ``shade_translucent``.)
     """
-    if shares is not None and shares.count == 1:
-        shares = None
     mat = ctx.materials
     ka, kd, ks = take(mat.ambient, materials), take(mat.diffuse, materials), take(mat.specular,
                                                                                 materials)
@@ -144,8 +142,6 @@ def shade_translucent(ctx: TraceContext, points, normals, directions, materials,
     Blender lights on the other side (shadow segments crossing the surface: a closed
     sphere's own far side blocks them, as in Cycles' direct light) and the world seen
     there, each times translucency / pi (``bsdf.translucent_view``)."""
-    if shares is not None and shares.count == 1:
-        shares = None
     view = ctx.look.translucent
     colour = np.zeros_like(points)
     shadow_code = np.zeros(points.shape[1], np.uint64)
