@@ -45,14 +45,14 @@ def main(argv=None) -> int:
     exports, passes = [], []
     for _ in range(args.repeats):
         start = time.perf_counter()
-        exported, settings, transparent, size, _ = export_viewport_scene(graph)
+        exported, settings, size, _ = export_viewport_scene(graph)
         exports.append(time.perf_counter() - start)
         camera = scene.camera
         view = ViewportView.from_matrices(
             camera.matrix_world.inverted(),
             camera.calc_matrix_camera(graph, x=args.width, y=args.height),
             args.width, args.height)
-        progressive = ProgressiveRender(exported, view, settings, transparent, size)
+        progressive = ProgressiveRender(exported, view, settings, size)
         progressive.wait()
         passes.append(progressive.frame_times)
     schedule = progressive.schedule

@@ -247,24 +247,24 @@ def test_the_refinement_schedule():
 
 
 def viewport_inputs(width=200, height=150):
-    """(scene, settings, transparent, pixel size) of simple_scene() exported for the viewport,
+    """(scene, settings, pixel size) of simple_scene() exported for the viewport,
     and a camera-like view of it."""
     simple_scene()
     graph = depsgraph()
-    scene, settings, transparent, size, _ = export_viewport_scene(graph)
+    scene, settings, size, _ = export_viewport_scene(graph)
     camera = bpy.context.scene.camera
     view = ViewportView.from_matrices(
         camera.matrix_world.inverted(), camera.calc_matrix_camera(graph, x=width, y=height),
         width, height)
-    return scene, settings, transparent, size, view
+    return scene, settings, size, view
 
 
 def test_progressive_passes_end_with_the_image_f12_renders():
-    scene, settings, transparent, _, view = viewport_inputs(400, 300)
+    scene, settings, _, view = viewport_inputs(400, 300)
     settings = dataclasses.replace(settings, anti_aliasing="adaptive", samples=4)
     frames = []
 
-    progressive = ProgressiveRender(scene, view, settings, transparent, on_frame=frames.append)
+    progressive = ProgressiveRender(scene, view, settings, on_frame=frames.append)
     assert progressive.wait(timeout=120)
 
     assert progressive.error is None
@@ -283,11 +283,11 @@ def test_progressive_passes_end_with_the_image_f12_renders():
 
 
 def test_a_cancel_stops_the_worker_between_tiles_and_keeps_the_last_frame():
-    scene, settings, transparent, _, view = viewport_inputs(640, 480)
+    scene, settings, _, view = viewport_inputs(640, 480)
     slow = dataclasses.replace(settings, anti_aliasing="fixed", samples=64, threads=1)
     frames = []
 
-    progressive = ProgressiveRender(scene, view, slow, transparent, on_frame=frames.append)
+    progressive = ProgressiveRender(scene, view, slow, on_frame=frames.append)
     while not frames and not progressive.done:
         progressive.wait(timeout=0.01)
     progressive.cancel()
@@ -301,20 +301,20 @@ def test_a_cancel_stops_the_worker_between_tiles_and_keeps_the_last_frame():
 
 
 def test_the_session_re_renders_only_when_the_scene_or_the_view_changed():
-    scene, settings, transparent, size, view = viewport_inputs()
+    scene, settings, size, view = viewport_inputs()
     session = ViewportSession()
     assert not session.update_view(dataclasses.replace(view))   # no scene yet: nothing to do
-    assert session.update_scene(scene, settings, transparent, size)
+    assert session.update_scene(scene, settings, size)
     first = session.render
     assert session.restarts == 1
 
     # The same view (equal, not identical) and the same export: nothing restarts.
     assert not session.update_view(dataclasses.replace(view))
     again, *_ = export_viewport_scene(depsgraph())
-    assert not session.update_scene(again, settings, transparent, size)
+    assert not session.update_scene(again, settings, size)
     bpy.data.objects["big"].select_set(True)  # a selection is a depsgraph update too
     assert not session.update_scene(export_viewport_scene(depsgraph())[0], settings,
-                                    transparent, size)
+                                    size)
     assert session.render is first and session.restarts == 1
 
     # The user orbits: the running refinement is cancelled and a new one starts.
@@ -326,20 +326,20 @@ def test_the_session_re_renders_only_when_the_scene_or_the_view_changed():
     # The user moves an object: again.
     bpy.data.objects["small"].location.x += 0.3
     moved, *_ = export_viewport_scene(depsgraph())
-    assert session.update_scene(moved, settings, transparent, size)
+    assert session.update_scene(moved, settings, size)
     assert second.cancelled and session.restarts == 3
     # A setting that changes the picture restarts it too.
     assert session.update_scene(moved, dataclasses.replace(settings, max_depth=1),
-                                transparent, size)
+                                size)
     assert session.restarts == 4
     assert session.render.wait(timeout=60) and session.frame.final
     session.stop()
 
 
 def test_until_a_new_view_has_its_first_pass_the_last_picture_stays():
-    scene, settings, transparent, size, view = viewport_inputs()
+    scene, settings, size, view = viewport_inputs()
     session = ViewportSession()
-    session.update_scene(scene, settings, transparent, size)
+    session.update_scene(scene, settings, size)
     session.update_view(view)
     session.render.wait(timeout=60)
     shown = session.frame
@@ -506,11 +506,10 @@ def test_dropping_the_viewport_engine_stops_its_worker():
 
     from glint.addon.engine.viewport import ViewportEngine
 
-    scene, settings, transparent, size, view = viewport_inputs(640, 480)
+    scene, settings, size, view = viewport_inputs(640, 480)
     viewport_engine = ViewportEngine()
     viewport_engine.session.update_scene(
-        scene, dataclasses.replace(settings, anti_aliasing="fixed", samples=64), transparent,
-        size)
+        scene, dataclasses.replace(settings, anti_aliasing="fixed", samples=64), size)
     viewport_engine.session.update_view(view)
     progressive = viewport_engine.session.render
 

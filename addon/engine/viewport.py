@@ -276,9 +276,9 @@ class ProgressiveRender:
     """
 
     def __init__(self, scene: Scene, view: ViewportView, settings: RenderSettings,
-                 transparent: bool, pixel_size: int = 1,
+                 pixel_size: int = 1,
                  on_frame: Optional[Callable[[ViewportFrame], None]] = None):
-        self.scene, self.view, self.transparent = scene, view, transparent
+        self.scene, self.view = scene, view
         x0, y0, x1, y1 = view.rect
         self.schedule = refinement_schedule(x1 - x0, y1 - y0, settings, pixel_size)
         self.frame: Optional[ViewportFrame] = None
@@ -338,7 +338,6 @@ class ViewportSession:
     def __init__(self, on_frame: Optional[Callable[[ViewportFrame], None]] = None):
         self.scene: Optional[Scene] = None
         self.settings: Optional[RenderSettings] = None
-        self.transparent = False
         self.pixel_size = 1
         self.view: Optional[ViewportView] = None
         self.render: Optional[ProgressiveRender] = None
@@ -346,19 +345,19 @@ class ViewportSession:
         self._on_frame = on_frame
         self._previous: Optional[ViewportFrame] = None
 
-    def update_scene(self, scene: Scene, settings: RenderSettings, transparent: bool,
+    def update_scene(self, scene: Scene, settings: RenderSettings,
                      pixel_size: int = 1) -> bool:
         """Take a newly exported scene (its camera is ignored: the view decides); True if the
         refinement restarted.  A depsgraph update that changes nothing Glint renders
         (selection, a UI property) restarts nothing."""
+        # Film > Transparent is in the settings (their film).
         state = (scene.spheres, scene.lights, scene.background, scene.ambient, settings,
-                 transparent, pixel_size)
+                 pixel_size)
         if self.scene is not None and state == (
                 self.scene.spheres, self.scene.lights, self.scene.background,
-                self.scene.ambient, self.settings, self.transparent, self.pixel_size):
+                self.scene.ambient, self.settings, self.pixel_size):
             return False
-        self.scene, self.settings = scene, settings
-        self.transparent, self.pixel_size = transparent, pixel_size
+        self.scene, self.settings, self.pixel_size = scene, settings, pixel_size
         return self._restart()
 
     def update_view(self, view: Optional[ViewportView]) -> bool:
@@ -375,7 +374,7 @@ class ViewportSession:
         if self.scene is None or self.view is None:
             return False
         self.render = ProgressiveRender(self.scene, self.view, self.settings,
-                                        self.transparent, self.pixel_size, self._on_frame)
+                                        self.pixel_size, self._on_frame)
         self.restarts += 1
         return True
 
@@ -417,7 +416,7 @@ def pixel_size(render, preferences=None) -> int:
 
 
 def export_viewport_scene(depsgraph, preferences=None, view: Optional[ViewportView] = None):
-    """(scene, settings, transparent, pixel size, warnings) for the viewport's evaluated
+    """(scene, settings, pixel size, warnings) for the viewport's evaluated
     depsgraph.  Raises ExportError / SceneError like any export.
 
     The scene is exported with the view's camera (a placeholder before the first draw); the
@@ -432,8 +431,7 @@ def export_viewport_scene(depsgraph, preferences=None, view: Optional[ViewportVi
     warnings += ignored_settings_warning(depsgraph)
     blender_scene = depsgraph.scene_eval
     return (scene, render_settings(blender_scene.glint, blender_scene.render),
-            blender_scene.render.film_transparent, pixel_size(blender_scene.render, preferences),
-            warnings)
+            pixel_size(blender_scene.render, preferences), warnings)
 
 
 class ViewportEngine:
@@ -460,14 +458,14 @@ class ViewportEngine:
         try:
             view = ViewportView.from_context(context, depsgraph.scene_eval) \
                 if getattr(context, "region_data", None) is not None else None
-            scene, settings, transparent, size, warnings = export_viewport_scene(
+            scene, settings, size, warnings = export_viewport_scene(
                 depsgraph, context.preferences, view)
         except (ExportError, SceneError) as error:
             self.session.stop()
             self._report(engine, 'ERROR', (str(error),))
             return
         self._report(engine, 'WARNING', tuple(warnings))
-        self.session.update_scene(scene, settings, transparent, size)
+        self.session.update_scene(scene, settings, size)
 
     def view_draw(self, engine, context, depsgraph) -> None:
         scene = depsgraph.scene_eval
