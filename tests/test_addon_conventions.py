@@ -126,6 +126,26 @@ def test_a_blend_whose_engine_is_glint_opens_without_an_engine_error(tmp_path):
     assert os.path.exists(tmp_path / "out.png")
 
 
+def _alpha_rows_glint_and_cycles(scene, tmp_path, row=40):
+    """Row ``row``'s alpha (w,) of the scene rendered by Glint and by Cycles (256 samples, no
+    denoising, a 1-pixel box filter, so that partly covered pixels mean the same in both)."""
+    def alpha_row(engine):
+        scene.render.engine = engine
+        scene.render.filepath = str(tmp_path / f"{engine}.png")
+        scene.render.image_settings.color_mode = 'RGBA'
+        bpy.ops.render.render(write_still=True)
+        return read_png(str(tmp_path / f"{engine}.png"))[row, :, 3] / 255.0
+
+    scene.cycles.samples, scene.cycles.use_denoising = 256, False
+    scene.cycles.pixel_filter_type, scene.render.filter_size = 'BOX', 1.0
+    return alpha_row('GLINT'), alpha_row('CYCLES')
+
+
+def _partial(row):
+    """How many pixels of an alpha row are partly covered."""
+    return int(((row > 0.02) & (row < 0.98)).sum())
+
+
 def test_each_choice_list_is_defined_once_in_the_core():
     from glint.core import choices
     from glint.core.__main__ import parse_args as core_parse_args
@@ -184,25 +204,15 @@ def test_depth_of_field_is_read_as_cycles_reads_it_and_blurs_like_cycles(tmp_pat
     assert exported.aperture_radius == pytest.approx(50e-3 / (2 * 0.125))   # 0.2
     assert exported.focus_distance == pytest.approx(5.0, rel=1e-6)
 
-    def alpha_row(engine):
-        scene.render.engine = engine
-        scene.render.filepath = str(tmp_path / f"{engine}.png")
-        scene.render.image_settings.color_mode = 'RGBA'
-        bpy.ops.render.render(write_still=True)
-        return read_png(str(tmp_path / f"{engine}.png"))[40, :, 3] / 255.0
-
-    scene.cycles.samples, scene.cycles.use_denoising = 256, False
-    scene.cycles.pixel_filter_type, scene.render.filter_size = 'BOX', 1.0
-    glint_alpha, cycles_alpha = alpha_row('GLINT'), alpha_row('CYCLES')
+    glint_alpha, cycles_alpha = _alpha_rows_glint_and_cycles(scene, tmp_path)
     # The ball's silhouette (depth about 10, focus at 5) spreads over a circle of confusion
     # of radius 0.2 * |10 - 5| / 5 = 0.2, i.e. 4.4 px (a pixel there is 10 * 0.72 / 160 =
     # 0.045 wide): both engines blur it over the same pixels.  256 samples leave about 0.03
     # of coverage noise in each; the 32 x 16 UV sphere Cycles draws sags by under 2 % of r.
-    partial = lambda row: ((row > 0.02) & (row < 0.98)).sum()   # noqa: E731
-    print("partial pixels glint", partial(glint_alpha), "cycles", partial(cycles_alpha),
+    print("partial pixels glint", _partial(glint_alpha), "cycles", _partial(cycles_alpha),
           "max alpha difference", np.abs(glint_alpha - cycles_alpha).max())
-    assert partial(glint_alpha) >= 12   # both edges, about 7 px each (test_core_depth_of_field)
-    assert abs(partial(glint_alpha) - partial(cycles_alpha)) <= 2
+    assert _partial(glint_alpha) >= 12   # both edges, about 7 px each (test_core_depth_of_field)
+    assert abs(_partial(glint_alpha) - _partial(cycles_alpha)) <= 2
     assert np.abs(glint_alpha - cycles_alpha).max() < 0.15
 
 
@@ -226,24 +236,14 @@ def test_orthographic_depth_of_field_blurs_like_cycles(tmp_path, fstop, focus):
     assert prepare_job(depsgraph()).scene.camera.aperture_radius == pytest.approx(radius)
     assert not [w for w in prepare_job(depsgraph()).warnings if "Glint ignores" in w]
 
-    def alpha_row(engine):
-        scene.render.engine = engine
-        scene.render.filepath = str(tmp_path / f"{engine}.png")
-        scene.render.image_settings.color_mode = 'RGBA'
-        bpy.ops.render.render(write_still=True)
-        return read_png(str(tmp_path / f"{engine}.png"))[40, :, 3] / 255.0
-
-    scene.cycles.samples, scene.cycles.use_denoising = 256, False
-    scene.cycles.pixel_filter_type, scene.render.filter_size = 'BOX', 1.0
-    glint_alpha, cycles_alpha = alpha_row('GLINT'), alpha_row('CYCLES')
+    glint_alpha, cycles_alpha = _alpha_rows_glint_and_cycles(scene, tmp_path)
     # The silhouette (depth 10) blurs over a circle of radius 0.05 * |1 - 10 / 5| = 0.05
     # (F-stop 10) or 0.025 * |1 - 10 / 2.5| = 0.075 (F-stop 20): 2 or 3 pixels, so 4 or 6
     # partial pixels per edge; lens / (2 F-stop) would give under 0.2 pixel.  Tolerances as
     # for the perspective lens (test above): 256 samples leave about 0.03 of coverage noise.
-    partial = lambda row: ((row > 0.02) & (row < 0.98)).sum()   # noqa: E731
-    print("partial pixels glint", partial(glint_alpha), "cycles", partial(cycles_alpha),
+    print("partial pixels glint", _partial(glint_alpha), "cycles", _partial(cycles_alpha),
           "max alpha difference", np.abs(glint_alpha - cycles_alpha).max())
     expected = 2 * 2 * radius * abs(1 - 10 / focus) / 0.025
-    assert abs(partial(cycles_alpha) - expected) <= 2
-    assert abs(partial(glint_alpha) - partial(cycles_alpha)) <= 2
+    assert abs(_partial(cycles_alpha) - expected) <= 2
+    assert abs(_partial(glint_alpha) - _partial(cycles_alpha)) <= 2
     assert np.abs(glint_alpha - cycles_alpha).max() < 0.15
