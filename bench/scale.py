@@ -174,13 +174,19 @@ def _host(name: str, tree, material):
     return host
 
 
-def build_points(count: int) -> None:
-    tree, nodes, links = _node_tree("points")
+def _slab_points(nodes, links, count: int):
+    """A Points node of ``count`` points at random positions in the slab."""
     points = nodes.new("GeometryNodePoints")
     points.inputs["Count"].default_value = count
     sx, sy, sz = SLAB_HALF_EXTENT
     links.new(_random(nodes, 'FLOAT_VECTOR', (-sx, -sy, -sz), (sx, sy, sz), 1).outputs["Value"],
               points.inputs["Position"])
+    return points
+
+
+def build_points(count: int) -> None:
+    tree, nodes, links = _node_tree("points")
+    points = _slab_points(nodes, links, count)
     links.new(_random(nodes, 'FLOAT', *POINT_RADII, 2).outputs[1], points.inputs["Radius"])
     links.new(points.outputs[0], nodes.new("NodeGroupOutput").inputs[0])
     _host("points", tree, _material("points", (0.8, 0.35, 0.1)))
@@ -188,11 +194,7 @@ def build_points(count: int) -> None:
 
 def build_instances(count: int) -> None:
     tree, nodes, links = _node_tree("instances")
-    points = nodes.new("GeometryNodePoints")
-    points.inputs["Count"].default_value = count
-    sx, sy, sz = SLAB_HALF_EXTENT
-    links.new(_random(nodes, 'FLOAT_VECTOR', (-sx, -sy, -sz), (sx, sy, sz), 1).outputs["Value"],
-              points.inputs["Position"])
+    points = _slab_points(nodes, links, count)
     sphere = nodes.new("GeometryNodeMeshUVSphere")
     sphere.inputs["Segments"].default_value = 32
     sphere.inputs["Rings"].default_value = 16
