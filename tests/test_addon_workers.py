@@ -19,6 +19,7 @@ from addon_support import REPOSITORY, RENDER_SCRIPT, depsgraph, glint, read_png,
 from glint.addon.engine.final import FrameRequest, requesting_frames
 from glint.addon.engine.job import prepare_job
 from glint.core import workers
+from process_support import all_ended
 
 TILE = 32
 COLUMNS, ROWS = 5, 4
@@ -242,13 +243,4 @@ def test_ctrl_c_cancels_render_py_rendering_in_workers(tmp_path):
     assert "cancelled by SIGINT" in line
     assert output.read_bytes() == b"previous render"
 
-    def running(pid):
-        try:
-            with open(f"/proc/{pid}/stat") as stat:
-                return stat.read().rsplit(")", 1)[1].split()[0] != "Z"
-        except FileNotFoundError:
-            return False
-    deadline = time.monotonic() + 10          # they end as their socket closes
-    while any(running(pid) for pid in workers_seen) and time.monotonic() < deadline:
-        time.sleep(0.1)
-    assert not any(running(pid) for pid in workers_seen)
+    assert all_ended(workers_seen, seconds=10)   # they end as their socket closes

@@ -15,6 +15,7 @@ import core
 from core import workers
 from core.render import RenderCancelled, render_tile
 from core.scene import SceneError
+from process_support import all_ended
 
 REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -225,16 +226,7 @@ def test_ctrl_c_to_the_process_group_stops_parent_and_workers(tmp_path):
     assert "cancelled by SIGINT" in line
     assert output.read_bytes() == b"previous render"
 
-    def running(pid):
-        try:
-            with open(f"/proc/{pid}/stat") as stat:
-                return stat.read().rsplit(")", 1)[1].split()[0] != "Z"
-        except FileNotFoundError:
-            return False
-    deadline = time.monotonic() + 10
-    while any(running(pid) for pid in children) and time.monotonic() < deadline:
-        time.sleep(0.1)
-    assert not any(running(pid) for pid in children)
+    assert all_ended(children, seconds=10)
 
 
 def test_workers_start_from_a_pip_bpy_process():
