@@ -263,8 +263,17 @@ class PairBlock:
         return np.logical_or.reduceat(hits, self.segments)
 
 
+def bundle_candidates(centers, radii, origins, directions, reach) -> np.ndarray:
+    """(k,) the spheres (indices into centers (N, 3), radii (N,)) that some ray of the bundle
+    may hit within ``reach`` (a scalar): the bundle's cone against every sphere.  origins
+    (3, 1) or (3, n), directions (3, n) unit."""
+    apex, spread, axis, half = cones(origins[:, None, :], directions[:, None, :])
+    return np.flatnonzero(reachable(centers.T, radii, apex, spread, axis, half, reach))
+
+
 def candidate_roots(centers, radii, clusters: SphereClusters, origins, directions, max_distance,
-                    terms: OriginTerms = None, *, textbook=False, stats=None, key=None):
+                    terms: OriginTerms = None, *, textbook=False, stats=None, key=None,
+                    candidates=None):
     """Ray/sphere roots for every pair culling cannot rule out, in blocks.
 
     centers (N, 3), radii (N,) in float64, and their ``clusters``; origins (3, 1) with
@@ -272,8 +281,9 @@ def candidate_roots(centers, radii, clusters: SphereClusters, origins, direction
     (3, n) unit; max_distance: scalar or (n,), how far each ray reaches.  key: optional (n,)
     integers; rays with equal keys are packed together (secondary rays: the sphere they
     leave and their direction cell).  textbook: the article's root formula
-    (``core.intersect``), else the stable one.  Yields ``DenseBlock`` or ``PairBlock`` objects; every
-    pair culling keeps appears in exactly one block, candidates in scene order.
+    (``core.intersect``), else the stable one.  candidates: the bundle's candidates when the
+    caller has them (``bundle_candidates``).  Yields ``DenseBlock`` or ``PairBlock`` objects;
+    every pair culling keeps appears in exactly one block, candidates in scene order.
     """
     n = directions.shape[1]
     if n == 0 or len(radii) == 0:
@@ -282,9 +292,8 @@ def candidate_roots(centers, radii, clusters: SphereClusters, origins, direction
     shared = terms is not None
     reach = _per_ray(max_distance, n)
     centers_t = centers.T
-    apex, spread, axis, half = cones(origins[:, None, :], directions[:, None, :])
-    candidates = np.flatnonzero(reachable(centers_t, radii, apex, spread, axis, half,
-                                          reach.max()))
+    if candidates is None:
+        candidates = bundle_candidates(centers, radii, origins, directions, reach.max())
     if len(candidates) == 0:
         return
     if len(candidates) <= DENSE_CANDIDATES:
