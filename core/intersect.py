@@ -258,8 +258,7 @@ class FewSpheres:
         q = np.copysign(root, b)
         q += b
         np.negative(q, out=q)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            other = np.divide(c, q)
+        other = np.divide(c, q)   # (the callers ignore division by zero)
         return np.minimum(q, other), np.maximum(q, other, out=other)
 
     def nearest(self, spheres, t_min, t_max, exclude, ids, best_t, best):
@@ -268,63 +267,69 @@ class FewSpheres:
         (scalars or (n,)), a ray ignoring its ``exclude`` (n,) (-1: none; or None).  A hit
         must be strictly nearer: on ties the earlier sphere keeps it (scene order)."""
         bounded = np.ndim(t_max) or np.isfinite(t_max)
-        for sphere in spheres:
-            gid = sphere if ids is None else ids[sphere]
-            b, disc, c = self._terms(sphere)
-            with np.errstate(invalid="ignore"):
-                if self.article and self.textbook:
-                    # t_near = (-b - sqrt(disc)) / 2: NaN where disc < 0, which no test passes.
-                    t = np.sqrt(disc, out=self.root)
-                    t += b
-                    t *= self.dtype.type(-0.5)
-                    better = t > 0
-                    better &= disc > 0
-                elif self.article:
-                    t, t_far = self._roots(b, disc, c)
-                    better = t > 0
-                    better &= t_far > 0
-                    better &= disc > 0
-                else:
-                    t_near, t_far = self._roots(b, disc, c)
-                    crosses = disc > 0
-                    near = t_near > t_min
-                    near &= crosses
-                    far = t_far > t_min
-                    far &= crosses
-                    t = np.where(near, t_near, t_far)
-                    better = near | far
-            if bounded:
-                better &= t < t_max
-            better &= t < best_t
-            if exclude is not None:
-                better &= exclude != gid
-            np.copyto(best_t, t, where=better)
-            np.copyto(best, gid, where=better)
+        with np.errstate(invalid="ignore", divide="ignore"):   # once: it costs a few us
+            for sphere in spheres:
+                self._nearest_one(sphere, t_min, t_max, bounded, exclude, ids, best_t, best)
+
+    def _nearest_one(self, sphere, t_min, t_max, bounded, exclude, ids, best_t, best):
+        gid = sphere if ids is None else ids[sphere]
+        b, disc, c = self._terms(sphere)
+        if self.article and self.textbook:
+            # t_near = (-b - sqrt(disc)) / 2: NaN where disc < 0, which no test passes.
+            t = np.sqrt(disc, out=self.root)
+            t += b
+            t *= self.dtype.type(-0.5)
+            better = t > 0
+            better &= disc > 0
+        elif self.article:
+            t, t_far = self._roots(b, disc, c)
+            better = t > 0
+            better &= t_far > 0
+            better &= disc > 0
+        else:
+            t_near, t_far = self._roots(b, disc, c)
+            crosses = disc > 0
+            near = t_near > t_min
+            near &= crosses
+            far = t_far > t_min
+            far &= crosses
+            t = np.where(near, t_near, t_far)
+            better = near | far
+        if bounded:
+            better &= t < t_max
+        better &= t < best_t
+        if exclude is not None:
+            better &= exclude != gid
+        np.copyto(best_t, t, where=better)
+        np.copyto(best, gid, where=better)
 
     def blocked(self, spheres, low, high, exclude, ids, blocked):
         """blocked (n,) |= whether a candidate sphere blocks each segment: the article's far
         root in (low, high), else either root there; ``exclude`` as in ``nearest``."""
-        for sphere in spheres:
-            gid = sphere if ids is None else ids[sphere]
-            b, disc, c = self._terms(sphere)
-            with np.errstate(invalid="ignore"):
-                if self.article:
-                    if self.textbook:   # t_far = (-b + sqrt(disc)) / 2
-                        t = np.sqrt(disc, out=self.root)
-                        t -= b
-                        t *= self.dtype.type(0.5)
-                    else:
-                        t = self._roots(b, disc, c)[1]
-                    hit = t < high
-                    hit &= t > low
-                else:
-                    t_near, t_far = self._roots(b, disc, c)
-                    hit = t_near > low
-                    hit &= t_near < high
-                    far = t_far > low
-                    far &= t_far < high
-                    hit |= far
-            hit &= disc > 0
-            if exclude is not None:
-                hit &= exclude != gid
-            blocked |= hit
+        with np.errstate(invalid="ignore", divide="ignore"):
+            for sphere in spheres:
+                self._blocked_one(sphere, low, high, exclude, ids, blocked)
+
+    def _blocked_one(self, sphere, low, high, exclude, ids, blocked):
+        gid = sphere if ids is None else ids[sphere]
+        b, disc, c = self._terms(sphere)
+        if self.article:
+            if self.textbook:   # t_far = (-b + sqrt(disc)) / 2
+                t = np.sqrt(disc, out=self.root)
+                t -= b
+                t *= self.dtype.type(0.5)
+            else:
+                t = self._roots(b, disc, c)[1]
+            hit = t < high
+            hit &= t > low
+        else:
+            t_near, t_far = self._roots(b, disc, c)
+            hit = t_near > low
+            hit &= t_near < high
+            far = t_far > low
+            far &= t_far < high
+            hit |= far
+        hit &= disc > 0
+        if exclude is not None:
+            hit &= exclude != gid
+        blocked |= hit
