@@ -14,6 +14,7 @@ value differs from theirs by more than EDGE_CONTRAST.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import os
 import threading
@@ -143,7 +144,15 @@ def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None, shares
 def _pixel_grid(y0, y1, x0, x1):
     """(cols, rows) (n,) of the pixels of a region, in BLOCK x BLOCK block order, so that the
     tracer's packets of consecutive rays cover square blocks (``core.cull``)."""
-    h, w = y1 - y0, x1 - x0
+    cols, rows, _ = _block_order(y1 - y0, x1 - x0)
+    return cols + x0, rows + y0
+
+
+@functools.lru_cache(maxsize=16)
+def _block_order(h, w):
+    """(cols, rows, inverse) (h w,) for an h x w region at the origin: its pixels in block
+    order (``_pixel_grid``), and for each pixel in row-major order its place in that order
+    (``_assemble``).  Every full tile has the same: computed once (read-only)."""
     blocks_y, blocks_x = -(-h // BLOCK), -(-w // BLOCK)
     rows, cols = np.mgrid[0:blocks_y * BLOCK, 0:blocks_x * BLOCK]
 
@@ -152,7 +161,24 @@ def _pixel_grid(y0, y1, x0, x1):
 
     rows, cols = in_blocks(rows), in_blocks(cols)
     inside = (rows < h) & (cols < w)
-    return cols[inside] + x0, rows[inside] + y0
+    cols, rows = cols[inside], rows[inside]
+    inverse = np.empty(h * w, np.intp)
+    inverse[rows * w + cols] = np.arange(h * w)
+    for array in (cols, rows, inverse):
+        array.flags.writeable = False
+    return cols, rows, inverse
+
+
+def _assemble(rgba, rgb, coverage):
+    """Fill a tile's rgba (h, w, 4) from rgb (n, 3) and coverage (n,) in block order: a
+    gather per channel through ``_block_order``'s inverse, several times cheaper than
+    scattering through (rows, cols)."""
+    h, w = rgba.shape[:2]
+    inverse = _block_order(h, w)[2]
+    flat = rgba.reshape(h * w, 4)
+    for channel in range(3):
+        flat[:, channel] = rgb[:, channel].take(inverse)
+    flat[:, 3] = coverage.take(inverse)
 
 
 def _scatter(values, cols, rows, x0, y0, shape):
@@ -286,8 +312,7 @@ def render_tile(ctx: TraceContext, camera, tile, stop: Optional[threading.Event]
         if len(chosen):
             rgb[chosen], coverage[chosen] = _supersample(
                 ctx, camera, cols[chosen], rows[chosen], ctx.settings.samples, stats, stop)
-    rgba[rows - y0, cols - x0, :3] = rgb
-    rgba[rows - y0, cols - x0, 3] = coverage
+    _assemble(rgba, rgb, coverage)
     stats.seconds_tiles += time.perf_counter() - start
     return rgba, stats
 
