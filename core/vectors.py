@@ -23,6 +23,13 @@ def normalize(a):
     return a * (1 / size), size
 
 
+def normalize_in_place(a):
+    """a /= |a| (as ``normalize``: a * (1 / |a|)), returning |a|."""
+    size = length(a)
+    a *= 1 / size
+    return size
+
+
 def take(a, index):
     """Columns ``index`` (m,) of a (3, n) bundle: (3, m).  Row-wise ``take`` is several times
     faster than fancy indexing a 2-D array."""
