@@ -278,6 +278,8 @@ class Aggregate:
 
     def _bundle_candidates(self, rays: RayBatch) -> np.ndarray:
         """(k,) the flat spheres (local indices) some ray of the batch may reach."""
+        if len(rays) == 0:
+            return np.zeros(0, np.intp)
         reach = rays.t_max if np.ndim(rays.t_max) == 0 else rays.t_max.max()
         return bundle_candidates(self._flat_centers, self._flat_radii, rays.origins,
                                  rays.directions, float(reach))
