@@ -196,9 +196,13 @@ class Aggregate:
             hit_primitive = primitive
         is_triangle = hit_primitive >= self.sphere_count
         if not is_triangle.any():
-            points = origins + t * directions
-            normals = points - take(self._centers_t, hit_primitive)
-            normals *= 1 / np.sqrt(dot(normals, normals))
+            points = t * directions
+            points += origins
+            normals = take(self._centers_t, hit_primitive)
+            np.subtract(points, normals, out=normals)
+            size = dot(normals, normals)
+            np.sqrt(size, out=size)
+            normals *= np.reciprocal(size, out=size)
             shading = normals
             material = self._sphere_material.take(hit_primitive)
         else:
@@ -555,7 +559,9 @@ class Aggregate:
                 side = np.where(primitive >= self.sphere_count, side, 1).astype(self.dtype)
                 return RayBatch(points + ARTICLE_OFFSET * (normals * side), directions,
                                 source=primitive)
-            return RayBatch(points + ARTICLE_OFFSET * normals, directions, source=primitive)
+            origins = ARTICLE_OFFSET * normals
+            origins += points
+            return RayBatch(origins, directions, source=primitive)
         # (Multiplying by a side of 1 everywhere would change nothing: skipped.)
         origins = points + ray_offsets(points) * (normals if side is None else normals * side)
         return RayBatch(origins, directions, exclude=self.exclusions(primitive, leave_front),

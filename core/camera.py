@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .scene import BlenderCamera, Camera, ScreenCamera
-from .vectors import normalize
+from .vectors import normalize, normalize_in_place
 
 
 @dataclass(frozen=True)
@@ -84,16 +84,24 @@ def _screen_rays(camera: ScreenCamera, xs, ys, dtype) -> CameraRays:
     ys_line = np.linspace(camera.top, camera.bottom, camera.height)
     step_x = (camera.right - camera.left) / max(camera.width - 1, 1)
     step_y = (camera.bottom - camera.top) / max(camera.height - 1, 1)
-    col = np.clip(np.floor(xs).astype(np.intp), 0, camera.width - 1)
-    row = np.clip(np.floor(ys).astype(np.intp), 0, camera.height - 1)
     # A sample at the pixel centre lands exactly on the article's linspace position.
     eye = np.asarray(camera.eye, np.float64)
     towards = np.empty((3, len(xs)))
-    towards[0] = xs_line[col] + (xs - col - 0.5) * step_x - eye[0]
-    towards[1] = ys_line[row] + (ys - row - 0.5) * step_y - eye[1]
+    for axis, (positions, line, step, count) in enumerate(
+            ((xs, xs_line, step_x, camera.width), (ys, ys_line, step_y, camera.height))):
+        # line[i] + (p - i - 0.5) step - eye, i = floor(p) clipped to the pixels, in place.
+        index = np.floor(positions)
+        np.minimum(np.maximum(index, 0, out=index), count - 1, out=index)
+        out = towards[axis]
+        np.subtract(positions, index, out=out)
+        out -= 0.5
+        out *= step
+        out += line.take(index.astype(np.intp))
+        out -= eye[axis]
     towards[2] = camera.screen_z - eye[2]
-    directions, _ = normalize(towards)
-    return CameraRays(eye[:, None].astype(dtype), directions.astype(dtype), 0.0, np.inf)
+    normalize_in_place(towards)
+    return CameraRays(eye[:, None].astype(dtype), towards.astype(dtype, copy=False), 0.0,
+                      np.inf)
 
 
 def has_aperture(camera) -> bool:
