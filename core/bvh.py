@@ -18,15 +18,20 @@ node (>= 0), a leaf ``-2 - leaf`` or EMPTY; ``leaves`` (L, MAX_LEAF) each leaf's
 ids, padded with -1.  Node 0 is the root, whose own box is ``root_box``.
 
 Traversal (``BVH.traverse``) is wavefront-style over (ray, node) pairs.  From the root down
-to the *treelets* (the nodes a few levels down, ``_treelet_depth``) every live pair is
-expanded to its children at once and kept where the ray's segment meets the child's box.
-The (ray, treelet) pairs are then sorted by entry distance and visited front to back in
-rounds (the first treelet of each ray, then the next one, then two, four, ...): a round
-descends its treelets to their leaves, pruning by each ray's nearest hit so far, intersects
-the leaves' primitives, and a ray whose next treelet starts beyond its nearest hit is
-finished, so a ray stops at its nearest hit; for occlusion a ray is finished at its first
-blocker.  Pairs are grouped by ray before each visit, so per-ray reductions are
-``reduceat``.
+every live pair is expanded to its children at once and kept where the ray's segment meets
+the child's box.  That top phase stops at depth 1 (or a few levels down in deep trees;
+``_levels``): from there the
+(ray, node) pairs are sorted by entry distance and visited front to back in rounds (the
+first node of each ray, then the next one, then two, four, ...): a round descends its nodes
+TREELET_STEP levels, where the nodes reached are sorted and visited front to back in
+rounds of their own, and so on down to the treelets, which a round descends to their
+leaves, pruning by each ray's nearest hit so far; it intersects the leaves' primitives, and
+a ray whose next node starts beyond its nearest hit is finished, so a ray stops at its
+nearest hit; for occlusion a ray is finished at its first blocker.  (Sorting only at the
+treelets made a ray of a million-sphere field test every node above them along its whole
+length: 255 box tests a camera ray, against 107.)  The *treelets* are the nodes of about
+WIDTH ** TREELET_DEPTH leaves (``_treelet_depth``).  Pairs are grouped by ray before each
+visit, so per-ray reductions are ``reduceat``.
 
 Boxes are padded, so culling stays conservative for rays in either precision; slab tests
 run in float32 for rays that start near the origin (``ORIGIN_REACH``), else in float64.
@@ -45,6 +50,8 @@ from .runs import rank_within_runs, run_starts
 MAX_LEAF = 4
 WIDTH = 4
 TREELET_DEPTH = 2
+#: Levels between the depths at which traversal sorts pairs front to back again.
+TREELET_STEP = 3
 #: At most this many treelets (the front-to-back sort is over (ray, treelet) pairs).
 MAX_TREELETS = 10 ** 9
 #: Trees of CLUSTER_FROM primitives or more are built over Morton clusters of CLUSTER_SIZE
@@ -411,13 +418,19 @@ class BVH:
         dtype = np.float32 if near_origin else np.float64
         rows = (np.concatenate([origins, origins]).astype(dtype),
                 np.concatenate([inverse, inverse]).astype(dtype))
-        treelet = self._treelet_depth()
+        levels = self._levels()
         for first in range(0, n, RAY_CHUNK):
-            self._traverse(first, min(first + RAY_CHUNK, n), treelet, rows, t_min, t_max,
+            self._traverse(first, min(first + RAY_CHUNK, n), levels, rows, t_min, t_max,
                            visit, accept, found, any_hit, stats)
         return found
 
-    def _traverse(self, first, stop, treelet, rows, t_min, t_max, visit, accept, found,
+    def _levels(self) -> list:
+        """The depths at which traversal sorts (ray, node) pairs front to back: the treelets'
+        (``_treelet_depth``), and every TREELET_STEP levels above it down to depth 1."""
+        deepest = self._treelet_depth()
+        return sorted(range(deepest, 0, -TREELET_STEP)) or [0]
+
+    def _traverse(self, first, stop, levels, rows, t_min, t_max, visit, accept, found,
                   any_hit, stats):
         rays = np.arange(first, stop)
         # (A copy: the slab test works in place on boxes it is given for one ray.)
@@ -427,7 +440,7 @@ class BVH:
         keep = hit[:, 0]
         # Items: (ray, child reference, entry distance); a reference is a node or a leaf.
         rays, refs, near = rays[keep], np.zeros(int(keep.sum()), np.intp), near[keep, 0]
-        for _ in range(treelet):
+        for _ in range(levels[0]):
             inner = refs >= 0
             if inner.all():
                 rays, refs, near = self._expand(rays, refs, *rows, t_min, t_max, stats)
@@ -435,6 +448,15 @@ class BVH:
                 r, c, e = self._expand(rays[inner], refs[inner], *rows, t_min, t_max, stats)
                 rays, refs, near = (np.concatenate([a[~inner], b])
                                     for a, b in ((rays, r), (refs, c), (near, e)))
+        self._rounds(first, rays, refs, near, levels[1:], rows, t_min, t_max, visit, accept,
+                     found, any_hit, stats)
+
+    def _rounds(self, first, rays, refs, near, levels, rows, t_min, t_max, visit, accept,
+                found, any_hit, stats):
+        """Visit items (ray, reference, entry distance) front to back in rounds (the first
+        item of each ray, then the next one, then two, four, ...); a round descends its
+        nodes to the next of ``levels`` (depths), whose nodes are visited front to back in
+        rounds of their own, or, past the last level, to the leaves."""
         if len(rays) == 0:
             return
         # Each ray's items front to back (rank 0 nearest), then all items by rank, so that
@@ -461,16 +483,26 @@ class BVH:
             live = entry <= t_max[r]
             if any_hit:
                 live &= ~found[r]
-            r, ref = r[live], ref[live]
+            r, ref, entry = r[live], ref[live], entry[live]
             leaf = ref < 0
             leaf_rays, leaf_refs = [r[leaf]], [ref[leaf]]
-            r, ref = r[~leaf], ref[~leaf]
+            r, ref, entry = r[~leaf], ref[~leaf], entry[~leaf]
+            # Nodes at the next level, kept (with their entries) for rounds of their own.
+            held = []
+            if levels and len(r):
+                deeper = self.depths.take(ref) >= levels[0]
+                held = [(r[deeper], ref[deeper], entry[deeper])]
+                r, ref = r[~deeper], ref[~deeper]
             while len(r):
-                r, ref, _ = self._expand(r, ref, *rows, t_min, t_max, stats)
+                r, ref, entry = self._expand(r, ref, *rows, t_min, t_max, stats)
                 leaf = ref < 0
                 leaf_rays.append(r[leaf])
                 leaf_refs.append(ref[leaf])
-                r, ref = r[~leaf], ref[~leaf]
+                r, ref, entry = r[~leaf], ref[~leaf], entry[~leaf]
+                if levels and len(r):
+                    deeper = self.depths.take(ref) >= levels[0]
+                    held.append((r[deeper], ref[deeper], entry[deeper]))
+                    r, ref = r[~deeper], ref[~deeper]
             reached = [i for i, part in enumerate(leaf_rays) if len(part)]
             r, ref = np.concatenate(leaf_rays), np.concatenate(leaf_refs)
             if len(reached) > 1:
@@ -480,6 +512,10 @@ class BVH:
                 r, ref = r[grouped], ref[grouped]
             if len(r):
                 self._visit_leaves(r, -2 - ref, t_max, visit, accept, found, any_hit)
+            if held and sum(len(part[0]) for part in held):
+                self._rounds(first, *(np.concatenate(parts) for parts in zip(*held)),
+                             levels[1:], rows, t_min, t_max, visit, accept, found, any_hit,
+                             stats)
             done_rank += size
             size *= 2
 
