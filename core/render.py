@@ -158,7 +158,9 @@ def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None, shares
     stats.seconds_camera += traced - start
     stats.seconds_bounces += time.perf_counter() - traced
     rgb = result.colour.T
-    return (np.clip(rgb, 0, 1) if ctx.article else rgb), result.alpha, result.signature
+    if ctx.article:   # clipped in place (np.clip's wrapper costs ~30 us a bundle)
+        np.minimum(np.maximum(rgb, 0, out=rgb), 1, out=rgb)
+    return rgb, result.alpha, result.signature
 
 
 def _pixel_grid(y0, y1, x0, x1):
