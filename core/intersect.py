@@ -244,17 +244,15 @@ class FewSpheres:
     def _roots(self, b, disc, c):
         """(t_near, t_far) (n,) new arrays: Press et al.'s roots (``_press_roots``), or the
         textbook ones (``_textbook_roots``), from ``_terms``."""
-        root = self.root
+        # NaN where disc < 0 (the callers run under errstate): no root is read where
+        # disc <= 0, and every test of a NaN root fails.
+        root = np.sqrt(disc, out=self.root)
         if self.textbook:
-            np.maximum(disc, 0, out=root)   # where disc <= 0 the roots are not used
-            np.sqrt(root, out=root)
             t_near = np.subtract(-b, root)
             t_near *= self.dtype.type(0.5)
             t_far = np.subtract(root, b)
             t_far *= self.dtype.type(0.5)
             return t_near, t_far
-        np.maximum(disc, 0, out=root)
-        np.sqrt(root, out=root)
         q = np.copysign(root, b)
         q += b
         np.negative(q, out=q)
@@ -287,14 +285,11 @@ class FewSpheres:
             better &= t_far > 0
             better &= disc > 0
         else:
+            # The near root if beyond t_min, else the far one (never below the near one).
             t_near, t_far = self._roots(b, disc, c)
-            crosses = disc > 0
-            near = t_near > t_min
-            near &= crosses
-            far = t_far > t_min
-            far &= crosses
-            t = np.where(near, t_near, t_far)
-            better = near | far
+            better = t_far > t_min
+            better &= disc > 0
+            t = np.where(t_near > t_min, t_near, t_far)
         if bounded:
             better &= t < t_max
         better &= t < best_t
