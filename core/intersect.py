@@ -206,22 +206,14 @@ class FewSpheres:
                 np.subtract(self.origins[row], center[row], out=fx[row])
             self._dot_f(fx, b)
             if self.textbook:
-                c = fx[0] * fx[0]
-                np.multiply(fx[1], fx[1], out=scratch)
-                c += scratch
-                np.multiply(fx[2], fx[2], out=scratch)
-                c += scratch
+                c = dot(fx, fx)
                 c -= radius * radius
                 b *= cast(2.0)
                 np.multiply(b, b, out=disc)
                 disc -= cast(4.0) * c
                 return b, disc, c
             # c' = (|f| - r)(|f| + r)
-            size = fx[0] * fx[0]
-            np.multiply(fx[1], fx[1], out=scratch)
-            size += scratch
-            np.multiply(fx[2], fx[2], out=scratch)
-            size += scratch
+            size = dot(fx, fx)
             np.sqrt(size, out=size)
             c = size - radius
             size += radius
