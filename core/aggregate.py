@@ -407,7 +407,7 @@ class Aggregate:
                 for store, b in zip(barycentrics, (b0, b1, b2)):
                     store[owner[won]] = b[chosen[won]]
 
-        box_t_min = float(rays.t_min) if np.ndim(rays.t_min) == 0 else t_min.astype(np.float64)
+        box_t_min = _box_start(rays.t_min)
         self._tree.traverse(origins, inverse, box_t_min, reach, visit, accept,
                             stats=stats)
 
@@ -440,8 +440,7 @@ class Aggregate:
                 blocked &= prims != exclude[r]
             return np.where(blocked, 0.0, np.inf)
 
-        box_t_min = (max(float(segments.t_min), 0.0) if np.ndim(segments.t_min) == 0
-                     else np.maximum(low.astype(np.float64), 0.0))
+        box_t_min = max(_box_start(segments.t_min), 0.0)
         return self._tree.traverse(origins, inverse, box_t_min,
                                    reach, visit, any_hit=True, stats=stats)
 
@@ -531,6 +530,14 @@ class Aggregate:
         origins = points + ray_offsets(points) * (normals if side is None else normals * side)
         return RayBatch(origins, directions, exclude=self.exclusions(primitive, leave_front),
                         source=primitive)
+
+
+def _box_start(t_min) -> float:
+    """Where the tree's box tests start along a batch's rays: the least of their t_min.  A
+    scalar keeps a per-pair gather out of every box test; the rays' own t_min
+    (offsets off surfaces, at most a shadow segment's start) still bounds their primitive
+    tests, so the hits are the same and a box is at worst entered a little early."""
+    return float(np.min(t_min)) if np.size(t_min) else 0.0
 
 
 def _subset(rays: RayBatch, keep) -> RayBatch:
