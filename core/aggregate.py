@@ -114,6 +114,7 @@ class Aggregate:
         self._tree = None
         self._surface_keys = None   # built on first use (adaptive anti-aliasing only)
         self._tree_spheres = len(tree_spheres)
+        self._tree_triangles = len(tree_triangles)
         if len(tree_spheres) or len(tree_triangles):
             lows, highs = [], []
             if len(tree_spheres):
@@ -354,12 +355,18 @@ class Aggregate:
 
     def _pairs_by_kind(self, prims, stats):
         """(sphere pairs, triangle pairs): indices into a tree leaf's (ray, primitive) pairs
-        prims (E,) by the primitive's kind, each counted in stats."""
-        is_sphere = prims < self.sphere_count
-        spheres, tris = np.flatnonzero(is_sphere), np.flatnonzero(~is_sphere)
+        prims (E,) by the primitive's kind, each counted in stats; slices (views, no
+        gathers) when the tree holds one kind only."""
+        if not self._tree_triangles:
+            spheres, tris = slice(0, len(prims)), slice(0, 0)
+        elif not self._tree_spheres:
+            spheres, tris = slice(0, 0), slice(0, len(prims))
+        else:
+            is_sphere = prims < self.sphere_count
+            spheres, tris = np.flatnonzero(is_sphere), np.flatnonzero(~is_sphere)
         if stats is not None:
-            stats.sphere_tests += len(spheres)
-            stats.triangle_tests += len(tris)
+            stats.sphere_tests += _size(spheres)
+            stats.triangle_tests += _size(tris)
         return spheres, tris
 
     def _nearest_in_tree(self, rays: RayBatch, best_t, best, barycentrics, stats):
@@ -376,13 +383,13 @@ class Aggregate:
             t = np.full(len(r), np.inf, self.dtype)
             limit = reach[r].astype(self.dtype)
             spheres, tris = self._pairs_by_kind(prims, stats)
-            if len(spheres):
+            if _size(spheres):
                 pr = r[spheres]
                 roots = self._sphere_pairs(rays, pr, prims[spheres])
                 d = first_hit_distance(*roots, t_min[pr], article=self.article)
                 t[spheres] = np.where(d < limit[spheres], d, np.inf)
             bary = None
-            if len(tris):
+            if _size(tris):
                 pr = r[tris]
                 tt, b0, b1, b2, valid = self._triangle_pairs(
                     rays, shear, pr, prims[tris] - self.sphere_count, t_min[pr], limit[tris])
@@ -401,7 +408,7 @@ class Aggregate:
             if bary is not None:
                 tris, b0, b1, b2 = bary
                 slot = np.full(len(prims), -1, np.intp)
-                slot[tris] = np.arange(len(tris))
+                slot[tris] = np.arange(_size(tris))
                 chosen = slot[pair]
                 won = chosen >= 0
                 for store, b in zip(barycentrics, (b0, b1, b2)):
@@ -422,7 +429,7 @@ class Aggregate:
         def visit(r, prims):
             blocked = np.zeros(len(r), bool)
             spheres, tris = self._pairs_by_kind(prims, stats)
-            if len(spheres):
+            if _size(spheres):
                 pr = r[spheres]
                 t_near, t_far, valid = self._sphere_pairs(segments, pr, prims[spheres])
                 lo, hi = low[pr], high[pr]
@@ -431,7 +438,7 @@ class Aggregate:
                 else:
                     blocked[spheres] = valid & (((t_near > lo) & (t_near < hi))
                                                 | ((t_far > lo) & (t_far < hi)))
-            if len(tris):
+            if _size(tris):
                 pr = r[tris]
                 blocked[tris] = self._triangle_pairs(segments, shear, pr,
                                                      prims[tris] - self.sphere_count,
@@ -530,6 +537,11 @@ class Aggregate:
         origins = points + ray_offsets(points) * (normals if side is None else normals * side)
         return RayBatch(origins, directions, exclude=self.exclusions(primitive, leave_front),
                         source=primitive)
+
+
+def _size(index) -> int:
+    """How many pairs an index array or a slice (``Aggregate._pairs_by_kind``) picks."""
+    return index.stop - index.start if isinstance(index, slice) else len(index)
 
 
 def _box_start(t_min) -> float:
