@@ -26,9 +26,10 @@ import numpy as np
 
 from .arrays import SphereArrays, TriangleArrays
 from .bvh import BVH
-from .cull import (DENSE_CANDIDATES, REFLECTION_CELLS, SHADOW_CELLS, candidate_roots, cones,
+from .cull import (DENSE_CANDIDATES, REFLECTION_CELLS, SHADOW_CELLS, bundle_candidates,
+                   candidate_roots, cones,
                    cluster_spheres, direction_cells, reachable)
-from .intersect import OriginTerms, first_hit_distance, offset_roots, origin_roots
+from .intersect import FewSpheres, OriginTerms, first_hit_distance, offset_roots, origin_roots
 from .rays import ARTICLE_OFFSET, Hits, RayBatch, RayStats, SharedOrigin, ray_offsets, timed
 from .triangles import Shear, watertight, watertight_pairs
 from .vectors import dot, take
@@ -250,9 +251,17 @@ class Aggregate:
             key = (rays.source * (6 * REFLECTION_CELLS ** 2)
                    + direction_cells(rays.directions, REFLECTION_CELLS))
         t_min, t_max, exclude = rays.t_min, rays.t_max, rays.exclude
+        candidates = self._bundle_candidates(rays)
+        if len(candidates) <= DENSE_CANDIDATES:
+            if len(candidates):
+                stats.sphere_tests += n * len(candidates)
+                self._few(rays, terms).nearest(candidates, t_min, t_max, exclude, ids, best_t,
+                                               best)
+            return best_t, best
         for block in candidate_roots(self._flat_centers, self._flat_radii, self._clusters,
                                      rays.origins, rays.directions, t_max, terms,
-                                     textbook=self._textbook, stats=stats, key=key):
+                                     textbook=self._textbook, stats=stats, key=key,
+                                     candidates=candidates):
             distances = first_hit_distance(block.t_near, block.t_far, block.valid,
                                            block.per_pair(t_min), article=self.article)
             distances[~(distances < block.per_pair(t_max))] = np.inf
@@ -267,6 +276,18 @@ class Aggregate:
             best_t[block.rays] = np.where(better, t, best_t[block.rays])
             best[block.rays] = np.where(better, sphere, best[block.rays])
         return best_t, best
+
+    def _bundle_candidates(self, rays: RayBatch) -> np.ndarray:
+        """(k,) the flat spheres (local indices) some ray of the batch may reach."""
+        if len(rays) == 0:
+            return np.zeros(0, np.intp)
+        reach = rays.t_max if np.ndim(rays.t_max) == 0 else rays.t_max.max()
+        return bundle_candidates(self._flat_centers, self._flat_radii, rays.origins,
+                                 rays.directions, float(reach))
+
+    def _few(self, rays: RayBatch, terms) -> FewSpheres:
+        return FewSpheres(self._flat_centers, self._flat_radii, rays.origins, rays.directions,
+                          terms, textbook=self._textbook, article=self.article)
 
     def _triangle_candidates(self, rays: RayBatch, reach):
         """Triangles the batch's bounding cone can reach within ``reach`` (scalar)."""
@@ -491,9 +512,17 @@ class Aggregate:
                if shared is not None and self._flat_count > DENSE_CANDIDATES else None)
         t_min, t_max, exclude = segments.t_min, segments.t_max, segments.exclude
         ids = self._flat_ids
+        candidates = self._bundle_candidates(segments)
+        if len(candidates) <= DENSE_CANDIDATES:
+            if len(candidates):
+                stats.sphere_tests += n * len(candidates)
+                self._few(segments, terms).blocked(candidates, t_min, t_max, exclude, ids,
+                                                   blocked)
+            return blocked
         for block in candidate_roots(self._flat_centers, self._flat_radii, self._clusters,
                                      segments.origins, segments.directions, t_max, terms,
-                                     textbook=self._textbook, stats=stats, key=key):
+                                     textbook=self._textbook, stats=stats, key=key,
+                                     candidates=candidates):
             t_near, t_far, valid = block.t_near, block.t_far, block.valid
             low, high = block.per_pair(t_min), block.per_pair(t_max)
             if self.article:

@@ -6,6 +6,7 @@ sample points of soft lights and the geometry's terms at each) and its material 
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,6 +18,7 @@ from .camera import eye_position
 from .rays import ARTICLE_OFFSET, RAY_EPSILON, RayStats, SharedOrigin, ray_offsets
 from .lights import PreparedLight, fibonacci_sphere, prepare_light
 from .scene import BlenderCamera, PointLight, RenderSettings, Scene
+from .vectors import dot
 
 __all__ = ["ARTICLE_OFFSET", "RAY_EPSILON", "RayStats", "ray_offsets", "Lights", "Materials",
            "TraceContext", "make_context"]
@@ -55,6 +57,28 @@ class Lights:
 
 
 @dataclass(frozen=True)
+class LightTerms:
+    """One light's factors per material, in the render precision: ambient, diffuse and
+    specular (3, M), the material's coefficient times the light's intensity (the products
+    the shading would otherwise form per point, with the same rounding), and reflective
+    (M,): whether the material's diffuse or specular answer to this light can add anything."""
+
+    ambient: np.ndarray
+    diffuse: np.ndarray
+    specular: np.ndarray
+    reflective: np.ndarray
+
+    @classmethod
+    def of(cls, materials: "Materials", ambient, diffuse, specular) -> "LightTerms":
+        dtype = materials.ambient.dtype
+        column = lambda values: np.asarray(values, dtype)[:, None]  # noqa: E731
+        d, s = materials.diffuse * column(diffuse), materials.specular * column(specular)
+        reflective = ((dot(materials.diffuse, column(diffuse)) > 0)
+                      | (dot(materials.specular, column(specular)) > 0))
+        return cls(materials.ambient * column(ambient), d, s, reflective)
+
+
+@dataclass(frozen=True)
 class LookContext:
     """What the default semantics' Blender look needs (``core.bsdf``, ``core.lights``): the
     material table's lobes, Blender's lights prepared for sampling, and whether anything in
@@ -80,6 +104,15 @@ class TraceContext:
     ambient: np.ndarray                  # (3,) float64 scene ambient (default semantics)
     path_gain_bound: float               # max colour one bounce can add per unit weight
     look: LookContext | None = None      # default semantics only
+
+    @functools.cached_property
+    def light_terms(self) -> tuple:
+        """Per point light, its Blinn-Phong factors per material (``LightTerms``), made from
+        this context's own tables on first use (so a context made with another material
+        table never shades with stale ones)."""
+        lights = self.lights
+        return tuple(LightTerms.of(self.materials, *intensities)
+                     for intensities in zip(lights.ambient, lights.diffuse, lights.specular))
 
     @property
     def centers(self):
@@ -133,13 +166,13 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
             # unit intensities): paths then stop only where their weight is zero.
             gain = np.inf
     cast = lambda a: np.ascontiguousarray(a, dtype)  # noqa: E731
+    materials = Materials(cast(table.ambient.T), cast(table.diffuse.T), cast(table.specular.T),
+                          cast(table.exponent), cast(table.reflection))
     return TraceContext(
         settings=settings, dtype=np.dtype(dtype), article=article, geometry=geometry,
         lights=Lights(lights.positions, lights.ambient, lights.diffuse, lights.specular,
                       lights.radii, tuple(samples), origins),
-        materials=Materials(cast(table.ambient.T), cast(table.diffuse.T),
-                            cast(table.specular.T), cast(table.exponent),
-                            cast(table.reflection)),
+        materials=materials,
         eye=eye, camera_origin=geometry.shared_origin(eye) if perspective else None,
         background=arrays.background, ambient=arrays.ambient, path_gain_bound=gain,
         look=look,

@@ -18,6 +18,7 @@ own candidates, padded to the longest list in a block of packets.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -263,8 +264,43 @@ class PairBlock:
         return np.logical_or.reduceat(hits, self.segments)
 
 
+def bundle_candidates(centers, radii, origins, directions, reach) -> np.ndarray:
+    """(k,) the spheres (indices into centers (N, 3), radii (N,)) that some ray of the bundle
+    may hit within ``reach`` (a scalar): the bundle's cone against every sphere.  origins
+    (3, 1) or (3, n), directions (3, n) unit."""
+    apex, spread, axis, half = bundle_cone(origins, directions)
+    return np.flatnonzero(reachable(centers.T, radii, apex, spread, axis, half, reach))
+
+
+def bundle_cone(origins, directions):
+    """``cones`` of one group, the whole bundle: (apex (3, 1), spread, axis (3, 1), half),
+    with the same arithmetic, but its per-group scalars in Python floats (a bundle is one
+    group: NumPy calls on arrays of one element cost more than the arithmetic).
+    origins (3, 1) or (3, n); directions (3, n) unit."""
+    n = directions.shape[1]
+    if origins.shape[1] == 1:
+        apex = origins.astype(np.float64)
+        spread = 0.0
+    else:
+        low = origins.min(axis=1).astype(np.float64)
+        high = origins.max(axis=1).astype(np.float64)
+        apex = ((low + high) / 2)[:, None]
+        spread = float(length(high - low)) / 2
+    mean = directions.sum(axis=1, dtype=np.float64)
+    x, y, z = (float(v) for v in mean)
+    norm = math.sqrt(x * x + y * y + z * z)
+    if norm < 1e-9 * n:
+        return apex, spread, np.array([[1.0], [0.0], [0.0]]), math.pi
+    axis = (mean / norm)[:, None]
+    cos_half = float(dot(axis.astype(directions.dtype), directions).min())
+    half = math.acos(min(max(cos_half, -1.0), 1.0)) + 4 * math.sqrt(
+        float(np.finfo(directions.dtype).eps))
+    return apex, spread, axis, min(half, math.pi)
+
+
 def candidate_roots(centers, radii, clusters: SphereClusters, origins, directions, max_distance,
-                    terms: OriginTerms = None, *, textbook=False, stats=None, key=None):
+                    terms: OriginTerms = None, *, textbook=False, stats=None, key=None,
+                    candidates=None):
     """Ray/sphere roots for every pair culling cannot rule out, in blocks.
 
     centers (N, 3), radii (N,) in float64, and their ``clusters``; origins (3, 1) with
@@ -272,8 +308,9 @@ def candidate_roots(centers, radii, clusters: SphereClusters, origins, direction
     (3, n) unit; max_distance: scalar or (n,), how far each ray reaches.  key: optional (n,)
     integers; rays with equal keys are packed together (secondary rays: the sphere they
     leave and their direction cell).  textbook: the article's root formula
-    (``core.intersect``), else the stable one.  Yields ``DenseBlock`` or ``PairBlock`` objects; every
-    pair culling keeps appears in exactly one block, candidates in scene order.
+    (``core.intersect``), else the stable one.  candidates: the bundle's candidates when the
+    caller has them (``bundle_candidates``).  Yields ``DenseBlock`` or ``PairBlock`` objects;
+    every pair culling keeps appears in exactly one block, candidates in scene order.
     """
     n = directions.shape[1]
     if n == 0 or len(radii) == 0:
@@ -282,9 +319,8 @@ def candidate_roots(centers, radii, clusters: SphereClusters, origins, direction
     shared = terms is not None
     reach = _per_ray(max_distance, n)
     centers_t = centers.T
-    apex, spread, axis, half = cones(origins[:, None, :], directions[:, None, :])
-    candidates = np.flatnonzero(reachable(centers_t, radii, apex, spread, axis, half,
-                                          reach.max()))
+    if candidates is None:
+        candidates = bundle_candidates(centers, radii, origins, directions, reach.max())
     if len(candidates) == 0:
         return
     if len(candidates) <= DENSE_CANDIDATES:

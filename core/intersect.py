@@ -126,3 +126,210 @@ def first_hit_distance(t_near, t_far, valid, t_min, *, article=False):
         return np.where(valid & (t_near > 0) & (t_far > 0), t_near, np.inf)
     return np.where(valid & (t_near > t_min), t_near,
                     np.where(valid & (t_far > t_min), t_far, np.inf))
+
+
+class FewSpheres:
+    """Every ray of a batch against each of k candidate spheres in turn, one (n,) row at a
+    time: the aggregate's path for bundles culled to a few spheres (``core.cull``'s
+    ``DENSE_CANDIDATES``).
+
+    The same roots as ``origin_roots`` / ``offset_roots`` (every product and sum in the same
+    order, so the same values), without their (k, n) temporaries: a sphere's terms are
+    scalars, so each step is one pass over a row, written into reused buffers, and the
+    nearest hit is kept as a running minimum (no ``argmin`` over a strided axis).  Only what
+    the caller asks for is formed: the article's nearest hit needs only the near root (it
+    needs both roots > 0, and the far root is never below the near one), its shadow test
+    only the far root.
+
+    origins: (3, 1) with ``terms`` (``OriginTerms``) when every ray leaves one point, else
+    (3, n); directions (3, n) unit, in the render precision; centers (N, 3) and radii (N,)
+    float64.  textbook: the article's root formula, else the stable one; article: the
+    article's hit rules (``first_hit_distance``), else the nearest root beyond t_min and
+    any root inside a segment.
+    """
+
+    def __init__(self, centers, radii, origins, directions, terms=None, *, textbook: bool,
+                 article: bool):
+        self.dtype = directions.dtype
+        self.directions = directions
+        self.textbook = textbook
+        self.article = article
+        self.centers = centers
+        self.radii = radii
+        self.terms = terms
+        self.origins = origins
+        n = directions.shape[1]
+        self.b = np.empty(n, self.dtype)
+        self.scratch = np.empty(n, self.dtype)
+        self.disc = np.empty(n, self.dtype)
+        self.root = np.empty(n, self.dtype)
+        self.f = None if terms is not None else np.empty((3, n), self.dtype)
+
+    def _dot_f(self, f, out):
+        """out = f . directions, f three scalars or (3, n) rows (the order of ``dot``)."""
+        d, scratch = self.directions, self.scratch
+        np.multiply(f[0], d[0], out=out)
+        np.multiply(f[1], d[1], out=scratch)
+        out += scratch
+        np.multiply(f[2], d[2], out=scratch)
+        out += scratch
+        return out
+
+    def _terms(self, sphere):
+        """(b, disc, c) of one sphere in the article's textbook form (b = 2 f.d,
+        disc = b^2 - 4c), or in the stable form (b = f.d, disc as ``origin_roots`` /
+        ``offset_roots``, c = c'), where disc > 0 means the ray crosses the sphere."""
+        cast = self.dtype.type
+        b, disc, scratch = self.b, self.disc, self.scratch
+        radius = cast(self.radii[sphere])
+        if self.terms is not None:
+            f = self.terms.f[sphere].astype(self.dtype)
+            self._dot_f(f, b)
+            if self.textbook:
+                c = cast(self.terms.article_c[sphere])
+                b *= cast(2.0)
+                np.multiply(b, b, out=disc)
+                disc -= cast(4.0) * c
+                return b, disc, c
+            c_prime, r = self.terms.c_prime[sphere], self.radii[sphere]
+            c = cast(c_prime)
+            if c_prime <= CHEAP_DISCRIMINANT_RATIO[self.dtype] * r * r:
+                np.multiply(b, b, out=disc)
+                disc -= c
+                return b, disc, c
+            fx = np.broadcast_to(f[:, None], (3, len(b)))
+            squared = cast(r * r)     # origin_roots squares in float64
+        else:
+            fx = self.f
+            center = self.centers[sphere].astype(self.dtype)
+            for row in range(3):
+                np.subtract(self.origins[row], center[row], out=fx[row])
+            self._dot_f(fx, b)
+            if self.textbook:
+                c = fx[0] * fx[0]
+                np.multiply(fx[1], fx[1], out=scratch)
+                c += scratch
+                np.multiply(fx[2], fx[2], out=scratch)
+                c += scratch
+                c -= radius * radius
+                b *= cast(2.0)
+                np.multiply(b, b, out=disc)
+                disc -= cast(4.0) * c
+                return b, disc, c
+            # c' = (|f| - r)(|f| + r)
+            size = fx[0] * fx[0]
+            np.multiply(fx[1], fx[1], out=scratch)
+            size += scratch
+            np.multiply(fx[2], fx[2], out=scratch)
+            size += scratch
+            np.sqrt(size, out=size)
+            c = size - radius
+            size += radius
+            c *= size
+            squared = radius * radius   # offset_roots squares in the render precision
+        # disc = r^2 - |f - b d|^2, the perpendicular squared distance as a vector.
+        d = self.directions
+        disc.fill(squared)
+        for row in range(3):
+            np.multiply(b, d[row], out=scratch)
+            np.subtract(fx[row], scratch, out=scratch)
+            scratch *= scratch
+            if row == 0:
+                perp = scratch.copy()
+            else:
+                perp += scratch
+        disc -= perp
+        return b, disc, c
+
+    def _roots(self, b, disc, c):
+        """(t_near, t_far) (n,) new arrays: Press et al.'s roots (``_press_roots``), or the
+        textbook ones (``_textbook_roots``), from ``_terms``."""
+        root = self.root
+        if self.textbook:
+            np.maximum(disc, 0, out=root)   # where disc <= 0 the roots are not used
+            np.sqrt(root, out=root)
+            t_near = np.subtract(-b, root)
+            t_near *= self.dtype.type(0.5)
+            t_far = np.subtract(root, b)
+            t_far *= self.dtype.type(0.5)
+            return t_near, t_far
+        np.maximum(disc, 0, out=root)
+        np.sqrt(root, out=root)
+        q = np.copysign(root, b)
+        q += b
+        np.negative(q, out=q)
+        other = np.divide(c, q)   # (the callers ignore division by zero)
+        return np.minimum(q, other), np.maximum(q, other, out=other)
+
+    def nearest(self, spheres, t_min, t_max, exclude, ids, best_t, best):
+        """Improve best_t, best (n,) in place with the candidate ``spheres`` (k,) (indices into
+        centers; ``ids`` maps them to global ids, None: the same), hits in (t_min, t_max)
+        (scalars or (n,)), a ray ignoring its ``exclude`` (n,) (-1: none; or None).  A hit
+        must be strictly nearer: on ties the earlier sphere keeps it (scene order)."""
+        bounded = np.ndim(t_max) or np.isfinite(t_max)
+        with np.errstate(invalid="ignore", divide="ignore"):   # once: it costs a few us
+            for sphere in spheres:
+                self._nearest_one(sphere, t_min, t_max, bounded, exclude, ids, best_t, best)
+
+    def _nearest_one(self, sphere, t_min, t_max, bounded, exclude, ids, best_t, best):
+        gid = sphere if ids is None else ids[sphere]
+        b, disc, c = self._terms(sphere)
+        if self.article and self.textbook:
+            # t_near = (-b - sqrt(disc)) / 2: NaN where disc < 0, which no test passes.
+            t = np.sqrt(disc, out=self.root)
+            t += b
+            t *= self.dtype.type(-0.5)
+            better = t > 0
+            better &= disc > 0
+        elif self.article:
+            t, t_far = self._roots(b, disc, c)
+            better = t > 0
+            better &= t_far > 0
+            better &= disc > 0
+        else:
+            t_near, t_far = self._roots(b, disc, c)
+            crosses = disc > 0
+            near = t_near > t_min
+            near &= crosses
+            far = t_far > t_min
+            far &= crosses
+            t = np.where(near, t_near, t_far)
+            better = near | far
+        if bounded:
+            better &= t < t_max
+        better &= t < best_t
+        if exclude is not None:
+            better &= exclude != gid
+        np.copyto(best_t, t, where=better)
+        np.copyto(best, gid, where=better)
+
+    def blocked(self, spheres, low, high, exclude, ids, blocked):
+        """blocked (n,) |= whether a candidate sphere blocks each segment: the article's far
+        root in (low, high), else either root there; ``exclude`` as in ``nearest``."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            for sphere in spheres:
+                self._blocked_one(sphere, low, high, exclude, ids, blocked)
+
+    def _blocked_one(self, sphere, low, high, exclude, ids, blocked):
+        gid = sphere if ids is None else ids[sphere]
+        b, disc, c = self._terms(sphere)
+        if self.article:
+            if self.textbook:   # t_far = (-b + sqrt(disc)) / 2
+                t = np.sqrt(disc, out=self.root)
+                t -= b
+                t *= self.dtype.type(0.5)
+            else:
+                t = self._roots(b, disc, c)[1]
+            hit = t < high
+            hit &= t > low
+        else:
+            t_near, t_far = self._roots(b, disc, c)
+            hit = t_near > low
+            hit &= t_near < high
+            far = t_far > low
+            far &= t_far < high
+            hit |= far
+        hit &= disc > 0
+        if exclude is not None:
+            hit &= exclude != gid
+        blocked |= hit

@@ -47,7 +47,7 @@ from .context import TraceContext
 from .lights import (SampleShares, area_sample_irradiance, centre_irradiance,
                      cosine_directions, share_weights)
 from .rays import ARTICLE_OFFSET, RayBatch, RayStats, ray_offsets, timed
-from .vectors import dot, length, normalize, take
+from .vectors import dot, length, normalize, normalize_in_place, take
 
 #: One digit of a shadow code per light: unlit (0) or visibility 0, 1/4, .., 1 (1 .. 5).
 _CODE_BASE = 6
@@ -67,15 +67,30 @@ def _power(base, exponent):
 
 
 def _whole_power(base, n: int):
-    result = np.ones_like(base)
+    """base ** n (m,) by repeated squaring, n >= 0 whole: the products of ``1 * base ** 2^i``
+    in the order of the bits of n, each formed once (a leading 1 * x is x exactly)."""
+    result = None
     square = base
     while n:
         if n & 1:
-            result = result * square
+            if result is None:   # (never the caller's array: it is written into below)
+                result = square.copy() if square is base else square
+            else:
+                np.multiply(result, square, out=result)
         n >>= 1
         if n:
             square = square * square
-    return result
+    return np.ones_like(base) if result is None else result
+
+
+def _specular_power(materials, exponents, base):
+    """base ** the materials' exponents (m,) (``_power``), with one whole exponent shared by
+    the material table (the article's) recognised once per call, not per point."""
+    if len(exponents) and exponents.min() == exponents.max():
+        first = float(exponents[0])
+        if first.is_integer() and 0 <= first < 1024:
+            return _whole_power(base, int(first))
+    return _power(base, exponents.take(materials))
 
 
 def light_blocked(ctx: TraceContext, origin, directions, distance, exclude, stats: RayStats,
@@ -115,14 +130,10 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
     anti-aliasing samples (``core.lights.SampleShares``, m slots); None: all of them.
     (Light through translucent surfaces: ``shade_translucent``.)
     """
-    mat = ctx.materials
-    ka, kd, ks = take(mat.ambient, materials), take(mat.diffuse, materials), take(mat.specular,
-                                                                                materials)
-    exponent = mat.exponent.take(materials)
     if ctx.article:
-        return _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats)
+        return _shade_article(ctx, points, normals, materials, stats)
     colour, goes_on, shadow_code = _shade_default(ctx, points, normals, directions, exclude,
-                                                  ka, kd, ks, exponent, shares, stats)
+                                                  materials, shares, stats)
     if ctx.look is not None and ctx.look.active:
         blender_colour, shadow_code = _shade_blender_lights(ctx, points, normals, directions,
                                                             materials, exclude, shadow_code,
@@ -175,22 +186,27 @@ def _subset(weights, sample):
     return None if weights is None else np.flatnonzero(weights[sample])
 
 
-def _shade_default(ctx, points, normals, directions, exclude, ka, kd, ks, exponent, shares,
-                   stats):
+def _shade_default(ctx, points, normals, directions, exclude, materials, shares, stats):
+    """The default semantics' Blinn-Phong at m points (module docstring); each material's
+    coefficient times a light's intensity comes from the table (``LightTerms``)."""
     lights = ctx.lights
     dtype = points.dtype
     m = points.shape[1]
-    colour = ka * _column(lights.ambient.sum(axis=0) + ctx.ambient, dtype)
+    # ka (sum Ia + world), per material, then per point: the same products.
+    colour = take(ctx.materials.ambient
+                  * _column(lights.ambient.sum(axis=0) + ctx.ambient, dtype), materials)
     shadow_code = np.zeros(m, np.uint64)
     offset = ray_offsets(points)
+    exponents = ctx.materials.exponent
     for light in range(len(lights)):
-        strength_d = _column(lights.diffuse[light], dtype)
-        strength_s = _column(lights.specular[light], dtype)
-        from_light, distance = normalize(points - _column(lights.positions[light], dtype))
+        table = ctx.light_terms[light]
+        from_light = points - _column(lights.positions[light], dtype)
+        distance = normalize_in_place(from_light)
         cos_light = -dot(normals, from_light)
         # No shadow ray where the light cannot add anything.
-        reflective = (dot(kd, strength_d) > 0) | (dot(ks, strength_s) > 0)
-        lit = np.flatnonzero((cos_light > 0) & reflective)
+        lit = cos_light > 0
+        lit &= table.reflective.take(materials)
+        lit = np.flatnonzero(lit)
         shadow_code *= np.uint64(_CODE_BASE)
         if len(lit) == 0:
             continue
@@ -219,44 +235,79 @@ def _shade_default(ctx, points, normals, directions, exclude, ka, kd, ks, expone
             else:
                 visibility[part] -= blocked * (shared[index, part] / len(samples))
         lit_normals = pick(normals)
-        half, _ = normalize(-pick(directions) - lit_from_light)
+        half = -pick(directions)
+        half -= lit_from_light
+        normalize_in_place(half)
         cos_half = np.maximum(dot(lit_normals, half), 0)
-        light_colour = visibility * (
-            pick(kd) * strength_d * pick_row(cos_light)
-            + pick(ks) * strength_s * _power(cos_half, pick_row(exponent)))
+        lit_materials = pick_row(materials)
+        spread = _specular_power(lit_materials, exponents, cos_half)
+        lit_cos = pick_row(cos_light)
+        for row in range(3):
+            # visibility (kd Id (L.N) + ks Is (N.H)^e)
+            part = table.diffuse[row].take(lit_materials)
+            part *= lit_cos
+            specular = table.specular[row].take(lit_materials)
+            specular *= spread
+            part += specular
+            part *= visibility
+            if everywhere:
+                colour[row] += part
+            else:
+                colour[row, lit] += part
+        code = visibility * 4
+        code = (np.round(code, out=code) + 1).astype(np.uint64)
         if everywhere:
-            colour += light_colour
-            shadow_code += (1 + np.round(visibility * 4)).astype(np.uint64)
+            shadow_code += code
         else:
-            colour[:, lit] += light_colour
-            shadow_code[lit] += (1 + np.round(visibility * 4)).astype(np.uint64)
+            shadow_code[lit] += code
     return colour, np.ones(m, bool), shadow_code
 
 
-def _shade_article(ctx, points, normals, ka, kd, ks, exponent, stats):
+def _shade_article(ctx, points, normals, materials, stats):
+    """The article's shading (module docstring) at m points.  Per light, every product of a
+    material's coefficient and the light's intensity comes from the table (``LightTerms``),
+    the vectors are normalised in place, and the terms are summed row by row: the same
+    values as the article's expression, in fewer passes."""
     lights = ctx.lights
     dtype = points.dtype
     m = points.shape[1]
-    shifted = points + ARTICLE_OFFSET * normals
-    to_camera, _ = normalize(_column(ctx.eye, dtype) - points)
-    colour = np.zeros_like(points)
+    shifted = ARTICLE_OFFSET * normals
+    shifted += points
+    to_camera = _column(ctx.eye, dtype) - points
+    normalize_in_place(to_camera)
+    colour = None
     goes_on = np.zeros(m, bool)
     shadow_code = np.zeros(m, np.uint64)
+    exponents = ctx.materials.exponent
     for light in range(len(lights)):
         position = _column(lights.positions[light], dtype)
-        from_light, shifted_distance = normalize(shifted - position)
+        from_light = shifted - position
+        shifted_distance = normalize_in_place(from_light)
         blocked = light_blocked(ctx, lights.origins[light][0], from_light, shifted_distance,
                                 None, stats, start=length(position - points))
         # H = normalize(to_light + to_camera), with to_light = -from_light.
-        half, _ = normalize(to_camera - from_light)
-        term = (ka * _column(lights.ambient[light], dtype)
-                - kd * _column(lights.diffuse[light], dtype) * dot(from_light, normals)
-                + ks * _column(lights.specular[light], dtype) * _power(dot(normals, half),
-                                                                       exponent))
+        half = to_camera - from_light
+        normalize_in_place(half)
+        lit = -dot(from_light, normals)        # the article's -(L.N) with L from the light
+        spread = _specular_power(materials, exponents, dot(normals, half))
+        table = ctx.light_terms[light]
         unblocked = ~blocked
-        colour += term * unblocked
+        term = np.empty_like(points)
+        for row in range(3):
+            # ka Ia - kd Id (from_light . N) + ks Is (N.H)^e, as the article adds them
+            part = table.ambient[row].take(materials)
+            diffuse = table.diffuse[row].take(materials)
+            diffuse *= lit
+            part += diffuse   # (- kd Id (f.N) is + kd Id (-(f.N)) exactly)
+            specular = table.specular[row].take(materials)
+            specular *= spread
+            part += specular
+            np.multiply(part, unblocked, out=term[row])
+        colour = term if colour is None else np.add(colour, term, out=colour)
         goes_on |= unblocked
         shadow_code = shadow_code * np.uint64(_CODE_BASE) + unblocked.astype(np.uint64)
+    if colour is None:
+        colour = np.zeros_like(points)
     return colour, goes_on, shadow_code
 
 

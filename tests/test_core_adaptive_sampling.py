@@ -158,13 +158,13 @@ def test_a_colour_step_is_an_edge_and_a_gradient_is_not():
     display[..., :3] = ramp[None, :, None]
     display[..., 3] = 1
     signature = np.tile(np.arange(width, dtype=np.uint64), (3, 1))  # every pixel a facet
-    assert not _edges(signature, display).any()
+    assert not _edges(signature, display)[0].any()
     stepped = display.copy()
     stepped[:, 6:, 0] += 3 * EDGE_CONTRAST               # a step between columns 5 and 6
-    edge = _edges(signature, stepped)
+    edge, _ = _edges(signature, stepped)
     assert edge[:, 5:7].all() and edge.sum() == 6
     line = display.copy()
     line[:, 3, 3] = 0                                     # a one-pixel gap in alpha
-    assert _edges(signature, line)[:, 2:5].all()
+    assert _edges(signature, line)[0][:, 2:5].all()
     # A step the signatures do not see (one surface) is left alone.
-    assert not _edges(np.zeros((3, width), np.uint64), stepped).any()
+    assert not _edges(np.zeros((3, width), np.uint64), stepped)[0].any()
