@@ -115,6 +115,7 @@ class Aggregate:
         self._tree = None
         self._surface_keys = None   # built on first use (adaptive anti-aliasing only)
         self._tree_spheres = len(tree_spheres)
+        self._tree_triangles = len(tree_triangles)
         if len(tree_spheres) or len(tree_triangles):
             lows, highs = [], []
             if len(tree_spheres):
@@ -379,12 +380,18 @@ class Aggregate:
 
     def _pairs_by_kind(self, prims, stats):
         """(sphere pairs, triangle pairs): indices into a tree leaf's (ray, primitive) pairs
-        prims (E,) by the primitive's kind, each counted in stats."""
-        is_sphere = prims < self.sphere_count
-        spheres, tris = np.flatnonzero(is_sphere), np.flatnonzero(~is_sphere)
+        prims (E,) by the primitive's kind, each counted in stats; slices (views, no
+        gathers) when the tree holds one kind only."""
+        if not self._tree_triangles:
+            spheres, tris = slice(0, len(prims)), slice(0, 0)
+        elif not self._tree_spheres:
+            spheres, tris = slice(0, 0), slice(0, len(prims))
+        else:
+            is_sphere = prims < self.sphere_count
+            spheres, tris = np.flatnonzero(is_sphere), np.flatnonzero(~is_sphere)
         if stats is not None:
-            stats.sphere_tests += len(spheres)
-            stats.triangle_tests += len(tris)
+            stats.sphere_tests += _size(spheres)
+            stats.triangle_tests += _size(tris)
         return spheres, tris
 
     def _nearest_in_tree(self, rays: RayBatch, best_t, best, barycentrics, stats):
@@ -401,13 +408,13 @@ class Aggregate:
             t = np.full(len(r), np.inf, self.dtype)
             limit = reach[r].astype(self.dtype)
             spheres, tris = self._pairs_by_kind(prims, stats)
-            if len(spheres):
+            if _size(spheres):
                 pr = r[spheres]
                 roots = self._sphere_pairs(rays, pr, prims[spheres])
                 d = first_hit_distance(*roots, t_min[pr], article=self.article)
                 t[spheres] = np.where(d < limit[spheres], d, np.inf)
             bary = None
-            if len(tris):
+            if _size(tris):
                 pr = r[tris]
                 tt, b0, b1, b2, valid = self._triangle_pairs(
                     rays, shear, pr, prims[tris] - self.sphere_count, t_min[pr], limit[tris])
@@ -426,13 +433,13 @@ class Aggregate:
             if bary is not None:
                 tris, b0, b1, b2 = bary
                 slot = np.full(len(prims), -1, np.intp)
-                slot[tris] = np.arange(len(tris))
+                slot[tris] = np.arange(_size(tris))
                 chosen = slot[pair]
                 won = chosen >= 0
                 for store, b in zip(barycentrics, (b0, b1, b2)):
                     store[owner[won]] = b[chosen[won]]
 
-        box_t_min = float(rays.t_min) if np.ndim(rays.t_min) == 0 else t_min.astype(np.float64)
+        box_t_min = _box_start(rays.t_min)
         self._tree.traverse(origins, inverse, box_t_min, reach, visit, accept,
                             stats=stats)
 
@@ -447,7 +454,7 @@ class Aggregate:
         def visit(r, prims):
             blocked = np.zeros(len(r), bool)
             spheres, tris = self._pairs_by_kind(prims, stats)
-            if len(spheres):
+            if _size(spheres):
                 pr = r[spheres]
                 t_near, t_far, valid = self._sphere_pairs(segments, pr, prims[spheres])
                 lo, hi = low[pr], high[pr]
@@ -456,7 +463,7 @@ class Aggregate:
                 else:
                     blocked[spheres] = valid & (((t_near > lo) & (t_near < hi))
                                                 | ((t_far > lo) & (t_far < hi)))
-            if len(tris):
+            if _size(tris):
                 pr = r[tris]
                 blocked[tris] = self._triangle_pairs(segments, shear, pr,
                                                      prims[tris] - self.sphere_count,
@@ -465,8 +472,7 @@ class Aggregate:
                 blocked &= prims != exclude[r]
             return np.where(blocked, 0.0, np.inf)
 
-        box_t_min = (max(float(segments.t_min), 0.0) if np.ndim(segments.t_min) == 0
-                     else np.maximum(low.astype(np.float64), 0.0))
+        box_t_min = max(_box_start(segments.t_min), 0.0)
         return self._tree.traverse(origins, inverse, box_t_min,
                                    reach, visit, any_hit=True, stats=stats)
 
@@ -566,6 +572,19 @@ class Aggregate:
         origins = points + ray_offsets(points) * (normals if side is None else normals * side)
         return RayBatch(origins, directions, exclude=self.exclusions(primitive, leave_front),
                         source=primitive)
+
+
+def _size(index) -> int:
+    """How many pairs an index array or a slice (``Aggregate._pairs_by_kind``) picks."""
+    return index.stop - index.start if isinstance(index, slice) else len(index)
+
+
+def _box_start(t_min) -> float:
+    """Where the tree's box tests start along a batch's rays: the least of their t_min.  A
+    scalar keeps a per-pair gather out of every box test; the rays' own t_min
+    (offsets off surfaces, at most a shadow segment's start) still bounds their primitive
+    tests, so the hits are the same and a box is at worst entered a little early."""
+    return float(np.min(t_min)) if np.size(t_min) else 0.0
 
 
 def _subset(rays: RayBatch, keep) -> RayBatch:
