@@ -249,11 +249,7 @@ class Aggregate:
             return best_t, best
         ids = self._flat_ids
         terms = rays.shared.sphere_terms if rays.shared is not None else None
-        key = None
-        if rays.source is not None and self._flat_count > DENSE_CANDIDATES:
-            # Rays leaving one primitive in one direction cell cull well together.
-            key = (rays.source * (6 * REFLECTION_CELLS ** 2)
-                   + direction_cells(rays.directions, REFLECTION_CELLS))
+        key = self._flat_key(rays)
         t_min, t_max, exclude = rays.t_min, rays.t_max, rays.exclude
         candidates = self._bundle_candidates(rays)
         if len(candidates) <= DENSE_CANDIDATES:
@@ -280,6 +276,19 @@ class Aggregate:
             best_t[block.rays] = np.where(better, t, best_t[block.rays])
             best[block.rays] = np.where(better, sphere, best[block.rays])
         return best_t, best
+
+    def _flat_key(self, rays: RayBatch):
+        """(n,) the packets the flat culling groups rays into (None: in their order).  Rays
+        from one origin (a light sample) packed by direction make narrow cones; rays leaving
+        one primitive (``source``) in one direction cell cull well together."""
+        if self._flat_count <= DENSE_CANDIDATES:
+            return None
+        if rays.shared is not None:
+            return direction_cells(rays.directions, SHADOW_CELLS)
+        if rays.source is not None:
+            return (rays.source * (6 * REFLECTION_CELLS ** 2)
+                    + direction_cells(rays.directions, REFLECTION_CELLS))
+        return None
 
     def _bundle_candidates(self, rays: RayBatch) -> np.ndarray:
         """(k,) the flat spheres (local indices) some ray of the batch may reach."""
@@ -511,9 +520,7 @@ class Aggregate:
         blocked = np.zeros(n, bool)
         shared = segments.shared
         terms = shared.sphere_terms if shared is not None else None
-        # Segments from one light sample: packing them by direction makes narrow cones.
-        key = (direction_cells(segments.directions, SHADOW_CELLS)
-               if shared is not None and self._flat_count > DENSE_CANDIDATES else None)
+        key = self._flat_key(segments)
         t_min, t_max, exclude = segments.t_min, segments.t_max, segments.exclude
         ids = self._flat_ids
         candidates = self._bundle_candidates(segments)

@@ -311,16 +311,13 @@ def _shade_article(ctx, points, normals, materials, stats):
     return colour, goes_on, shadow_code
 
 
-@timed("seconds_shadows")
 def _rays_blocked(ctx, points, towards, offset, reach, exclude, stats):
     """(m,) whether rays from the points along unit ``towards`` (3, m) hit anything between
     ``offset`` and ``reach`` (m,) (np.inf: a sun, the world).  Rays leaving one primitive
     (``exclude``, the primitive each ray ignores) in one direction cell are culled together,
-    as the bounce loop's reflection rays are."""
-    stats.shadow_rays += points.shape[1]
-    _, hit, _ = ctx.geometry.intersect(
+    as the bounce loop's reflection rays are; the aggregate stops each at its first blocker."""
+    return ctx.geometry.occluded(
         RayBatch(points, towards, offset, reach, None, exclude, source=exclude), stats)
-    return hit >= 0
 
 
 def _world_occlusion(ctx, points, normals, materials, offset, exclude, shares, stats):
