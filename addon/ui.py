@@ -48,8 +48,9 @@ def draw_performance(layout, scene) -> None:
     row.prop(render, "threads")
 
 
-class GLINT_PT_render(bpy.types.Panel):
-    bl_label = "Glint"
+class RenderPropertiesPanel:
+    """Placement of Glint's panels in Render properties: shown while Glint is the engine."""
+
     bl_space_type = 'PROPERTIES'
     bl_region_type = 'WINDOW'
     bl_context = "render"
@@ -59,12 +60,10 @@ class GLINT_PT_render(bpy.types.Panel):
     def poll(cls, context):
         return context.engine in cls.COMPAT_ENGINES
 
-    def draw(self, context):
-        draw_render_settings(self.layout, context.scene)
 
+class SidebarPanel:
+    """Placement of Glint's panels in the 3D viewport's sidebar, tab "Glint": any engine."""
 
-class GLINT_PT_sidebar(bpy.types.Panel):
-    bl_label = "Glint"
     bl_space_type = 'VIEW_3D'
     bl_region_type = 'UI'
     bl_category = "Glint"
@@ -73,38 +72,34 @@ class GLINT_PT_sidebar(bpy.types.Panel):
     def poll(cls, context):
         return context.scene is not None
 
+
+class GLINT_PT_render(RenderPropertiesPanel, bpy.types.Panel):
+    bl_label = "Glint"
+
     def draw(self, context):
         draw_render_settings(self.layout, context.scene)
 
 
-class GLINT_PT_render_performance(bpy.types.Panel):
+class GLINT_PT_sidebar(SidebarPanel, bpy.types.Panel):
+    bl_label = "Glint"
+
+    def draw(self, context):
+        draw_render_settings(self.layout, context.scene)
+
+
+class GLINT_PT_render_performance(RenderPropertiesPanel, bpy.types.Panel):
     bl_label = "Performance"
-    bl_space_type = 'PROPERTIES'
-    bl_region_type = 'WINDOW'
-    bl_context = "render"
     bl_parent_id = "GLINT_PT_render"
     bl_options = {'DEFAULT_CLOSED'}
-    COMPAT_ENGINES = GLINT_PT_render.COMPAT_ENGINES
-
-    @classmethod
-    def poll(cls, context):
-        return context.engine in cls.COMPAT_ENGINES
 
     def draw(self, context):
         draw_performance(self.layout, context.scene)
 
 
-class GLINT_PT_sidebar_performance(bpy.types.Panel):
+class GLINT_PT_sidebar_performance(SidebarPanel, bpy.types.Panel):
     bl_label = "Performance"
-    bl_space_type = 'VIEW_3D'
-    bl_region_type = 'UI'
-    bl_category = "Glint"
     bl_parent_id = "GLINT_PT_sidebar"
     bl_options = {'DEFAULT_CLOSED'}
-
-    @classmethod
-    def poll(cls, context):
-        return context.scene is not None
 
     def draw(self, context):
         draw_performance(self.layout, context.scene)
