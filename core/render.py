@@ -77,7 +77,6 @@ LINE_CONTRAST = 16 / 255
 #: reach fixed 16's error: 0.625 against 0.628 RMS 8-bit steps at 640x360) and its dense field.
 FIRST_SAMPLES = 4
 SAMPLE_ERROR = 4 / 255
-STEP_WEIGHT = 1.0
 #: Pixels of centres traced around a tile for adaptive AA: its neighbours, and theirs for the
 #: slopes EDGE_CONTRAST compares with.
 APRON = 2
@@ -210,28 +209,44 @@ def _scatter(values, cols, rows, x0, y0, shape):
     return grid
 
 
-def _supersample(ctx, camera, cols, rows, count, stats, stop=None):
-    """Mean (rgb (n, 3), coverage (n,)) over ``count`` samples in each pixel (cols, rows).
+def _sample_bundles(ctx, camera, cols, rows, count, ks, stats, stop=None):
+    """Trace samples ``ks`` (k,) of the ``sample_offsets(count)`` sequence in each pixel
+    (cols, rows) (n,), yielding (part (a slice of the n pixels), rgb (p, k, 3), hit (p, k))
+    bundle by bundle.
 
-    All samples are traced together, a pixel's samples side by side (so packets stay
-    coherent), in bundles of at most tile_size^2 rays so memory stays bounded by the tile.
-    Each sample traces its share of the soft lights' samples (``core.lights.pixel_shares``),
-    so a pixel traces about as many shadow rays per light as its centre alone would."""
-    offsets = sample_offsets(count)
-    rgb = np.empty((len(cols), 3), ctx.dtype)
-    coverage = np.empty(len(cols), ctx.dtype)
-    pixels_per_bundle = max(1, ctx.settings.tile_size ** 2 // count)
-    for first in range(0, len(cols), pixels_per_bundle):
+    A pixel's samples are traced side by side (so packets stay coherent), in bundles of at
+    most tile_size^2 rays so memory stays bounded by the tile.  Each sample traces its share
+    of the soft lights' samples (``core.lights.pixel_shares``: sample k of a pixel has the
+    same slot whichever other samples are traced with it), so a pixel traces about as many
+    shadow rays per light as its centre alone would; with an aperture each sample has its
+    lens position (``lens_samples``)."""
+    offsets = sample_offsets(count)[ks]
+    n, k = len(cols), len(ks)
+    aperture = has_aperture(camera)
+    per_bundle = max(1, ctx.settings.tile_size ** 2 // k)
+    for first in range(0, n, per_bundle):
         if stop is not None and stop.is_set():
             raise RenderCancelled("render cancelled")
-        part = slice(first, first + pixels_per_bundle)
+        part = slice(first, first + per_bundle)
         xs = (cols[part, None] + offsets[None, :, 0]).ravel()
         ys = (rows[part, None] + offsets[None, :, 1]).ravel()
-        lens = lens_samples(cols[part], rows[part], offsets) if has_aperture(camera) else None
-        shares = pixel_shares(cols[part], rows[part], count)
+        lens = lens_samples(cols[part], rows[part], offsets) if aperture else None
+        shares = pixel_shares(cols[part], rows[part], count)   # (per bundle: its memory)
+        if shares is not None and k < count:
+            shares = SampleShares(shares.slot.reshape(-1, count)[:, ks].ravel(), count)
         colour, hit, _ = _trace_positions(ctx, camera, xs, ys, stats, lens, shares)
-        rgb[part] = colour.reshape(-1, count, 3).mean(axis=1)
-        coverage[part] = hit.reshape(-1, count).mean(axis=1)
+        yield part, colour.reshape(-1, k, 3), hit.reshape(-1, k)
+
+
+def _supersample(ctx, camera, cols, rows, count, stats, stop=None):
+    """Mean (rgb (n, 3), coverage (n,)) over ``count`` samples in each pixel (cols, rows)
+    (``_sample_bundles``)."""
+    rgb = np.empty((len(cols), 3), ctx.dtype)
+    coverage = np.empty(len(cols), ctx.dtype)
+    for part, colour, hit in _sample_bundles(ctx, camera, cols, rows, count,
+                                             np.arange(count), stats, stop):
+        rgb[part] = colour.mean(axis=1)
+        coverage[part] = hit.mean(axis=1)
     stats.supersampled_pixels += len(cols)
     return rgb, coverage
 
@@ -309,9 +324,7 @@ def _staged_supersample(ctx, camera, cols, rows, count, centre_rgb, centre_cover
     ``count`` gets fixed AA's samples, and a pixel's value depends only on its own samples and
     its centre's step (n,) to its neighbours: never on the tile.  In article semantics (point
     lights only, no shares) a pixel's centre is its sample 0 and is not traced again."""
-    offsets = sample_offsets(count)
     n = len(cols)
-    slots = None if count <= 1 else pixel_shares(cols, rows, count).slot.reshape(n, count)
     rgb_sum = np.zeros((n, 3), np.float64)
     coverage_sum = np.zeros(n, np.float64)
     low = np.full((n, 4), np.inf)
@@ -328,26 +341,20 @@ def _staged_supersample(ctx, camera, cols, rows, count, centre_rgb, centre_cover
     live = np.arange(n)
     target = min(FIRST_SAMPLES, count)
     while len(live):
-        ks = np.arange(done, target)
-        per_bundle = max(1, ctx.settings.tile_size ** 2 // len(ks))
-        for first in range(0, len(live), per_bundle):
-            if stop is not None and stop.is_set():
-                raise RenderCancelled("render cancelled")
-            part = live[first:first + per_bundle]
-            xs = (cols[part, None] + offsets[None, ks, 0]).ravel()
-            ys = (rows[part, None] + offsets[None, ks, 1]).ravel()
-            shares = None if slots is None else SampleShares(slots[part][:, ks].ravel(), count)
-            colour, hit, _ = _trace_positions(ctx, camera, xs, ys, stats, None, shares)
-            display = _display(ctx, colour, hit).reshape(len(part), len(ks), 4)
-            rgb_sum[part] += colour.reshape(len(part), len(ks), 3).sum(axis=1)
-            coverage_sum[part] += hit.reshape(len(part), len(ks)).sum(axis=1)
+        for part, colour, hit in _sample_bundles(ctx, camera, cols[live], rows[live], count,
+                                                 np.arange(done, target), stats, stop):
+            part = live[part]
+            display = _display(ctx, colour.reshape(-1, 3), hit.ravel()).reshape(
+                len(part), -1, 4)
+            rgb_sum[part] += colour.sum(axis=1)
+            coverage_sum[part] += hit.sum(axis=1)
             low[part] = np.minimum(low[part], display.min(axis=1))
             high[part] = np.maximum(high[part], display.max(axis=1))
         counts[live] = target
         done = target
         if done >= count:
             break
-        spread = np.maximum((high[live] - low[live]).max(axis=1), STEP_WEIGHT * step[live])
+        spread = np.maximum((high[live] - low[live]).max(axis=1), step[live])
         live = live[spread / done > SAMPLE_ERROR]
         target = min(2 * done, count)
     stats.supersampled_pixels += n
