@@ -482,8 +482,9 @@ class Aggregate:
             return np.where(blocked, 0.0, np.inf)
 
         box_t_min = max(_box_start(segments.t_min), 0.0)
-        return self._tree.traverse(origins, inverse, box_t_min,
-                                   reach, visit, any_hit=True, stats=stats)
+        # Rays leaving a primitive start at its leaf (``BVH._trail``): most blockers are near.
+        return self._tree.traverse(origins, inverse, box_t_min, reach, visit, any_hit=True,
+                                   sources=segments.source, stats=stats)
 
     # ---- occlusion ----------------------------------------------------------------------
 

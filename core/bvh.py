@@ -39,6 +39,7 @@ run in float32 for rays that start near the origin (``ORIGIN_REACH``), else in f
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,6 +69,9 @@ TRAVERSAL_COST = 0.5
 #: Rays traversed together: bounds the (ray, node) pairs held at once (and the rays' local
 #: index fits the 16 bits of the radix sort that groups leaf pairs by ray).
 RAY_CHUNK = 4096
+#: Rays an occlusion trail (``BVH.traverse`` with ``sources``) follows together (its (ray,
+#: node) pairs are not sorted, so a larger chunk than RAY_CHUNK pays; at most 1 << 16).
+TRAIL_CHUNK = 8192
 #: Relative padding of every box (conservative culling under rounding).
 BOX_PADDING = 1e-7
 #: The slab tests run in float32 for rays whose origins lie within ORIGIN_REACH times the
@@ -400,7 +404,7 @@ class BVH:
     # ---- traversal ----------------------------------------------------------------------
 
     def traverse(self, origins, inverse, t_min, t_max, visit, accept=None, *, any_hit=False,
-                 stats=None):
+                 sources=None, stats=None):
         """Visit, front to back, the primitives whose leaves each ray's segment reaches.
 
         origins (3, n) or (3, 1) and inverse (3, n) (1 / direction) float64; t_min scalar
@@ -409,6 +413,9 @@ class BVH:
         each pair's hit distance (inf for none; with ``any_hit`` any value < inf blocks).
         ``accept(rays, pairs)`` is told, after each visit, which pair (index into that
         visit's pairs) is each improved ray's new nearest hit (ties: the lower primitive id).
+        ``sources`` (n,) (any_hit only): the primitive each ray leaves (-1: none); a ray
+        leaving a primitive of the tree follows its trail (``_trail``) instead of coming
+        down from the root.
         Returns (n,) bool: whether a hit (any_hit: a blocker) was found for each ray.
         """
         n = inverse.shape[1]
@@ -418,6 +425,20 @@ class BVH:
         dtype = np.float32 if near_origin else np.float64
         rows = (np.concatenate([origins, origins]).astype(dtype),
                 np.concatenate([inverse, inverse]).astype(dtype))
+        if any_hit and sources is not None:
+            starts = self._start_nodes(sources)
+            trailed = np.flatnonzero(starts >= 0)
+            for first in range(0, len(trailed), TRAIL_CHUNK):
+                part = trailed[first:first + TRAIL_CHUNK]
+                self._trail(part, starts.take(part), rows, t_min, t_max, visit, found, stats)
+            if len(trailed) < n:
+                # The rest (rays leaving no primitive of the tree) from the root.
+                rest = np.flatnonzero(starts < 0)
+                found[rest] = self.traverse(
+                    origins if origins.shape[1] == 1 else origins[:, rest], inverse[:, rest],
+                    t_min if np.ndim(t_min) == 0 else t_min[rest], t_max[rest],
+                    lambda r, prims: visit(rest.take(r), prims), any_hit=True, stats=stats)
+            return found
         levels = self._levels()
         for first in range(0, n, RAY_CHUNK):
             self._traverse(first, min(first + RAY_CHUNK, n), levels, rows, t_min, t_max,
@@ -450,6 +471,86 @@ class BVH:
                                     for a, b in ((rays, r), (refs, c), (near, e)))
         self._rounds(first, rays, refs, near, levels[1:], rows, t_min, t_max, visit, accept,
                      found, any_hit, stats)
+
+    # ---- occlusion trails -----------------------------------------------------------------
+
+    @functools.cached_property
+    def _trail_tables(self):
+        """(home (P,), parent (M,)) int32: the wide node whose slot holds each primitive's
+        leaf (P: the largest primitive id + 1; -1 for ids not in the tree), and each wide
+        node's parent (-1 for the root).  Built on the first occlusion query with sources:
+        4 bytes a primitive and a node (about 4.5 MB for a million spheres)."""
+        real = self.children != EMPTY
+        rows = np.broadcast_to(np.arange(self.node_count)[:, None], self.children.shape)[real]
+        refs = self.children[real]
+        parent = np.full(self.node_count, -1, np.int32)
+        inner = refs >= 0
+        parent[refs[inner]] = rows[inner]
+        leaf_home = np.empty(len(self.leaves), np.int32)
+        leaf_home[-2 - refs[~inner]] = rows[~inner]
+        held = self.leaves >= 0
+        home = np.full(int(self.leaves.max(initial=-1)) + 1, -1, np.int32)
+        home[self.leaves[held]] = np.broadcast_to(leaf_home[:, None], self.leaves.shape)[held]
+        return home, parent
+
+    def _start_nodes(self, sources):
+        """(n,) the wide node holding the leaf of each ray's source primitive (-1: none)."""
+        home = self._trail_tables[0]
+        sources = np.asarray(sources)
+        known = (sources >= 0) & (sources < len(home))
+        return np.where(known, home.take(np.where(known, sources, 0)), -1)
+
+    def _trail(self, rays, starts, rows, t_min, t_max, visit, found, stats):
+        """Any-hit traversal of rays (m,) (increasing; m <= 1 << 16) that leave primitives of
+        the tree, from their leaves up: each ray first meets the children of ``starts`` (m,),
+        the node holding its primitive's leaf, then those of its parent but the child already
+        done, and so on up to the root, until it is blocked.  The subtrees met at each step
+        are descended level by level with no front-to-back sort: they lie around the ray's
+        origin, near to far as the trail climbs, and most blockers are near (a field of a
+        million spheres: 62 % of its occlusion rays blocked, 37 % of them within 6 wide levels
+        of the ray's leaf).  Every primitive is reached once (the steps' subtrees partition
+        the tree); the root's and the start node's own boxes are not tested, which can only
+        add pairs, so the rays blocked are exactly those the root-down traversal finds."""
+        parent = self._trail_tables[1]
+        node = starts.astype(np.intp)
+        done = np.full(len(rays), EMPTY, np.intp)   # the child already done (none: EMPTY)
+        live = np.arange(len(rays))
+        while len(live):
+            r = rays.take(live)
+            r_pairs, refs, _ = self._expand(r, node.take(live), *rows, t_min, t_max, stats)
+            fresh = refs != done.take(live).take(np.searchsorted(r, r_pairs))
+            self._descend_all(rays, r_pairs[fresh], refs[fresh], rows, t_min, t_max, visit,
+                              found, stats)
+            done[live] = node.take(live)
+            node[live] = parent.take(node.take(live))
+            live = live[(node.take(live) >= 0) & ~found.take(rays.take(live))]
+
+    def _descend_all(self, chunk, rays, refs, rows, t_min, t_max, visit, found, stats):
+        """Descends pairs (ray, child reference) (E,), grouped by ray, level by level to the
+        leaves their rays reach and visits those for any hit; chunk (m,): the rays of the
+        trail (increasing)."""
+        leaf_rays, leaf_refs = [], []
+        if len(rays) == 0:
+            return
+        while True:
+            leaf = refs < 0
+            leaf_rays.append(rays[leaf])
+            leaf_refs.append(refs[leaf])
+            inner = ~leaf
+            if not inner.any():
+                break
+            rays, refs, _ = self._expand(rays[inner], refs[inner], *rows, t_min, t_max, stats)
+        r, ref = np.concatenate(leaf_rays), np.concatenate(leaf_refs)
+        if len(r) == 0:
+            return
+        if sum(len(part) > 0 for part in leaf_rays) > 1:
+            # Leaves reached at different depths: grouped by ray again (a radix sort of the
+            # rays' 16-bit index within the chunk).
+            key = (r - chunk[0] if chunk[-1] - chunk[0] < 1 << 16
+                   else np.searchsorted(chunk, r))
+            grouped = np.argsort(key.astype(np.uint16), kind="stable")
+            r, ref = r.take(grouped), ref.take(grouped)
+        self._visit_leaves(r, -2 - ref, t_max, visit, None, found, True)
 
     def _rounds(self, first, rays, refs, near, levels, rows, t_min, t_max, visit, accept,
                 found, any_hit, stats):

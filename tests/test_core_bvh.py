@@ -276,3 +276,86 @@ def test_single_rays_leave_the_tree_as_it_was():
     assert np.array_equal(tree.root_box, root)
     assert np.array_equal(tree.blocks, blocks, equal_nan=True)
     assert (together[1] >= 0).any()
+
+
+def _leaving_rays(ctx, rng, n):
+    """n occlusion rays leaving the surfaces that random rays hit (as shading makes them:
+    ``Aggregate.spawn``, offsets, exclusions, sources), each into the hemisphere it leaves."""
+    origins, directions = _rays(rng, n, ctx.geometry.dtype)
+    hits = ctx.geometry.nearest(RayBatch(origins, directions), RayStats())
+    out = rng.normal(size=hits.normals.shape)
+    out /= np.linalg.norm(out, axis=0)
+    front = hits.front
+    side = np.where(front, 1.0, -1.0) * np.sign((out * hits.normals).sum(axis=0))
+    out = (out * side).astype(ctx.geometry.dtype)     # on the side each ray arrived from
+    return ctx.geometry.spawn(hits.points, hits.normals, hits.primitive, out, front)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_occlusion_trails_block_exactly_the_rays_the_flat_paths_do(monkeypatch, dtype):
+    """Rays leaving the hit surfaces of 3,000 spheres, a floor kept out of the tree and 200
+    triangles start at their primitive's leaf and climb (``BVH._trail``): the same blocked
+    rays as the flat paths (every primitive tested) and as the root-down traversal, with
+    sources in the tree, out of it (the floor) and none (-1), short segments and infinite."""
+    rng = np.random.default_rng(3)
+    corners = rng.uniform(-5, 5, (200, 1, 3)) + rng.normal(scale=0.3, size=(200, 3, 3))
+    soup = core.TriangleMesh(corners.reshape(-1, 3), np.arange(600).reshape(200, 3), None,
+                             np.zeros(200, np.int64), MATERIALS)
+    tree, flat = _contexts(_scene(3000, meshes=(soup,)), monkeypatch, dtype)
+    rays = _leaving_rays(tree, rng, 6000)
+    n = len(rays)
+    source = rays.source.copy()
+    source[rng.random(n) < 0.1] = -1
+    kinds = np.bincount(np.searchsorted([1, 3001], source, side="right"), minlength=3)
+    assert kinds[0] > 0 and kinds[1] > 1000 and kinds[2] > 100   # none or floor, spheres, triangles
+    for length in (np.inf, rng.uniform(0.05, 3, n).astype(dtype)):
+        segments = RayBatch(rays.origins, rays.directions, rays.t_min, length, None,
+                            rays.exclude, source)
+        root_down = RayBatch(rays.origins, rays.directions, rays.t_min, length, None,
+                             rays.exclude)
+        trail_stats, root_stats = RayStats(), RayStats()
+        blocked = tree.geometry.occluded(segments, trail_stats)
+        assert np.array_equal(blocked, flat.geometry.occluded(segments, RayStats()))
+        assert np.array_equal(blocked, tree.geometry.occluded(root_down, root_stats))
+        assert blocked.mean() > 0.1 and not blocked.all()
+        assert trail_stats.node_tests != root_stats.node_tests     # the trail was taken
+
+
+def test_trail_tables_hold_each_primitives_leaf_and_each_nodes_parent():
+    from core.bvh import BVH, EMPTY
+    rng = np.random.default_rng(4)
+    low = rng.uniform(-5, 5, (5000, 3))
+    ids = rng.permutation(6000)[:5000]
+    tree = BVH.build(ids, low, low + rng.uniform(0.01, 0.2, (5000, 3)))
+    home, parent = tree._trail_tables
+    assert home.dtype == parent.dtype == np.int32
+    assert np.array_equal(np.flatnonzero(home >= 0), np.sort(ids))
+    slots = tree.children[home[ids]]                               # (5000, WIDTH)
+    leaves = np.where(slots <= -2, -2 - slots, 0)
+    holds = (tree.leaves[leaves] == ids[:, None, None]).any(axis=2) & (slots <= -2)
+    assert (holds.sum(axis=1) == 1).all()      # each primitive in one leaf slot of its home
+    assert parent[0] == -1 and (parent[1:] >= 0).all()
+    inner = tree.children[parent[1:]]
+    assert ((inner == np.arange(1, tree.node_count)[:, None]) & (inner != EMPTY)).any(axis=1).all()
+    assert (tree.depths[parent[1:]] == tree.depths[1:] - 1).all()
+
+
+def test_rays_leaving_a_dense_wall_are_blocked_near_their_leaf():
+    """Rays leaving the spheres of a dense wall into it meet fewer boxes from their leaves up
+    than from the root down, and are blocked the same."""
+    grid = np.stack(np.meshgrid(np.linspace(-2, 2, 20), np.linspace(-2, 2, 20),
+                                np.linspace(-1, -20, 100)), -1).reshape(-1, 3)
+    wall = core.SphereSet(grid, np.full(len(grid), 0.12), np.zeros(len(grid), np.int64),
+                          MATERIALS[:1])
+    scene = core.Scene(camera=core.ScreenCamera(40, 40, eye=(0, 0, 3)), sphere_sets=(wall,),
+                       lights=(core.PointLight((0, 0, 10)),))
+    ctx = make_context(scene, core.RenderSettings(), np.float64)
+    rng = np.random.default_rng(6)
+    rays = _leaving_rays(ctx, rng, 3000)
+    trail_stats, root_stats = RayStats(), RayStats()
+    blocked = ctx.geometry.occluded(rays, trail_stats)
+    assert np.array_equal(blocked, ctx.geometry.occluded(
+        RayBatch(rays.origins, rays.directions, rays.t_min, rays.t_max, None, rays.exclude),
+        root_stats))
+    assert blocked.mean() > 0.3
+    assert trail_stats.node_tests < 0.8 * root_stats.node_tests
