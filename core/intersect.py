@@ -63,12 +63,24 @@ def offset_roots(f, rays, radii, *, article=False):
     shape (...)."""
     if article:
         return _textbook_roots(2.0 * dot(f, rays), dot(f, f) - radii ** 2)
+    b, disc = offset_discriminants(f, rays, radii)
+    t_near, t_far = offset_press_roots(f, radii, b, disc)
+    return t_near, t_far, disc > 0
+
+
+def offset_discriminants(f, rays, radii):
+    """(b', disc) of ``offset_roots`` (its first half): a ray meets its sphere where
+    disc > 0 (then offset_press_roots gives the roots)."""
     b = dot(f, rays)
     perp = f - b * rays
-    disc = radii ** 2 - dot(perp, perp)
+    return b, radii ** 2 - dot(perp, perp)
+
+
+def offset_press_roots(f, radii, b, disc):
+    """(t_near, t_far) of ``offset_roots`` from ``offset_discriminants``' b', disc, for pairs
+    f, radii of the same shape (the second half: callers may keep only the pairs that meet)."""
     f_len = length(f)
-    t_near, t_far = _press_roots(b, (f_len - radii) * (f_len + radii), disc)
-    return t_near, t_far, disc > 0
+    return _press_roots(b, (f_len - radii) * (f_len + radii), disc)
 
 
 @dataclass(frozen=True)
