@@ -538,18 +538,21 @@ class BVH:
             size *= 2
 
     def _visit_leaves(self, r, leaf, t_max, visit, accept, found, any_hit):
-        prims = np.take(self.leaves, leaf, axis=0).ravel()
-        leaf_rays = np.repeat(r, MAX_LEAF)
-        real = prims >= 0
-        leaf_rays, prims = leaf_rays[real], prims[real]
+        prims = self.leaves.take(leaf, axis=0).ravel()
+        real = np.flatnonzero(prims >= 0)
+        leaf_rays, prims = r.take(real // MAX_LEAF), prims.take(real)
         t = visit(leaf_rays, prims)
-        group = np.flatnonzero(np.r_[True, leaf_rays[1:] != leaf_rays[:-1]])
+        # Where each ray's run of pairs starts.
+        first = np.empty(len(t), bool)
+        first[0] = True
+        np.not_equal(leaf_rays[1:], leaf_rays[:-1], out=first[1:])
+        group = np.flatnonzero(first)
         nearest = np.minimum.reduceat(t, group)
-        owner = leaf_rays[group]
-        hit = nearest < (np.inf if any_hit else t_max[owner])
+        owner = leaf_rays.take(group)
+        hit = nearest < (np.inf if any_hit else t_max.take(owner))
         found[owner[hit]] = True
         if not any_hit and hit.any():
-            lengths = np.diff(np.r_[group, len(t)])
+            lengths = np.diff(group, append=len(t))
             at_min = t == np.repeat(nearest, lengths)
             lowest = np.minimum.reduceat(np.where(at_min, prims, np.iinfo(np.intp).max), group)
             # A primitive is in one leaf, visited once per ray and round: one winner per ray.
