@@ -570,14 +570,14 @@ class BVH:
         (3, 1)).  Every operation runs over whole (3, m * k) planes, element for element: a
         ray's terms broadcast over a node's WIDTH slots would run NumPy's inner loop over
         WIDTH elements at a time, several times slower.  A NaN box (an empty slot) is never
-        hit.  (Gathers are ``take``: several times faster than fancy indexing on these
-        layouts.)"""
+        hit.  (Gathers are ``take``, called as methods: several times faster than fancy
+        indexing on these layouts, and without ``np.take``'s Python-level dispatch.)"""
         m, k = len(rays), planes.shape[2]
         dtype = inverse.dtype
 
         def per_pair(terms):
             # (3, m * k); terms[..., :k] is terms itself (a contiguous array) when k = WIDTH.
-            return np.take(terms[..., :k], rays, axis=1).reshape(3, m * k)
+            return terms[..., :k].take(rays, axis=1).reshape(3, m * k)
 
         t = planes.reshape(2, 3, -1)
         o = origins if origins.shape[1] == 1 else per_pair(origins)
@@ -600,7 +600,7 @@ class BVH:
             # maximum / minimum propagate an empty slot's NaN, which then fails near <= far.
             # (Rounding the bounds to the slabs' precision first gives the same results:
             # rounding is monotonic and leaves the slabs' own values as they are.)
-            if np.ndim(t_min):
+            if getattr(t_min, "ndim", 0):
                 np.maximum(near, _spread(t_min.take(rays), dtype, k).ravel(), out=near)
             else:
                 np.maximum(near, t_min, out=near)
@@ -610,13 +610,13 @@ class BVH:
     def _expand(self, rays, nodes, origins, inverse, t_min, t_max, stats):
         """The children of pairs (ray, node) (m,) that the rays' segments reach: (rays,
         child references, entry distances), still grouped by ray."""
-        near, hit = self._slabs(np.take(self.blocks, nodes, axis=1), rays, origins, inverse,
+        near, hit = self._slabs(self.blocks.take(nodes, axis=1), rays, origins, inverse,
                                 t_min, t_max)
         if stats is not None:
             stats.node_tests += int(self.child_counts.take(nodes).sum())
-        pair_slot = np.flatnonzero(hit)
+        pair_slot = hit.ravel().nonzero()[0]
         # (The pairs' rows of children, then the slots hit: a 32-byte row copy per pair is
         # faster than one index per slot.)
         return (rays.take(pair_slot // WIDTH),
-                np.take(self.children, nodes, axis=0).ravel().take(pair_slot),
+                self.children.take(nodes, axis=0).ravel().take(pair_slot),
                 near.ravel().take(pair_slot))
