@@ -280,8 +280,9 @@ def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF
 def _spread(values, dtype, k=WIDTH):
     """(..., k) values (...) as dtype, each repeated k times (for k = 1: values itself, in
     dtype): per-ray terms laid out as the (..., m, WIDTH) slots of m nodes."""
+    values = values.astype(dtype, copy=False)   # (cast once, not in each of the k copies)
     if k == 1:
-        return values.astype(dtype, copy=False)[..., None]
+        return values[..., None]
     out = np.empty(values.shape + (k,), dtype)
     for slot in range(k):
         out[..., slot] = values
