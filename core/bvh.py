@@ -582,7 +582,9 @@ class BVH:
 
         t = planes.reshape(2, 3, -1)
         o = origins if origins.shape[1] == 1 else per_pair(origins)
-        if t.shape[2] == m * k and t.dtype == dtype:
+        if t.shape[2] == m * k:
+            if t.dtype != dtype:
+                t = t.astype(dtype)
             t -= o                # a gathered copy: worked on in place
         else:
             t = t.astype(dtype) - o
