@@ -55,7 +55,8 @@ MAX_MEAN_CANDIDATES = 16.0
 #: A batch whose rays average more candidate pairs than this goes to the tree.
 MAX_PAIRS_PER_RAY = 16.0
 #: Cells are stored in square blocks of BLOCK x BLOCK, only where a block lists something.
-BLOCK = 16
+BLOCK_BITS = 4
+BLOCK = 1 << BLOCK_BITS
 #: Upper bound on pairs intersected at once; bounds the per-pair temporaries.
 BLOCK_PAIRS = 1 << 18
 
@@ -130,6 +131,8 @@ def _cell_counts(faces, cells: int) -> np.ndarray:
     counts = np.zeros((6, cells, cells), np.intp)
     side = cells + 1
     for face, first_u, last_u, first_v, last_v, on in faces:
+        if not on.any():
+            continue
         fu, lu, fv, lv = (a[on] for a in (first_u, last_u, first_v, last_v))
         corners = np.concatenate([fu * side + fv, (lu + 1) * side + (lv + 1),
                                   fu * side + (lv + 1), (lu + 1) * side + fv])
@@ -143,8 +146,15 @@ def _place(slots, face, u, v, blocks: int, empty: int) -> np.ndarray:
     """Where cells (face, u, v) (n,) each are stored (``OriginBins``): their block's slot
     times BLOCK^2 plus their place in the block; cells of empty blocks get ``empty``, the
     empty cell at the end of ``starts``."""
-    slot = slots.take((face * blocks + u // BLOCK) * blocks + v // BLOCK)
-    place = slot * (BLOCK * BLOCK) + (u % BLOCK) * BLOCK + v % BLOCK
+    # (Shifts and masks: BLOCK is a power of two, and // and % cost several times more.)
+    block = face * blocks
+    block += u >> BLOCK_BITS
+    block *= blocks
+    block += v >> BLOCK_BITS
+    slot = slots.take(block)
+    place = slot << (2 * BLOCK_BITS)
+    place += (u & (BLOCK - 1)) << BLOCK_BITS
+    place += v & (BLOCK - 1)
     return np.where(slot >= 0, place, empty)
 
 
@@ -167,14 +177,17 @@ class OriginBins:
     near: np.ndarray
 
     @classmethod
-    def build(cls, position, ids, low, high, cells: int = CELLS,
-              max_entries: int = MAX_ENTRIES,
-              max_mean: float = MAX_MEAN_CANDIDATES) -> "OriginBins | None":
+    def build(cls, position, ids, low, high, cells: int = None, max_entries: int = None,
+              max_mean: float = None) -> "OriginBins | None":
         """Bins around ``position`` (3,) of primitives ``ids`` (K,) ascending, with bounding
         boxes low, high (K, 3), with ``cells`` cells per face side, or half or a quarter as
         many when boxes near the origin would make more than ``max_entries`` entries; None
         where they do not pay (module docstring): still too many entries, or more than
-        ``max_mean`` per occupied cell."""
+        ``max_mean`` per occupied cell.  (Defaults: CELLS, MAX_ENTRIES and
+        MAX_MEAN_CANDIDATES.)"""
+        cells = CELLS if cells is None else cells
+        max_entries = MAX_ENTRIES if max_entries is None else max_entries
+        max_mean = MAX_MEAN_CANDIDATES if max_mean is None else max_mean
         position = np.asarray(position, np.float64)
         relative_low = (np.asarray(low, np.float64) - position).T
         relative_high = (np.asarray(high, np.float64) - position).T
@@ -196,7 +209,7 @@ class OriginBins:
         by_block = counts.reshape(6, blocks, BLOCK, blocks, BLOCK).transpose(0, 1, 3, 2, 4)
         by_block = by_block.reshape(6 * blocks * blocks, BLOCK * BLOCK)
         stored = by_block.any(axis=1)
-        slots = np.where(stored, np.cumsum(stored) - 1, -1).astype(np.int32)
+        slots = np.where(stored, np.cumsum(stored) - 1, -1)
         starts = np.zeros(int(stored.sum()) * BLOCK * BLOCK + 2, np.int32)
         np.cumsum(by_block[stored].ravel(), out=starts[1:-1])
         starts[-1] = starts[-2]
