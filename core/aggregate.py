@@ -65,11 +65,11 @@ SHARED_TERMS_LIMIT = 100_000
 BINS_MAX_PRIMITIVES = 100_000
 BINS_MAX_BYTES = 64 * 1024 ** 2
 #: A batch goes to bins only with at least one ray per BINS_PRIMITIVES_PER_RAY tree
-#: primitives: building an origin's bins costs about as much as tracing a ray through the
-#: tree per few primitives, and a few such batches pay for it (a frame has one per tile).
-#: The rule depends on the batch alone, so which batches use bins does not depend on the
-#: order tiles run in.
-BINS_PRIMITIVES_PER_RAY = 8
+#: primitives: counting an origin's cells costs about a microsecond a primitive, as much as
+#: tracing a ray through the tree, so an origin whose bins are refused costs at most about
+#: one such batch more (and a frame has a batch per tile).  The rule depends on the batch
+#: alone, so which batches use bins does not depend on the order tiles run in.
+BINS_PRIMITIVES_PER_RAY = 1
 
 
 def _per_ray(values, n, dtype=np.float64):

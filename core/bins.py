@@ -93,22 +93,23 @@ def ray_cells(directions, cells: int) -> np.ndarray:
     return (face * cells + u) * cells + v
 
 
-def _face_cells(relative_low, relative_high, axis: int, negative: bool, cells: int):
-    """(first u, last u, first v, last v (K,) int cell ranges, on (K,) bool) of K boxes
-    given relative to the origin, (3, K) low and high corners, on the cube face of ``axis``
-    (0, 1, 2) and sign: the cells (``direction_cells``' layout) the boxes may be seen
-    through from the origin.  on: whether the box shows on that face at all."""
+def _face_ranges(relative_low, relative_high, axis: int, negative: bool):
+    """(shown (k,) box indices, (u low, u high, v low, v high) (k,) each) of K boxes given
+    relative to the origin, (3, K) low and high corners, on the cube face of ``axis``
+    (0, 1, 2) and sign: the boxes that show on that face and the range of face coordinates
+    (u, v in [-1, 1], ``face_cells``) they may be seen through from the origin, widened by
+    MARGIN."""
     if negative:
         depth_low, depth_high = -relative_high[axis], -relative_low[axis]
     else:
         depth_low, depth_high = relative_low[axis], relative_high[axis]
-    in_front = depth_low > 0
-    on = depth_high > 0
-    far = np.where(on, depth_high, 1.0)
-    near = np.where(in_front, depth_low, 1.0)
+    shown = np.flatnonzero(depth_high > 0)
+    near, far = depth_low[shown], depth_high[shown]
+    in_front = near > 0
+    near = np.where(in_front, near, 1.0)
     ranges = []
     for lateral in ((axis + 1) % 3, (axis + 2) % 3):
-        a_low, a_high = relative_low[lateral], relative_high[lateral]
+        a_low, a_high = relative_low[lateral, shown], relative_high[lateral, shown]
         with np.errstate(divide="ignore", invalid="ignore"):
             # In front: the corners' extremes.  Straddling the face's plane: unbounded on the
             # side the lateral range reaches past zero.
@@ -116,24 +117,28 @@ def _face_cells(relative_low, relative_high, axis: int, negative: bool, cells: i
                            np.where(a_low >= 0, a_low / far, -np.inf))
             high = np.where(in_front, np.maximum(a_high / near, a_high / far),
                             np.where(a_high <= 0, a_high / far, np.inf))
-        on &= (low <= 1 + MARGIN) & (high >= -1 - MARGIN)
-        first = np.floor((np.maximum(low - MARGIN, -1.0) + 1) * (cells / 2))
-        last = np.floor((np.minimum(high + MARGIN, 1.0) + 1) * (cells / 2))
-        ranges += [np.clip(first, 0, cells - 1).astype(np.intp),
-                   np.clip(last, 0, cells - 1).astype(np.intp)]
-    return (*ranges, on)
+        ranges += [np.maximum(low - MARGIN, -1.0), np.minimum(high + MARGIN, 1.0)]
+    u_low, u_high, v_low, v_high = ranges
+    on = (u_low <= u_high) & (v_low <= v_high)
+    return shown[on], tuple(r[on] for r in ranges)
+
+
+def _face_cells(ranges, cells: int):
+    """(first u, last u, first v, last v) (k,) int cell ranges (``direction_cells``' layout,
+    ``cells`` a side) of face coordinate ranges from ``_face_ranges``."""
+    return tuple(np.clip(np.floor((r + 1) * (cells / 2)), 0, cells - 1).astype(np.intp)
+                 for r in ranges)
 
 
 def _cell_counts(faces, cells: int) -> np.ndarray:
     """(6 cells^2,) how many boxes each cell lists, from the boxes' cell rectangles per face
-    (``_face_cells``' ranges) alone: 2-D difference arrays summed up, so that whether bins
-    pay is known before any entry is made."""
+    (face, shown, ``_face_cells``' ranges) alone: 2-D difference arrays summed up, so that
+    whether bins pay is known before any entry is made."""
     counts = np.zeros((6, cells, cells), np.intp)
     side = cells + 1
-    for face, first_u, last_u, first_v, last_v, on in faces:
-        if not on.any():
+    for face, shown, (fu, lu, fv, lv) in faces:
+        if len(shown) == 0:
             continue
-        fu, lu, fv, lv = (a[on] for a in (first_u, last_u, first_v, last_v))
         corners = np.concatenate([fu * side + fv, (lu + 1) * side + (lv + 1),
                                   fu * side + (lv + 1), (lu + 1) * side + fv])
         signs = np.repeat([1, 1, -1, -1], len(fu))
@@ -191,11 +196,12 @@ class OriginBins:
         position = np.asarray(position, np.float64)
         relative_low = (np.asarray(low, np.float64) - position).T
         relative_high = (np.asarray(high, np.float64) - position).T
+        ranges = [(face, *_face_ranges(relative_low, relative_high, face // 2,
+                                       bool(face % 2))) for face in range(6)]
         for size in (cells, cells // 2, cells // 4):
-            faces = [(face, *_face_cells(relative_low, relative_high, face // 2,
-                                         bool(face % 2), size)) for face in range(6)]
-            total = sum(int(((lu - fu + 1) * (lv - fv + 1))[on].sum())
-                        for _, fu, lu, fv, lv, on in faces)
+            faces = [(face, shown, _face_cells(r, size)) for face, shown, r in ranges]
+            total = sum(int(((lu - fu + 1) * (lv - fv + 1)).sum())
+                        for _, _, (fu, lu, fv, lv) in faces)
             if total <= max_entries:
                 break
         else:
@@ -217,14 +223,13 @@ class OriginBins:
         gap = np.maximum(np.maximum(relative_low, -relative_high), 0.0)
         distance = np.sqrt((gap * gap).sum(axis=0)) * NEAR_SLACK
         places, owners = [], []
-        for face, first_u, last_u, first_v, last_v, on in faces:
-            shown = np.flatnonzero(on)
-            tall = last_v[shown] - first_v[shown] + 1
-            area = (last_u[shown] - first_u[shown] + 1) * tall
+        for face, shown, (first_u, last_u, first_v, last_v) in faces:
+            tall = last_v - first_v + 1
+            area = (last_u - first_u + 1) * tall
             rank = rank_within_runs(area)
             tall = np.repeat(tall, area)
-            u = np.repeat(first_u[shown], area) + rank // tall
-            v = np.repeat(first_v[shown], area) + rank % tall
+            u = np.repeat(first_u, area) + rank // tall
+            v = np.repeat(first_v, area) + rank % tall
             places.append(_place(slots, face, u, v, blocks, len(starts) - 2))
             owners.append(np.repeat(shown, area))
         place = np.concatenate(places)
