@@ -233,3 +233,25 @@ def test_a_batch_with_too_many_candidates_goes_to_the_tree(monkeypatch):
     t2, primitive2, _ = geometry.intersect(batch, stats)
     assert stats.node_tests > 0
     assert np.array_equal(t, t2) and np.array_equal(primitive, primitive2)
+
+
+def test_an_aggregate_travels_to_a_worker_without_its_bins():
+    """Pickled for a worker process, the aggregate leaves its bins (and their lock) behind;
+    the copy builds its own and answers the same."""
+    import pickle
+
+    geometry = make_context(_cloud_scene(), core.RenderSettings(), np.float64).geometry
+    origin = np.array([0.0, 0.0, 12.0])
+    directions = _unit(np.random.default_rng(7).normal(size=(3, 3000)))
+
+    def nearest(g):
+        batch = RayBatch(origin[:, None], directions, 0.0, np.inf, g.shared_origin(origin))
+        return g.intersect(batch, RayStats())[:2]
+
+    t, primitive = nearest(geometry)
+    assert len(geometry._bins) == 1
+    copy = pickle.loads(pickle.dumps(geometry))
+    assert copy._bins == {} and copy._bins_bytes == 0
+    t2, primitive2 = nearest(copy)
+    assert len(copy._bins) == 1
+    assert np.array_equal(t, t2) and np.array_equal(primitive, primitive2)
