@@ -484,7 +484,7 @@ class Aggregate:
 
         bins, plan = self._origin_bins(rays)
         if plan is not None:
-            bins.traverse(plan, reach, visit, accept)
+            bins.traverse(plan, reach, visit, accept, exclude=exclude)
             return
         box_t_min = _box_start(rays.t_min)
         self._tree.traverse(origins, inverse, box_t_min, reach, visit, accept,
@@ -521,7 +521,7 @@ class Aggregate:
 
         bins, plan = self._origin_bins(segments)
         if plan is not None:
-            return bins.traverse(plan, reach, visit, any_hit=True)
+            return bins.traverse(plan, reach, visit, any_hit=True, exclude=exclude)
         box_t_min = max(_box_start(segments.t_min), 0.0)
         return self._tree.traverse(origins, inverse, box_t_min,
                                    reach, visit, any_hit=True, stats=stats)

@@ -265,13 +265,15 @@ class OriginBins:
             return None
         return start, count
 
-    def traverse(self, plan, t_max, visit, accept=None, *, any_hit=False):
+    def traverse(self, plan, t_max, visit, accept=None, *, any_hit=False, exclude=None):
         """``BVH.traverse``'s contract over the batch's candidate pairs: plan from ``plan``;
         t_max (n,) float64, lowered in place to each ray's nearest hit; ``visit(rays,
         prims)`` gets (ray, primitive) pairs (E,) grouped by ray, each primitive's pairs in
         id order, and returns each pair's hit distance (inf for none; with ``any_hit`` any
         value < inf blocks); ``accept(rays, pairs)`` learns which pair (index into that
         visit's pairs) is each improved ray's nearest hit (ties: the lower primitive id).
+        exclude: (n,) the primitive each ray ignores (-1: none), or None: its pairs are not
+        visited at all (``visit`` would find no hit there).
         Returns (n,) bool: whether a hit (any_hit: a blocker) was found for each ray."""
         start, count = plan
         n = len(count)
@@ -286,8 +288,12 @@ class OriginBins:
             entry = (np.repeat(start[first:stop], part_count)
                      + rank_within_runs(part_count))
             ray = np.repeat(np.arange(first, stop), part_count)
-            # Pairs whose ray stops before the primitive's box are never intersected.
-            keep = np.flatnonzero(self.near.take(entry) < t_max.take(ray))
+            # Pairs whose ray stops before the primitive's box, or ignores the primitive, are
+            # never intersected.
+            keep = self.near.take(entry) < t_max.take(ray)
+            if exclude is not None:
+                keep &= self.primitives.take(entry) != exclude.take(ray)
+            keep = np.flatnonzero(keep)
             if len(keep) == 0:
                 continue
             ray = ray.take(keep)

@@ -143,11 +143,20 @@ def test_bins_answer_as_the_tree_does(monkeypatch, dtype, semantics):
                 RayBatch(origin[:, None], directions, 0.0, np.inf, shared), stats)
             blocked = geometry.occluded(
                 RayBatch(origin[:, None], directions, 1e-4, lengths, shared), stats)
-            answers.append((t, primitive, bary, blocked, stats.node_tests))
-        (t1, p1, b1, o1, nodes1), (t2, p2, b2, o2, nodes2) = answers
+            # Rays that ignore what they hit first (as shadow segments ignore their point's
+            # primitive) find what lies behind it.
+            behind = geometry.intersect(
+                RayBatch(origin[:, None], directions, 0.0, np.inf, shared, primitive), stats)
+            unblocked = geometry.occluded(
+                RayBatch(origin[:, None], directions, 1e-4, lengths, shared, primitive), stats)
+            answers.append((t, primitive, bary, blocked, behind[:2], unblocked, stats.node_tests))
+        (t1, p1, b1, o1, e1, u1, nodes1), (t2, p2, b2, o2, e2, u2, nodes2) = answers
         assert nodes1 == 0 and nodes2 > 0
         assert np.array_equal(p1, p2) and np.array_equal(t1, t2) and np.array_equal(o1, o2)
         assert all(np.array_equal(a, b) for a, b in zip(b1, b2))
+        assert np.array_equal(e1[0], e2[0]) and np.array_equal(e1[1], e2[1])
+        assert np.array_equal(u1, u2)
+        assert ((e1[1] != p1) | (p1 < 0)).all() and (e1[0] > t1).any()
         seen.append(((p1[6000:] >= 1).mean(), (p1 > 900).any(), o1.mean()))
     grazing, triangles, blocked = zip(*seen)
     assert min(grazing) > 0.3 and any(triangles) and 0 < min(blocked) and max(blocked) < 1
