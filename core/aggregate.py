@@ -22,9 +22,12 @@ root formula for spheres (``root_formula``: 'textbook', the article's, or 'stabl
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from .arrays import SphereArrays, TriangleArrays
+from .bins import OriginBins
 from .bvh import BVH
 from .cull import (DENSE_CANDIDATES, REFLECTION_CELLS, SHADOW_CELLS, bundle_candidates,
                    candidate_roots, cones,
@@ -54,6 +57,20 @@ MAX_HUGE = 64
 #: Shared-origin sphere terms for the tree's spheres only up to this many spheres (memory:
 #: about 40 bytes a sphere for every light sample).
 SHARED_TERMS_LIMIT = 100_000
+#: Rays sharing an origin are answered by direction bins (``core.bins``) instead of the
+#: tree only while the tree holds at most this many primitives (counting a million boxes'
+#: cells for every light sample would cost more than the bins could save).  An aggregate's
+#: bins (a frame's eye and light samples) hold at most about BINS_MAX_BYTES: origins met
+#: once that much is held use the tree (which batches use bins may then depend on the order
+#: tiles ran in, and so the stats' box tests; the hits never do).
+BINS_MAX_PRIMITIVES = 100_000
+BINS_MAX_BYTES = 64 * 1024 ** 2
+#: A batch goes to bins only with at least one ray per BINS_PRIMITIVES_PER_RAY tree
+#: primitives: counting an origin's cells costs about a microsecond a primitive, as much as
+#: tracing a ray through the tree, so an origin whose bins are refused costs at most about
+#: one such batch more (and a frame has a batch per tile).  The rule depends on the batch
+#: alone, so which batches use bins does not depend on the order tiles run in.
+BINS_PRIMITIVES_PER_RAY = 1
 
 
 def _per_ray(values, n, dtype=np.float64):
@@ -114,6 +131,7 @@ class Aggregate:
                                                         np.arange(self.triangle_count))
         # One tree over the rest, spheres and triangles together (global ids).
         self._tree = None
+        self._tree_boxes = None
         self._surface_keys = None   # built on first use (adaptive anti-aliasing only)
         self._tree_spheres = len(tree_spheres)
         self._tree_triangles = len(tree_triangles)
@@ -135,10 +153,26 @@ class Aggregate:
             high = highs[0] if len(highs) == 1 else np.concatenate(highs)
             del lows, highs
             self._tree = BVH.build(ids, low, high)
+            # The boxes again for direction bins (``_origin_bins``), while they may pay.
+            self._tree_boxes = (ids, low, high) if len(ids) <= BINS_MAX_PRIMITIVES else None
             del low, high
+        self._bins = {}     # origin (bytes) -> OriginBins, or None: the tree answers there
+        self._bins_bytes = 0
+        self._bins_lock = threading.Lock()
 
     def __len__(self) -> int:
         return self.sphere_count + self.triangle_count
+
+    def __getstate__(self):
+        """Pickled (for worker processes) without its direction bins and their lock: each
+        process builds its own (``_origin_bins``)."""
+        state = dict(self.__dict__, _bins={}, _bins_bytes=0)
+        del state["_bins_lock"]
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._bins_lock = threading.Lock()
 
     def surface_keys(self, primitive_per_ray: np.ndarray) -> np.ndarray:
         """(n,) uint64 key of the surface each ray hit (0: none), for adaptive anti-aliasing's
@@ -471,6 +505,10 @@ class Aggregate:
                 for store, b in zip(barycentrics, (b0, b1, b2)):
                     store[owner[won]] = b[chosen[won]]
 
+        bins, plan = self._origin_bins(rays)
+        if plan is not None:
+            bins.traverse(plan, reach, visit, accept, exclude=exclude)
+            return
         box_t_min = _box_start(rays.t_min)
         self._tree.traverse(origins, inverse, box_t_min, reach, visit, accept,
                             stats=stats)
@@ -503,10 +541,38 @@ class Aggregate:
                 blocked &= prims != exclude[r]
             return np.where(blocked, 0.0, np.inf)
 
+        bins, plan = self._origin_bins(segments)
+        if plan is not None:
+            return bins.traverse(plan, reach, visit, any_hit=True, exclude=exclude)
         box_t_min = max(_box_start(segments.t_min), 0.0)
         # Rays leaving a primitive start at its leaf (``BVH._trail``): most blockers are near.
         return self._tree.traverse(origins, inverse, box_t_min, reach, visit, any_hit=True,
                                    sources=segments.source, stats=stats)
+
+    def _origin_bins(self, rays: RayBatch):
+        """(bins, plan): the direction bins of the batch's shared origin and the batch's
+        plan over them (``core.bins``), or (None, None) where the tree answers instead (no
+        shared origin, too few rays to pay for bins, bins that would not pay there, or too
+        many candidates for this batch).  Bins are built on first use, once per origin,
+        under a lock (tiles run in threads)."""
+        if (rays.shared is None or self._tree_boxes is None
+                or len(rays) * BINS_PRIMITIVES_PER_RAY < len(self._tree_boxes[0])):
+            return None, None
+        key = np.asarray(rays.shared.position, np.float64).tobytes()
+        bins = self._bins.get(key, False)
+        if bins is False:
+            with self._bins_lock:
+                bins = self._bins.get(key, False)
+                if bins is False:
+                    bins = None
+                    if self._bins_bytes < BINS_MAX_BYTES:
+                        bins = OriginBins.build(rays.shared.position, *self._tree_boxes)
+                    self._bins[key] = bins
+                    self._bins_bytes += 0 if bins is None else bins.nbytes
+        if bins is None:
+            return None, None
+        plan = bins.plan(rays.directions)
+        return (bins, plan) if plan is not None else (None, None)
 
     # ---- occlusion ----------------------------------------------------------------------
 
