@@ -33,6 +33,13 @@ length: 255 box tests a camera ray, against 107.)  The *treelets* are the nodes 
 WIDTH ** TREELET_DEPTH leaves (``_treelet_depth``).  Pairs are grouped by ray before each
 visit, so per-ray reductions are ``reduceat``.
 
+Occlusion rays that leave a primitive of the tree (``traverse(sources=)``) take a trail
+instead (``_trail``): from the node holding their primitive's leaf up to the root, each step
+meets the children of the next node up but the one already done, and descends them level by
+level with no front-to-back sort, visiting leaves as it reaches them, until the ray is
+blocked.  Blockers are mostly near the ray's origin, so most rays never see the top of the
+tree; the steps' subtrees partition the tree, so the same rays are blocked.
+
 Boxes are padded, so culling stays conservative for rays in either precision; slab tests
 run in float32 for rays that start near the origin (``ORIGIN_REACH``), else in float64.
 """
