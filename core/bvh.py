@@ -554,9 +554,10 @@ class BVH:
         while True:
             if not home_met and (climbed == HOME_AFTER or len(live) == 0):
                 open_ = np.flatnonzero(~found.take(rays))
-                r_pairs, refs, _ = self._expand(rays.take(open_), home.take(open_), *rows,
-                                                t_min, t_max, stats)
-                self._descend_all(r_pairs, refs, rows, t_min, t_max, visit, found, stats)
+                if len(open_):
+                    r_pairs, refs, _ = self._expand(rays.take(open_), home.take(open_), *rows,
+                                                    t_min, t_max, stats)
+                    self._descend_all(r_pairs, refs, rows, t_min, t_max, visit, found, stats)
                 home_met = True
                 live = live[~found.take(rays.take(live))]
             if len(live) == 0:
