@@ -420,3 +420,47 @@ def test_rays_leaving_a_dense_wall_are_blocked_near_their_leaf():
         root_stats))
     assert blocked.mean() > 0.3
     assert trail_stats.node_tests < 0.8 * root_stats.node_tests
+
+
+@pytest.mark.parametrize("count", [1, 3, 40, 3000])
+def test_trails_find_every_blocker_a_brute_force_finds(count):
+    """Boxes as the primitives themselves (a pair blocks where the ray's segment crosses the
+    primitive's own box): from the trails (sources in the tree, out of it, none) exactly
+    the rays a test of every primitive blocks, in trees of one leaf to many levels."""
+    from core.bvh import BVH
+    rng = np.random.default_rng(count)
+    low = rng.uniform(-5, 5, (count, 3))
+    high = low + rng.uniform(0.05, 1.0, (count, 3))
+    ids = np.arange(count) + 7                        # ids need not start at 0
+    tree = BVH.build(ids, low, high)
+    n = 3000
+    source = rng.integers(0, count, n)
+    origins = (low[source] + high[source]).T / 2      # inside the box each ray leaves
+    directions = rng.normal(size=(3, n))
+    directions /= np.linalg.norm(directions, axis=0)
+    with np.errstate(divide="ignore"):
+        inverse = 1 / directions
+    lengths = rng.uniform(0.1, 6, n)
+    sources = ids[source]
+    sources[:300] = -1
+    sources[300:400] = 10 ** 6                       # not a primitive of the tree
+
+    def crosses(r, prims):
+        k = prims - 7
+        with np.errstate(invalid="ignore", divide="ignore"):
+            a = (low[k].T - origins[:, r]) * inverse[:, r]
+            b = (high[k].T - origins[:, r]) * inverse[:, r]
+        near = np.maximum(np.fmin(a, b).max(axis=0), 0.0)
+        far = np.minimum(np.fmax(a, b).min(axis=0), lengths[r])
+        # Each ray ignores the box it leaves (as a ray ignores its own primitive).
+        return np.where((near <= far) & (prims != ids[source][r]), 0.0, np.inf)
+
+    every = np.repeat(np.arange(n), count), np.tile(ids, n)
+    expected = np.zeros(n, bool)
+    expected[every[0][crosses(*every) < np.inf]] = True
+    trailed = tree.traverse(origins, inverse, 0.0, lengths.copy(), crosses, any_hit=True,
+                            sources=sources)
+    root_down = tree.traverse(origins, inverse, 0.0, lengths.copy(), crosses, any_hit=True)
+    assert np.array_equal(trailed, expected) and np.array_equal(root_down, expected)
+    if count > 1:
+        assert expected.any() and not expected.all()
