@@ -277,6 +277,27 @@ def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF
         out_low, out_high, out_left, out_start, out_count, out_depth)), order)
 
 
+def _spread(values, dtype, k=WIDTH):
+    """(..., k) values (...) as dtype, each repeated k times (for k = 1: values itself, in
+    dtype): per-ray terms laid out as the (..., m, WIDTH) slots of m nodes."""
+    values = values.astype(dtype, copy=False)   # (cast once, not in each of the k copies)
+    if k == 1:
+        return values[..., None]
+    out = np.empty(values.shape + (k,), dtype)
+    for slot in range(k):
+        out[..., slot] = values
+    return out
+
+
+def _ray_terms(origins, inverse, dtype):
+    """The rays' terms of the slab tests, in dtype: origins (3, 1) (a shared origin) or
+    (3, n, WIDTH), inverse (3, n, WIDTH) (``_spread``: each ray's value once per slot, so that
+    a node's (6, m, WIDTH) child planes meet them element for element)."""
+    if origins.shape[1] == 1:
+        return origins.astype(dtype), _spread(inverse, dtype)
+    return _spread(origins, dtype), _spread(inverse, dtype)
+
+
 @dataclass(frozen=True)
 class BVH:
     """A WIDTH-wide tree (module docstring): root_box (6,) low xyz, high xyz; blocks
@@ -413,11 +434,9 @@ class BVH:
         """
         n = inverse.shape[1]
         found = np.zeros(n, bool)
-        # Per ray planes (x, y, z, x, y, z), to meet a node's (6, WIDTH) child planes.
         near_origin = np.abs(origins).max(initial=0) <= self.origin_reach
         dtype = np.float32 if near_origin else np.float64
-        rows = (np.concatenate([origins, origins]).astype(dtype),
-                np.concatenate([inverse, inverse]).astype(dtype))
+        rows = _ray_terms(origins, inverse, dtype)
         levels = self._levels()
         for first in range(0, n, RAY_CHUNK):
             self._traverse(first, min(first + RAY_CHUNK, n), levels, rows, t_min, t_max,
@@ -520,18 +539,21 @@ class BVH:
             size *= 2
 
     def _visit_leaves(self, r, leaf, t_max, visit, accept, found, any_hit):
-        prims = np.take(self.leaves, leaf, axis=0).ravel()
-        leaf_rays = np.repeat(r, MAX_LEAF)
-        real = prims >= 0
-        leaf_rays, prims = leaf_rays[real], prims[real]
+        prims = self.leaves.take(leaf, axis=0).ravel()
+        real = np.flatnonzero(prims >= 0)
+        leaf_rays, prims = r.take(real // MAX_LEAF), prims.take(real)
         t = visit(leaf_rays, prims)
-        group = np.flatnonzero(np.r_[True, leaf_rays[1:] != leaf_rays[:-1]])
+        # Where each ray's run of pairs starts.
+        first = np.empty(len(t), bool)
+        first[0] = True
+        np.not_equal(leaf_rays[1:], leaf_rays[:-1], out=first[1:])
+        group = np.flatnonzero(first)
         nearest = np.minimum.reduceat(t, group)
-        owner = leaf_rays[group]
-        hit = nearest < (np.inf if any_hit else t_max[owner])
+        owner = leaf_rays.take(group)
+        hit = nearest < (np.inf if any_hit else t_max.take(owner))
         found[owner[hit]] = True
         if not any_hit and hit.any():
-            lengths = np.diff(np.r_[group, len(t)])
+            lengths = np.diff(group, append=len(t))
             at_min = t == np.repeat(nearest, lengths)
             lowest = np.minimum.reduceat(np.where(at_min, prims, np.iinfo(np.intp).max), group)
             # A primitive is in one leaf, visited once per ray and round: one winner per ray.
@@ -542,47 +564,59 @@ class BVH:
 
     @staticmethod
     def _slabs(planes, rays, origins, inverse, t_min, t_max):
-        """(entry distance (m, W), hit (m, W)) of rays (m,) against boxes given as planes
-        (6, m or 1, W) (low xyz, high xyz).
+        """(entry distance (m, k), hit (m, k)) of rays (m,) against boxes given as planes
+        (6, m, k) (low xyz, high xyz; k = WIDTH), or against one box (6, 1, 1).
 
-        origins, inverse: per ray planes (6, n) (x, y, z, x, y, z), origins possibly (6, 1):
-        the slab distances of all six planes come out of one subtraction and one product.
-        A NaN box (an empty slot) is never hit.  (Gathers are ``take``: several times faster
-        than fancy indexing on these layouts.)"""
-        o = origins if origins.shape[1] == 1 else np.take(origins, rays, axis=1)
-        if planes.shape[1] == len(rays) and planes.dtype == o.dtype:
-            t = planes            # a gathered copy: worked on in place
-            t -= o[:, :, None]
+        origins, inverse: the rays' terms (``_ray_terms``: (3, n, WIDTH), origins possibly
+        (3, 1)).  Every operation runs over whole (3, m * k) planes, element for element: a
+        ray's terms broadcast over a node's WIDTH slots would run NumPy's inner loop over
+        WIDTH elements at a time, several times slower.  A NaN box (an empty slot) is never
+        hit.  (Gathers are ``take``, called as methods: several times faster than fancy
+        indexing on these layouts, and without ``np.take``'s Python-level dispatch.)"""
+        m, k = len(rays), planes.shape[2]
+        dtype = inverse.dtype
+
+        def per_pair(terms):
+            # (3, m * k); terms[..., :k] is terms itself (a contiguous array) when k = WIDTH.
+            return terms[..., :k].take(rays, axis=1).reshape(3, m * k)
+
+        t = planes.reshape(2, 3, -1)
+        o = origins if origins.shape[1] == 1 else per_pair(origins)
+        if t.shape[2] == m * k:
+            if t.dtype != dtype:
+                t = t.astype(dtype)
+            t -= o                # a gathered copy: worked on in place
         else:
-            t = planes.astype(o.dtype) - o[:, :, None]
+            t = t.astype(dtype) - o
         with np.errstate(invalid="ignore"):
-            if t.shape[1] == len(rays):
-                t *= np.take(inverse, rays, axis=1)[:, :, None]
+            if t.shape[2] == m * k:
+                t *= per_pair(inverse)
             else:       # one box against rays sharing their origin
-                t = t * np.take(inverse, rays, axis=1)[:, :, None]
+                t = t * per_pair(inverse)
             # fmin / fmax: a 0 * inf (a ray in a box's plane) is NaN and is ignored.
-            low = np.fmin(t[:3], t[3:])
-            high = np.fmax(t[:3], t[3:])
-            near = np.fmax(np.fmax(low[0], low[1]), low[2])
-            far = np.fmin(np.fmin(high[0], high[1]), high[2])
+            # (A reduce over the axes: one call, and no temporary, for the three.)
+            near = np.fmax.reduce(np.fmin(t[0], t[1]), axis=0)
+            far = np.fmin.reduce(np.fmax(t[0], t[1]), axis=0)
             # maximum / minimum propagate an empty slot's NaN, which then fails near <= far.
-            np.maximum(near, t_min.take(rays)[:, None] if np.ndim(t_min) else t_min, out=near)
-            np.minimum(far, t_max.take(rays)[:, None], out=far)
-            return near, near <= far
+            # (Rounding the bounds to the slabs' precision first gives the same results:
+            # rounding is monotonic and leaves the slabs' own values as they are.)
+            if getattr(t_min, "ndim", 0):
+                np.maximum(near, _spread(t_min.take(rays), dtype, k).ravel(), out=near)
+            else:
+                np.maximum(near, t_min, out=near)
+            np.minimum(far, _spread(t_max.take(rays), dtype, k).ravel(), out=far)
+            return near.reshape(m, k), (near <= far).reshape(m, k)
 
     def _expand(self, rays, nodes, origins, inverse, t_min, t_max, stats):
         """The children of pairs (ray, node) (m,) that the rays' segments reach: (rays,
         child references, entry distances), still grouped by ray."""
-        near, hit = self._slabs(np.take(self.blocks, nodes, axis=1), rays, origins, inverse,
+        near, hit = self._slabs(self.blocks.take(nodes, axis=1), rays, origins, inverse,
                                 t_min, t_max)
         if stats is not None:
             stats.node_tests += int(self.child_counts.take(nodes).sum())
-        pair_slot = np.flatnonzero(hit)
-        pair = pair_slot // WIDTH
-        return (rays.take(pair), self._flat_children.take(nodes.take(pair) * WIDTH
-                                                           + pair_slot % WIDTH),
+        pair_slot = hit.ravel().nonzero()[0]
+        # (The pairs' rows of children, then the slots hit: a 32-byte row copy per pair is
+        # faster than one index per slot.)
+        return (rays.take(pair_slot // WIDTH),
+                self.children.take(nodes, axis=0).ravel().take(pair_slot),
                 near.ravel().take(pair_slot))
-
-    @property
-    def _flat_children(self):
-        return self.children.ravel()

@@ -276,3 +276,64 @@ def test_single_rays_leave_the_tree_as_it_was():
     assert np.array_equal(tree.root_box, root)
     assert np.array_equal(tree.blocks, blocks, equal_nan=True)
     assert (together[1] >= 0).any()
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("shared", [False, True])
+def test_box_tests_give_each_slot_the_textbook_slab_answer(dtype, shared):
+    """The tree's box tests (its child boxes against spread per-ray terms, and the root box
+    against every ray) give, slot for slot, the entry and the verdict of the textbook slab
+    test written pair by pair: max(t_min, largest near plane) <= min(t_max, smallest far
+    plane) in the slabs' precision, an empty slot never hit; with rays parallel to an axis,
+    some of them lying in the planes of the boxes they meet (0 * inf), and t_max given in
+    float64 (inf for some)."""
+    from core.bvh import BVH, EMPTY, WIDTH, _ray_terms
+    rng = np.random.default_rng(5)
+    centre = rng.uniform(-4, 4, (300, 3))
+    tree = BVH.build(np.arange(300), centre - 0.3, centre + 0.3)
+    n, m = 500, 2000
+    origins = rng.uniform(-5, 5, (3, 1 if shared else n))
+    directions = rng.normal(size=(3, n))
+    directions[0, :50] = 0.0                      # axis-aligned rays ...
+    directions[1, 25:75] = 0.0
+    if not shared:                                # ... some starting on a box's planes
+        origins[0, :50] = tree.blocks[0, 0, 0]
+        origins[1, 25:75] = tree.blocks[4, 0, 1]
+    with np.errstate(divide="ignore"):
+        inverse = 1 / directions
+    t_max = rng.uniform(0.5, 12, n)
+    t_max[::7] = np.inf
+    # Pairs: the axis-aligned rays against node 0 (whose planes some lie in), then at random.
+    rays = np.concatenate([np.arange(75), np.sort(rng.integers(0, n, m - 75))])
+    nodes = np.concatenate([np.zeros(75, np.intp), rng.integers(0, tree.node_count, m - 75)])
+    rows = _ray_terms(origins, inverse, dtype)
+    near, hit = tree._slabs(tree.blocks.take(nodes, axis=1), rays, *rows, 1e-3, t_max)
+
+    planes = tree.blocks[:, nodes, :].astype(dtype)                        # (6, m, W)
+    o = np.concatenate([origins, origins]).astype(dtype)[:, rays if not shared else [0] * m]
+    inv = np.concatenate([inverse, inverse]).astype(dtype)[:, rays]
+    with np.errstate(invalid="ignore"):
+        t = (planes - o[:, :, None]) * inv[:, :, None]
+    low, high = np.fmin(t[:3], t[3:]), np.fmax(t[:3], t[3:])
+    expected_near = np.maximum(np.fmax(np.fmax(low[0], low[1]), low[2]), dtype(1e-3))
+    expected_far = np.minimum(np.fmin(np.fmin(high[0], high[1]), high[2]),
+                              t_max[rays].astype(dtype)[:, None])
+    expected_hit = expected_near <= expected_far
+    assert near.shape == hit.shape == (m, WIDTH) and near.dtype == dtype
+    assert np.array_equal(hit, expected_hit)
+    assert np.array_equal(near[hit], expected_near[hit])
+    empty = tree.children[nodes] == EMPTY
+    assert empty.any() and not hit[empty].any()
+    assert hit.any() and not hit.all()
+    assert (hit & np.isin(rays, np.arange(75))[:, None]).any()
+    # The root box against every ray: the same test, for one box.
+    root = tree.root_box[:, None, None].copy()
+    root_near, root_hit = tree._slabs(root, np.arange(n), *rows, 1e-3, t_max)
+    all_o = np.concatenate([origins, origins]).astype(dtype)
+    all_inv = np.concatenate([inverse, inverse]).astype(dtype)
+    with np.errstate(invalid="ignore"):
+        t = (tree.root_box.astype(dtype)[:, None] - all_o) * all_inv
+    near_root = np.maximum(np.fmax.reduce(np.fmin(t[:3], t[3:]), axis=0), dtype(1e-3))
+    far_root = np.minimum(np.fmin.reduce(np.fmax(t[:3], t[3:]), axis=0), t_max.astype(dtype))
+    assert np.array_equal(root_hit[:, 0], near_root <= far_root)
+    assert np.array_equal(root_near[root_hit[:, 0], 0], near_root[near_root <= far_root])
