@@ -167,6 +167,14 @@ def _place(slots, face, u, v, blocks: int, empty: int) -> np.ndarray:
     return np.where(slot >= 0, place, empty)
 
 
+def _run_starts(values) -> np.ndarray:
+    """(n,) bool: where each run of equal values (n,) begins."""
+    starts = np.empty(len(values), bool)
+    starts[:1] = True
+    np.not_equal(values[1:], values[:-1], out=starts[1:])
+    return starts
+
+
 @dataclass(frozen=True)
 class OriginBins:
     """The primitives of a tree binned by direction around one origin (module docstring).
@@ -303,19 +311,20 @@ class OriginBins:
             ray = ray.take(keep)
             prims = self.primitives.take(entry.take(keep)).astype(np.intp)
             t = visit(ray, prims)
-            group = np.flatnonzero(np.r_[True, ray[1:] != ray[:-1]])
+            group = np.flatnonzero(_run_starts(ray))
             nearest = np.minimum.reduceat(t, group)
             owner = ray.take(group)
+            # (t_max in float64, as the tree compares: visit's limit is in the render's.)
             hit = nearest < (np.inf if any_hit else t_max.take(owner))
             found[owner[hit]] = True
             if not any_hit and hit.any():
-                # The first pair at a ray's minimum: its lowest primitive id (id order).
-                lengths = np.diff(np.r_[group, len(t)])
-                at_min = np.flatnonzero(t == np.repeat(nearest, lengths))
-                first_at = np.r_[True, ray[at_min[1:]] != ray[at_min[:-1]]]
-                winner = at_min[first_at]
-                won = hit[np.searchsorted(owner, ray.take(winner))]
+                # The first pair at a hit ray's minimum: its lowest primitive id (id order);
+                # one per hit ray, in the rays' order.
+                lengths = np.diff(np.append(group, len(t)))
+                at_min = np.flatnonzero((t == np.repeat(nearest, lengths))
+                                        & np.repeat(hit, lengths))
+                winner = at_min[_run_starts(ray.take(at_min))]
                 t_max[owner[hit]] = nearest[hit]
                 if accept is not None:
-                    accept(owner[hit], winner[won])
+                    accept(owner[hit], winner)
         return found
