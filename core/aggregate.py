@@ -10,8 +10,10 @@ eye, a light sample), which make those rays cheaper and, for spheres, more accur
 Primitives (global ids, ``core.arrays``): analytic spheres (``core.intersect``) and
 triangles (``core.triangles``, watertight).  Behind the interface, spheres are found by
 cone culling over Morton clusters with coherent packets (``core.cull``) while the scene has
-few of them, and through a binned-SAH BVH with every triangle otherwise (``core.bvh``); a
-scene of four spheres builds no tree and pays nothing for triangle support.
+few of them, and through a binned-SAH BVH with every triangle otherwise (``core.bvh``), whose
+primitives rays sharing an origin find through direction bins where those are cheaper
+(``core.bins``); a scene of four spheres builds no tree and pays nothing for triangle
+support.
 
 Two choices are made once, when the aggregate is built: the hit rules (``article``: the
 article's, where a sphere counts only if both roots are positive, a shadow segment counts

@@ -24,10 +24,14 @@ its primitives in id order, and a ray's nearest hit is its least distance, ties 
 primitive id, as ``BVH._visit_leaves`` picks them.
 
 Whether bins pay is decided twice.  Per origin, before anything is listed: the entries the
-boxes would make are counted from their cell ranges, and an origin whose bins would exceed
-``MAX_ENTRIES`` (a dense field, whose every cell holds a column of primitives along depth) is
-left to the tree.  Per batch: its rays' candidates are counted from the cell offsets, and a
-batch with more than ``MAX_PAIRS_PER_RAY`` on average goes to the tree.
+boxes would make are counted from their cell ranges (each cell's count by 2-D difference
+arrays); an origin whose bins would exceed ``MAX_ENTRIES`` even with a quarter of the cells
+a side (boxes near the origin), or whose occupied cells list more than
+``MAX_MEAN_CANDIDATES`` on average (a dense field, whose cells hold columns of primitives
+along depth, which the tree, front to back, stops short of), is left to the tree.  Per
+batch: its rays' candidates are counted from the cell offsets, and a batch with more than
+``MAX_PAIRS_PER_RAY`` on average goes to the tree.  (``core.aggregate`` adds when to try:
+batches large enough, trees small enough, a bound on the bytes held.)
 """
 
 from __future__ import annotations
@@ -47,7 +51,7 @@ MARGIN = 4e-6
 #: A box's distance from the origin is scaled by this before it bounds its pairs' hits
 #: (directions are unit vectors only to within their precision's rounding).
 NEAR_SLACK = 1 - 1e-6
-#: Upper bound on (cell, primitive) entries of one origin's bins (16 bytes each).
+#: Upper bound on (cell, primitive) entries of one origin's bins (12 bytes each).
 MAX_ENTRIES = 1 << 21
 #: Bins whose occupied cells hold more primitives than this on average are not built: the
 #: tree, which stops at a ray's first hit front to back, is cheaper there.
@@ -163,6 +167,14 @@ def _place(slots, face, u, v, blocks: int, empty: int) -> np.ndarray:
     return np.where(slot >= 0, place, empty)
 
 
+def _run_starts(values) -> np.ndarray:
+    """(n,) bool: where each run of equal values (n,) begins."""
+    starts = np.empty(len(values), bool)
+    starts[:1] = True
+    np.not_equal(values[1:], values[:-1], out=starts[1:])
+    return starts
+
+
 @dataclass(frozen=True)
 class OriginBins:
     """The primitives of a tree binned by direction around one origin (module docstring).
@@ -268,12 +280,12 @@ class OriginBins:
     def traverse(self, plan, t_max, visit, accept=None, *, any_hit=False, exclude=None):
         """``BVH.traverse``'s contract over the batch's candidate pairs: plan from ``plan``;
         t_max (n,) float64, lowered in place to each ray's nearest hit; ``visit(rays,
-        prims)`` gets (ray, primitive) pairs (E,) grouped by ray, each primitive's pairs in
-        id order, and returns each pair's hit distance (inf for none; with ``any_hit`` any
+        prims)`` gets (ray, primitive) pairs (E,) grouped by ray, each ray's pairs in id
+        order, and returns each pair's hit distance (inf for none; with ``any_hit`` any
         value < inf blocks); ``accept(rays, pairs)`` learns which pair (index into that
         visit's pairs) is each improved ray's nearest hit (ties: the lower primitive id).
-        exclude: (n,) the primitive each ray ignores (-1: none), or None: its pairs are not
-        visited at all (``visit`` would find no hit there).
+        exclude: (n,) the primitive each ray ignores (-1: none), or None; a ray's pair with
+        it is not visited at all (``visit`` would find no hit there).
         Returns (n,) bool: whether a hit (any_hit: a blocker) was found for each ray."""
         start, count = plan
         n = len(count)
@@ -299,19 +311,20 @@ class OriginBins:
             ray = ray.take(keep)
             prims = self.primitives.take(entry.take(keep)).astype(np.intp)
             t = visit(ray, prims)
-            group = np.flatnonzero(np.r_[True, ray[1:] != ray[:-1]])
+            group = np.flatnonzero(_run_starts(ray))
             nearest = np.minimum.reduceat(t, group)
             owner = ray.take(group)
+            # (t_max in float64, as the tree compares: visit's limit is in the render's.)
             hit = nearest < (np.inf if any_hit else t_max.take(owner))
             found[owner[hit]] = True
             if not any_hit and hit.any():
-                # The first pair at a ray's minimum: its lowest primitive id (id order).
-                lengths = np.diff(np.r_[group, len(t)])
-                at_min = np.flatnonzero(t == np.repeat(nearest, lengths))
-                first_at = np.r_[True, ray[at_min[1:]] != ray[at_min[:-1]]]
-                winner = at_min[first_at]
-                won = hit[np.searchsorted(owner, ray.take(winner))]
+                # The first pair at a hit ray's minimum: its lowest primitive id (id order);
+                # one per hit ray, in the rays' order.
+                lengths = np.diff(np.append(group, len(t)))
+                at_min = np.flatnonzero((t == np.repeat(nearest, lengths))
+                                        & np.repeat(hit, lengths))
+                winner = at_min[_run_starts(ray.take(at_min))]
                 t_max[owner[hit]] = nearest[hit]
                 if accept is not None:
-                    accept(owner[hit], winner[won])
+                    accept(owner[hit], winner)
         return found
