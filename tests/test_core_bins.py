@@ -12,6 +12,7 @@ import core
 from core import aggregate, bins
 from core.bins import OriginBins, ray_cells
 from core.context import RayStats, make_context
+from core_scenes import dense_wall_scene
 from core.cull import direction_cells
 from core.rays import RayBatch
 
@@ -210,12 +211,7 @@ def test_bins_are_refused_where_they_do_not_pay_or_would_be_too_large():
     """A dense wall of spheres seen end on (a column of hundreds per cell): no bins, the
     tree answers.  A sparse cloud gets bins, with coarser cells where the finest would exceed
     the entry cap, and none where even the coarsest would."""
-    grid = np.stack(np.meshgrid(np.linspace(-2, 2, 20), np.linspace(-2, 2, 20),
-                                np.linspace(-1, -20, 100)), -1).reshape(-1, 3)
-    wall = core.SphereSet(grid, np.full(len(grid), 0.12), np.zeros(len(grid), np.int64),
-                          MATERIALS[:1])
-    scene = core.Scene(camera=core.ScreenCamera(40, 40, eye=(0, 0, 3)), sphere_sets=(wall,),
-                       lights=(core.PointLight((0, 0, 10)),))
+    scene = dense_wall_scene(MATERIALS[0])
     geometry = make_context(scene, core.RenderSettings(), np.float64).geometry
     assert OriginBins.build((0, 0, 3), *geometry._tree_boxes) is None
     cloud = make_context(_cloud_scene(), core.RenderSettings(), np.float64).geometry

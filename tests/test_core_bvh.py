@@ -9,6 +9,7 @@ import pytest
 import core
 from core import aggregate
 from core.context import RayStats, make_context
+from core_scenes import dense_wall_scene
 from core.rays import RayBatch
 
 MATERIALS = (core.Material(reflection=0.5), core.Material(diffuse=(0.8, 0.2, 0.1)))
@@ -404,12 +405,7 @@ def test_trail_tables_hold_each_primitives_leaf_and_each_nodes_parent():
 def test_rays_leaving_a_dense_wall_are_blocked_near_their_leaf():
     """Rays leaving the spheres of a dense wall into it meet fewer boxes from their leaves up
     than from the root down, and are blocked the same."""
-    grid = np.stack(np.meshgrid(np.linspace(-2, 2, 20), np.linspace(-2, 2, 20),
-                                np.linspace(-1, -20, 100)), -1).reshape(-1, 3)
-    wall = core.SphereSet(grid, np.full(len(grid), 0.12), np.zeros(len(grid), np.int64),
-                          MATERIALS[:1])
-    scene = core.Scene(camera=core.ScreenCamera(40, 40, eye=(0, 0, 3)), sphere_sets=(wall,),
-                       lights=(core.PointLight((0, 0, 10)),))
+    scene = dense_wall_scene(MATERIALS[0])
     ctx = make_context(scene, core.RenderSettings(), np.float64)
     rng = np.random.default_rng(6)
     rays = _leaving_rays(ctx, rng, 3000)
