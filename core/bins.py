@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .bvh import keep_nearest
 from .runs import rank_within_runs
 
 #: Cells per cube-face side: 512 makes cells of about 3.75 pixels at 1920 pixels across a
@@ -165,14 +166,6 @@ def _place(slots, face, u, v, blocks: int, empty: int) -> np.ndarray:
     place += (u & (BLOCK - 1)) << BLOCK_BITS
     place += v & (BLOCK - 1)
     return np.where(slot >= 0, place, empty)
-
-
-def _run_starts(values) -> np.ndarray:
-    """(n,) bool: where each run of equal values (n,) begins."""
-    starts = np.empty(len(values), bool)
-    starts[:1] = True
-    np.not_equal(values[1:], values[:-1], out=starts[1:])
-    return starts
 
 
 @dataclass(frozen=True)
@@ -310,21 +303,6 @@ class OriginBins:
                 continue
             ray = ray.take(keep)
             prims = self.primitives.take(entry.take(keep)).astype(np.intp)
-            t = visit(ray, prims)
-            group = np.flatnonzero(_run_starts(ray))
-            nearest = np.minimum.reduceat(t, group)
-            owner = ray.take(group)
-            # (t_max in float64, as the tree compares: visit's limit is in the render's.)
-            hit = nearest < (np.inf if any_hit else t_max.take(owner))
-            found[owner[hit]] = True
-            if not any_hit and hit.any():
-                # The first pair at a hit ray's minimum: its lowest primitive id (id order);
-                # one per hit ray, in the rays' order.
-                lengths = np.diff(np.append(group, len(t)))
-                at_min = np.flatnonzero((t == np.repeat(nearest, lengths))
-                                        & np.repeat(hit, lengths))
-                winner = at_min[_run_starts(ray.take(at_min))]
-                t_max[owner[hit]] = nearest[hit]
-                if accept is not None:
-                    accept(owner[hit], winner)
+            # (Cells list their primitives once each: unique per ray.)
+            keep_nearest(ray, prims, visit(ray, prims), t_max, found, accept, any_hit)
         return found

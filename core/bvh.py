@@ -51,7 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .runs import rank_within_runs, run_starts
+from .runs import rank_within_runs, run_starts, value_run_starts
 
 #: Most primitives in a leaf, children per inner node, and the least depth (in wide levels
 #: above a typical leaf) of the subtrees ("treelets") visited front to back.
@@ -312,6 +312,32 @@ def _ray_terms(origins, inverse, dtype):
     if origins.shape[1] == 1:
         return origins.astype(dtype), _spread(inverse, dtype)
     return _spread(origins, dtype), _spread(inverse, dtype)
+
+
+def keep_nearest(rays, prims, t, t_max, found, accept, any_hit):
+    """Settles a visit's pairs (ray, primitive) (E,), grouped by ray, each primitive at most
+    once per ray, with hit distances t (E,) (inf: none): ``found`` (n,) set for each ray with
+    a hit (any_hit: any t < inf; else nearer than its t_max (n,) float64, which is lowered to
+    it), and ``accept(rays, pairs)`` told which pair (index into t) is each improved ray's new
+    nearest hit, ties to the lower primitive id (``BVH.traverse``'s contract; the direction
+    bins, ``core.bins``, keep it too)."""
+    group = value_run_starts(rays)
+    nearest = np.minimum.reduceat(t, group)
+    owner = rays.take(group)
+    hit = nearest < (np.inf if any_hit else t_max.take(owner))
+    found[owner[hit]] = True
+    if any_hit or not hit.any():
+        return
+    lengths = np.diff(group, append=len(t))
+    # The pairs at an improved ray's minimum, then of those its lowest primitive id.
+    at_min = np.flatnonzero((t == np.repeat(nearest, lengths)) & np.repeat(hit, lengths))
+    tied = prims.take(at_min)
+    first = value_run_starts(rays.take(at_min))
+    lowest = np.minimum.reduceat(tied, first)
+    winner = at_min[tied == np.repeat(lowest, np.diff(first, append=len(at_min)))]
+    t_max[owner[hit]] = nearest[hit]
+    if accept is not None:
+        accept(owner[hit], winner)
 
 
 @dataclass(frozen=True)
@@ -601,7 +627,7 @@ class BVH:
         order = order.take(np.argsort((rays.take(order) - first).astype(np.uint16),
                                       kind="stable"))
         rays, refs, near = rays.take(order), refs.take(order), near.take(order)
-        starts = np.flatnonzero(np.r_[True, rays[1:] != rays[:-1]])
+        starts = value_run_starts(rays)
         rank = rank_within_runs(np.diff(np.r_[starts, len(rays)]))
         order = np.argsort(rank.astype(np.uint16) if rank.max() < 1 << 16 else rank,
                            kind="stable")
@@ -657,25 +683,8 @@ class BVH:
         prims = self.leaves.take(leaf, axis=0).ravel()
         real = np.flatnonzero(prims >= 0)
         leaf_rays, prims = r.take(real // MAX_LEAF), prims.take(real)
-        t = visit(leaf_rays, prims)
-        # Where each ray's run of pairs starts.
-        first = np.empty(len(t), bool)
-        first[0] = True
-        np.not_equal(leaf_rays[1:], leaf_rays[:-1], out=first[1:])
-        group = np.flatnonzero(first)
-        nearest = np.minimum.reduceat(t, group)
-        owner = leaf_rays.take(group)
-        hit = nearest < (np.inf if any_hit else t_max.take(owner))
-        found[owner[hit]] = True
-        if not any_hit and hit.any():
-            lengths = np.diff(group, append=len(t))
-            at_min = t == np.repeat(nearest, lengths)
-            lowest = np.minimum.reduceat(np.where(at_min, prims, np.iinfo(np.intp).max), group)
-            # A primitive is in one leaf, visited once per ray and round: one winner per ray.
-            winner = np.flatnonzero(at_min & (prims == np.repeat(lowest, lengths)))
-            t_max[owner[hit]] = nearest[hit]
-            if accept is not None:
-                accept(owner[hit], winner[hit])
+        # (A primitive is in one leaf, visited once per ray and round: unique per ray.)
+        keep_nearest(leaf_rays, prims, visit(leaf_rays, prims), t_max, found, accept, any_hit)
 
     @staticmethod
     def _slabs(planes, rays, origins, inverse, t_min, t_max):

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .intersect import OriginTerms, offset_roots, origin_roots
-from .runs import rank_within_runs, run_starts
+from .runs import rank_within_runs, run_starts, value_run_starts
 from .vectors import dot, length, take
 
 #: Slack on cosines (about 1e-6 radians of angle) that keeps culling conservative.
@@ -202,7 +202,7 @@ def _packets(n, key, size):
         return np.arange(n), starts, np.minimum(size, n - starts)
     order = np.argsort(key, kind="stable")
     sorted_key = key[order]
-    run_start = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+    run_start = value_run_starts(sorted_key)
     run_length = np.diff(np.r_[run_start, n])
     pieces = -(-run_length // size)
     starts = np.repeat(run_start, pieces) + size * rank_within_runs(pieces)
