@@ -75,6 +75,15 @@ BINS_MAX_BYTES = 64 * 1024 ** 2
 BINS_PRIMITIVES_PER_RAY = 1
 
 
+def _roots_block(t_near, t_far, low, high, article: bool):
+    """Whether a sphere with roots t_near, t_far (valid ones) blocks a segment (low, high):
+    under the article's rules when its far root lies within (the article tests the reversed
+    ray, from the shaded point), else when either root does."""
+    if article:
+        return (t_far < high) & (t_far > low)
+    return ((t_near > low) & (t_near < high)) | ((t_far > low) & (t_far < high))
+
+
 def _per_ray(values, n, dtype=np.float64):
     return np.broadcast_to(np.asarray(values, dtype), (n,))
 
@@ -427,8 +436,7 @@ class Aggregate:
         terms = rays.shared.tree_terms if rays.shared is not None else None
         if terms is not None or self._textbook:
             t_near, t_far, valid = self._sphere_pairs(rays, r, sphere)
-            lo, hi = low[r], high[r]
-            return valid & (((t_near > lo) & (t_near < hi)) | ((t_far > lo) & (t_far < hi)))
+            return valid & _roots_block(t_near, t_far, low[r], high[r], article=False)
         origins = rays.origins if rays.origins.shape[1] == 1 else take(rays.origins, r)
         f = origins - take(self._centers_t, sphere)
         radii = self._radii_t.take(sphere)
@@ -437,8 +445,9 @@ class Aggregate:
         meet = np.flatnonzero(blocked)
         t_near, t_far = offset_press_roots(take(f, meet), radii.take(meet), b.take(meet),
                                            disc.take(meet))
-        lo, hi = low.take(r.take(meet)), high.take(r.take(meet))
-        blocked[meet] = ((t_near > lo) & (t_near < hi)) | ((t_far > lo) & (t_far < hi))
+        rows = r.take(meet)
+        blocked[meet] = _roots_block(t_near, t_far, low.take(rows), high.take(rows),
+                                     article=False)
         return blocked
 
     def _triangle_pairs(self, rays: RayBatch, shear, r, triangle, t_min, t_max):
@@ -530,7 +539,8 @@ class Aggregate:
                 pr = r[spheres]
                 if self.article:
                     t_near, t_far, valid = self._sphere_pairs(segments, pr, prims[spheres])
-                    blocked[spheres] = valid & (t_far < high[pr]) & (t_far > low[pr])
+                    blocked[spheres] = valid & _roots_block(t_near, t_far, low[pr], high[pr],
+                                                            article=True)
                 else:
                     blocked[spheres] = self._sphere_blocks(segments, pr, prims[spheres], low,
                                                            high)
@@ -627,14 +637,10 @@ class Aggregate:
                                      candidates=candidates):
             t_near, t_far, valid = block.t_near, block.t_far, block.valid
             low, high = block.per_pair(t_min), block.per_pair(t_max)
-            if self.article:
-                hit = valid & (t_far < high) & (t_far > low)
-            else:
-                hit = valid & (((t_near > low) & (t_near < high))
-                               | ((t_far > low) & (t_far < high)))
-                if exclude is not None:
-                    spheres = block.spheres if ids is None else ids[block.spheres]
-                    hit &= spheres != block.per_pair(exclude)
+            hit = valid & _roots_block(t_near, t_far, low, high, self.article)
+            if not self.article and exclude is not None:
+                spheres = block.spheres if ids is None else ids[block.spheres]
+                hit &= spheres != block.per_pair(exclude)
             blocked[block.rays] |= block.any(hit)
         return blocked
 
