@@ -463,7 +463,7 @@ class BVH:
     # ---- traversal ----------------------------------------------------------------------
 
     def traverse(self, origins, inverse, t_min, t_max, visit, accept=None, *, any_hit=False,
-                 sources=None, stats=None):
+                 sources=None, leaf_blocks=None, stats=None):
         """Visit, front to back, the primitives whose leaves each ray's segment reaches.
 
         origins (3, n) or (3, 1) and inverse (3, n) (1 / direction) float64; t_min scalar
@@ -475,6 +475,9 @@ class BVH:
         ``sources`` (n,) (any_hit only): the primitive each ray leaves (-1: none); a ray
         leaving a primitive of the tree follows its trail (``_trail``) instead of coming
         down from the root.
+        ``leaf_blocks(rays, leaves)`` (with sources; optional): the trails' visit by leaf
+        instead of by primitive: given (ray, leaf) pairs (m,) grouped by ray, the rays (k,)
+        (repeats allowed) that a primitive of the pair's leaf blocks, as ``visit`` would say.
         Returns (n,) bool: whether a hit (any_hit: a blocker) was found for each ray.
         """
         n = inverse.shape[1]
@@ -487,7 +490,8 @@ class BVH:
             trailed = np.flatnonzero(starts >= 0)
             for first in range(0, len(trailed), TRAIL_CHUNK):
                 part = trailed[first:first + TRAIL_CHUNK]
-                self._trail(part, starts.take(part), rows, t_min, t_max, visit, found, stats)
+                self._trail(part, starts.take(part), rows, t_min, t_max, visit, found, stats,
+                            leaf_blocks)
             if len(trailed) < n:
                 # The rest (rays leaving no primitive of the tree) from the root.
                 rest = np.flatnonzero(starts < 0)
@@ -557,7 +561,7 @@ class BVH:
         known = (sources >= 0) & (sources < len(home))
         return np.where(known, home.take(np.where(known, sources, 0)), -1)
 
-    def _trail(self, rays, starts, rows, t_min, t_max, visit, found, stats):
+    def _trail(self, rays, starts, rows, t_min, t_max, visit, found, stats, leaf_blocks=None):
         """Any-hit traversal of rays (m,) (increasing) that leave primitives of the tree, from
         their leaves up.  Each ray's *home* (``starts`` (m,)) is the node whose slot holds its
         primitive's leaf.  The ray climbs from the home's parent: each step meets the children
@@ -583,7 +587,8 @@ class BVH:
                 if len(open_):
                     r_pairs, refs, _ = self._expand(rays.take(open_), home.take(open_), *rows,
                                                     t_min, t_max, stats)
-                    self._descend_all(r_pairs, refs, rows, t_min, t_max, visit, found, stats)
+                    self._descend_all(r_pairs, refs, rows, t_min, t_max, visit, found, stats,
+                                      leaf_blocks)
                 home_met = True
                 live = live[~found.take(rays.take(live))]
             if len(live) == 0:
@@ -592,19 +597,25 @@ class BVH:
             r_pairs, refs, _ = self._expand(r, node.take(live), *rows, t_min, t_max, stats)
             fresh = refs != done.take(live).take(np.searchsorted(r, r_pairs))
             self._descend_all(r_pairs[fresh], refs[fresh], rows, t_min, t_max, visit, found,
-                              stats)
+                              stats, leaf_blocks)
             done[live] = node.take(live)
             node[live] = parent.take(node.take(live))
             live = live[(node.take(live) >= 0) & ~found.take(rays.take(live))]
             climbed += 1
 
-    def _descend_all(self, rays, refs, rows, t_min, t_max, visit, found, stats):
+    def _descend_all(self, rays, refs, rows, t_min, t_max, visit, found, stats,
+                     leaf_blocks=None):
         """Descends pairs (ray, child reference) (E,), grouped by ray, level by level,
-        visiting the leaves each level reaches for any hit (a blocked ray goes no deeper)."""
+        visiting the leaves each level reaches for any hit (a blocked ray goes no deeper);
+        by leaf with ``leaf_blocks`` (``traverse``)."""
         while len(rays):
             leaf = refs < 0
             if leaf.any():
-                self._visit_leaves(rays[leaf], -2 - refs[leaf], t_max, visit, None, found, True)
+                if leaf_blocks is None:
+                    self._visit_leaves(rays[leaf], -2 - refs[leaf], t_max, visit, None, found,
+                                       True)
+                else:
+                    found[leaf_blocks(rays[leaf], -2 - refs[leaf])] = True
                 going_on = ~leaf & ~found.take(rays)
                 rays, refs = rays[going_on], refs[going_on]
                 if len(rays) == 0:

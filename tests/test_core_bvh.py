@@ -383,6 +383,77 @@ def test_occlusion_trails_block_exactly_the_rays_the_flat_paths_do(monkeypatch, 
         assert trail_stats.node_tests != root_stats.node_tests     # the trail was taken
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_trails_by_leaf_block_exactly_the_rays_every_sphere_does(monkeypatch, dtype):
+    """A tree of spheres alone (a floor kept out of it) visits its trails' leaves through the
+    leaf-ordered spheres (``Aggregate._leaf_blocks``): the same blocked rays as the flat path
+    (every sphere tested) and as the visit by primitive, with the same sphere tests, for
+    rays leaving spheres, the floor and nothing, short segments and infinite."""
+    from core.bvh import BVH
+    rng = np.random.default_rng(8)
+    tree, flat = _contexts(_scene(3000), monkeypatch, dtype)
+    rays = _leaving_rays(tree, rng, 6000)
+    n = len(rays)
+    source = rays.source.copy()
+    source[rng.random(n) < 0.1] = -1
+    assert (source >= 1).sum() > 1000 and (source < 1).sum() > 100
+    traverse, leaf_blocks = BVH.traverse, tree.geometry._leaf_blocks
+    calls = []
+
+    def by_primitive(self, *args, leaf_blocks=None, **kwargs):
+        return traverse(self, *args, **kwargs)
+
+    def counted(*args):
+        calls.append(1)
+        return leaf_blocks(*args)
+
+    monkeypatch.setattr(tree.geometry, "_leaf_blocks", counted)
+
+    for length in (np.inf, rng.uniform(0.05, 3, n).astype(dtype)):
+        segments = RayBatch(rays.origins, rays.directions, rays.t_min, length, None,
+                            rays.exclude, source)
+        leaf_stats, prim_stats = RayStats(), RayStats()
+        blocked = tree.geometry.occluded(segments, leaf_stats)
+        assert calls                                       # the leaf path was taken
+        monkeypatch.setattr(BVH, "traverse", by_primitive)
+        calls.clear()
+        assert np.array_equal(blocked, tree.geometry.occluded(segments, prim_stats))
+        assert not calls
+        monkeypatch.setattr(BVH, "traverse", traverse)
+        assert np.array_equal(blocked, flat.geometry.occluded(segments, RayStats()))
+        assert leaf_stats.sphere_tests == prim_stats.sphere_tests > 0
+        assert leaf_stats.node_tests == prim_stats.node_tests
+        assert blocked.mean() > 0.1 and not blocked.all()
+    # Segments from random points to the centres of the spheres they leave and ignore:
+    # blocked only by another sphere.
+    aimed = rng.integers(1, 3001, n)
+    centers = tree.geometry.spheres.centers[aimed].T
+    start = rng.uniform(-6, 6, (3, n))
+    towards = centers - start
+    length = np.linalg.norm(towards, axis=0)
+    segments = RayBatch(start.astype(dtype), (towards / length).astype(dtype), 0.0,
+                        length.astype(dtype), None, aimed, aimed)
+    blocked = tree.geometry.occluded(segments, RayStats())
+    assert np.array_equal(blocked, flat.geometry.occluded(segments, RayStats()))
+    assert 0.1 < blocked.mean() < 0.9
+
+
+def test_leaf_ordered_spheres_hold_each_leafs_spheres_in_its_slots():
+    scene = _scene(2000)
+    geometry = make_context(scene, core.RenderSettings(), np.float32).geometry
+    x, y, z, radii, ids, fill = geometry._leaf_spheres()
+    leaves = geometry._tree.leaves
+    assert np.array_equal(ids, leaves.ravel()) and np.array_equal(fill, (leaves >= 0).sum(axis=1))
+    held = ids >= 0
+    assert held.sum() == 2000 and fill.sum() == 2000
+    for k, column in enumerate((x, y, z)):
+        assert column.dtype == np.float32
+        assert np.array_equal(column[held], geometry._centers_t[k][ids[held]])
+        assert np.isnan(column[~held]).all()
+    assert np.array_equal(radii[held], geometry._radii_t[ids[held]])
+    assert np.isnan(radii[~held]).all()
+
+
 def test_trail_tables_hold_each_primitives_leaf_and_each_nodes_parent():
     from core.bvh import BVH, EMPTY
     rng = np.random.default_rng(4)
