@@ -453,10 +453,10 @@ class Aggregate:
         return blocked
 
     def _leaf_spheres(self):
-        """(x, y, z, radii, ids, fill): the tree's spheres in leaf order, each (L * MAX_LEAF,)
-        (leaf i's slots at i * MAX_LEAF ...), centres and radii in the render precision,
-        ids global (-1 and a NaN centre in a padding slot, which no ray meets), and fill
-        (L,) each leaf's spheres.  A (ray, leaf) pair then reads one short stretch of each
+        """(x, y, z, radii, ids, fill): the tree's spheres in leaf order: x, y, z, radii
+        (L, MAX_LEAF) each leaf's centres and radii in the render precision (NaN in a padding
+        slot, which no ray meets), ids (L * MAX_LEAF,) their global ids (leaf i's at
+        i * MAX_LEAF ...; -1: padding), fill (L,) each leaf's spheres.  A (ray, leaf) pair then reads one short stretch of each
         instead of a random element of a scene-long array per sphere.  Built on the first
         occlusion trail (about 36 bytes a sphere in float64, 20 in float32)."""
         rows = self._leaf_rows
@@ -472,7 +472,8 @@ class Aggregate:
                     for column in columns:
                         column[pad] = np.nan
                     fill = (~pad).reshape(-1, MAX_LEAF).sum(axis=1)
-                    rows = self._leaf_rows = (*columns, ids, fill)
+                    rows = (*(c.reshape(-1, MAX_LEAF) for c in columns), ids, fill)
+                    self._leaf_rows = rows
         return rows
 
     def _leaf_blocks(self, rays: RayBatch, r, leaf, low, high, stats):
@@ -483,15 +484,14 @@ class Aggregate:
         x, y, z, radii, ids, fill = self._leaf_spheres()
         if stats is not None:
             stats.sphere_tests += int(fill.take(leaf).sum())
-        slots = np.repeat(leaf * MAX_LEAF, MAX_LEAF)
-        slots += np.tile(np.arange(MAX_LEAF), len(leaf))
+        # (Each leaf's row of slots copied whole: faster than an index per slot.)
         pair_rays = np.repeat(r, MAX_LEAF)
         origins = rays.origins
-        f = np.empty((3, len(slots)), np.result_type(origins.dtype, self.dtype))
+        f = np.empty((3, len(pair_rays)), np.result_type(origins.dtype, self.dtype))
         for k, column in enumerate((x, y, z)):
             o = origins[k] if origins.shape[1] == 1 else origins[k].take(pair_rays)
-            np.subtract(o, column.take(slots), out=f[k])
-        radius = radii.take(slots)
+            np.subtract(o, column.take(leaf, axis=0).ravel(), out=f[k])
+        radius = radii.take(leaf, axis=0).ravel()
         b, disc = offset_discriminants(f, take(rays.directions, pair_rays), radius)
         meet = np.flatnonzero(disc > 0)
         t_near, t_far = offset_press_roots(take(f, meet), radius.take(meet), b.take(meet),
@@ -499,7 +499,8 @@ class Aggregate:
         met = pair_rays.take(meet)
         blocked = _roots_block(t_near, t_far, low.take(met), high.take(met), article=False)
         if rays.exclude is not None:
-            blocked &= ids.take(slots.take(meet)) != rays.exclude.take(met)
+            slots = leaf.take(meet // MAX_LEAF) * MAX_LEAF + meet % MAX_LEAF
+            blocked &= ids.take(slots) != rays.exclude.take(met)
         return met[blocked]
 
     def _triangle_pairs(self, rays: RayBatch, shear, r, triangle, t_min, t_max):

@@ -490,7 +490,9 @@ class BVH:
             trailed = np.flatnonzero(starts >= 0)
             for first in range(0, len(trailed), TRAIL_CHUNK):
                 part = trailed[first:first + TRAIL_CHUNK]
-                self._trail(part, starts.take(part), rows, t_min, t_max, visit, found, stats,
+                # (Rays with no end, a sun's or the world's, skip the slabs' bound: None.)
+                bound = None if np.isposinf(t_max.take(part)).all() else t_max
+                self._trail(part, starts.take(part), rows, t_min, bound, visit, found, stats,
                             leaf_blocks)
             if len(trailed) < n:
                 # The rest (rays leaving no primitive of the tree) from the root.
@@ -577,30 +579,36 @@ class BVH:
         primitive) pairs: the rays blocked are exactly those the root-down traversal finds."""
         parent = self._trail_tables[1]
         home = starts.astype(np.intp)
-        node = parent.take(home)
-        done = home.copy()                  # the child already done
-        live = np.flatnonzero(node >= 0)
+        # Per ray of the batch (indexed by the rays themselves): the node the ray meets next,
+        # and the child of it already done.
+        node = np.empty(len(found), np.intp)
+        done = np.empty(len(found), np.intp)
+        node[rays] = parent.take(home)
+        done[rays] = home
+        live = rays[node.take(rays) >= 0]
         climbed, home_met = 0, False
         while True:
             if not home_met and (climbed == HOME_AFTER or len(live) == 0):
                 open_ = np.flatnonzero(~found.take(rays))
                 if len(open_):
                     r_pairs, refs, _ = self._expand(rays.take(open_), home.take(open_), *rows,
-                                                    t_min, t_max, stats)
+                                                    t_min, t_max, stats, entries=False)
                     self._descend_all(r_pairs, refs, rows, t_min, t_max, visit, found, stats,
                                       leaf_blocks)
                 home_met = True
-                live = live[~found.take(rays.take(live))]
+                live = live[~found.take(live)]
             if len(live) == 0:
                 return
-            r = rays.take(live)
-            r_pairs, refs, _ = self._expand(r, node.take(live), *rows, t_min, t_max, stats)
-            fresh = refs != done.take(live).take(np.searchsorted(r, r_pairs))
+            up = node.take(live)
+            r_pairs, refs, _ = self._expand(live, up, *rows, t_min, t_max, stats,
+                                            entries=False)
+            fresh = refs != done.take(r_pairs)
             self._descend_all(r_pairs[fresh], refs[fresh], rows, t_min, t_max, visit, found,
                               stats, leaf_blocks)
-            done[live] = node.take(live)
-            node[live] = parent.take(node.take(live))
-            live = live[(node.take(live) >= 0) & ~found.take(rays.take(live))]
+            done[live] = up
+            up = parent.take(up)
+            node[live] = up
+            live = live[(up >= 0) & ~found.take(live)]
             climbed += 1
 
     def _descend_all(self, rays, refs, rows, t_min, t_max, visit, found, stats,
@@ -620,7 +628,8 @@ class BVH:
                 rays, refs = rays[going_on], refs[going_on]
                 if len(rays) == 0:
                     return
-            rays, refs, _ = self._expand(rays, refs, *rows, t_min, t_max, stats)
+            rays, refs, _ = self._expand(rays, refs, *rows, t_min, t_max, stats,
+                                         entries=False)
 
     def _rounds(self, first, rays, refs, near, levels, rows, t_min, t_max, visit, accept,
                 found, any_hit, stats):
@@ -700,7 +709,8 @@ class BVH:
     @staticmethod
     def _slabs(planes, rays, origins, inverse, t_min, t_max):
         """(entry distance (m, k), hit (m, k)) of rays (m,) against boxes given as planes
-        (6, m, k) (low xyz, high xyz; k = WIDTH), or against one box (6, 1, 1).
+        (6, m, k) (low xyz, high xyz; k = WIDTH), or against one box (6, 1, 1), for
+        segments from t_min (scalar or (n,)) to t_max (n,) (None: every ray unbounded).
 
         origins, inverse: the rays' terms (``_ray_terms``: (3, n, WIDTH), origins possibly
         (3, 1)).  Every operation runs over whole (3, m * k) planes, element for element: a
@@ -739,12 +749,13 @@ class BVH:
                 np.maximum(near, _spread(t_min.take(rays), dtype, k).ravel(), out=near)
             else:
                 np.maximum(near, t_min, out=near)
-            np.minimum(far, _spread(t_max.take(rays), dtype, k).ravel(), out=far)
+            if t_max is not None:
+                np.minimum(far, _spread(t_max.take(rays), dtype, k).ravel(), out=far)
             return near.reshape(m, k), (near <= far).reshape(m, k)
 
-    def _expand(self, rays, nodes, origins, inverse, t_min, t_max, stats):
+    def _expand(self, rays, nodes, origins, inverse, t_min, t_max, stats, entries=True):
         """The children of pairs (ray, node) (m,) that the rays' segments reach: (rays,
-        child references, entry distances), still grouped by ray."""
+        child references, entry distances (None unless ``entries``)), still grouped by ray."""
         near, hit = self._slabs(self.blocks.take(nodes, axis=1), rays, origins, inverse,
                                 t_min, t_max)
         if stats is not None:
@@ -754,4 +765,4 @@ class BVH:
         # faster than one index per slot.)
         return (rays.take(pair_slot // WIDTH),
                 self.children.take(nodes, axis=0).ravel().take(pair_slot),
-                near.ravel().take(pair_slot))
+                near.ravel().take(pair_slot) if entries else None)

@@ -446,12 +446,11 @@ def test_leaf_ordered_spheres_hold_each_leafs_spheres_in_its_slots():
     assert np.array_equal(ids, leaves.ravel()) and np.array_equal(fill, (leaves >= 0).sum(axis=1))
     held = ids >= 0
     assert held.sum() == 2000 and fill.sum() == 2000
-    for k, column in enumerate((x, y, z)):
-        assert column.dtype == np.float32
-        assert np.array_equal(column[held], geometry._centers_t[k][ids[held]])
-        assert np.isnan(column[~held]).all()
-    assert np.array_equal(radii[held], geometry._radii_t[ids[held]])
-    assert np.isnan(radii[~held]).all()
+    for k, column in enumerate((x, y, z, radii)):
+        assert column.dtype == np.float32 and column.shape == leaves.shape
+        values = geometry._centers_t[k] if k < 3 else geometry._radii_t
+        assert np.array_equal(column.ravel()[held], values[ids[held]])
+        assert np.isnan(column.ravel()[~held]).all()
 
 
 def test_trail_tables_hold_each_primitives_leaf_and_each_nodes_parent():
