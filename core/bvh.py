@@ -305,13 +305,13 @@ def _spread(values, dtype, k=WIDTH):
     return out
 
 
-def _ray_terms(origins, inverse, dtype):
+def _ray_terms(origins, inverse, dtype, k=WIDTH):
     """The rays' terms of the slab tests, in dtype: origins (3, 1) (a shared origin) or
-    (3, n, WIDTH), inverse (3, n, WIDTH) (``_spread``: each ray's value once per slot, so that
-    a node's (6, m, WIDTH) child planes meet them element for element)."""
+    (3, n, k), inverse (3, n, k) (``_spread``: each ray's value once per slot, so that
+    a node's (6, m, k) child planes meet them element for element)."""
     if origins.shape[1] == 1:
-        return origins.astype(dtype), _spread(inverse, dtype)
-    return _spread(origins, dtype), _spread(inverse, dtype)
+        return origins.astype(dtype), _spread(inverse, dtype, k)
+    return _spread(origins, dtype, k), _spread(inverse, dtype, k)
 
 
 def keep_nearest(rays, prims, t, t_max, found, accept, any_hit):
@@ -488,12 +488,14 @@ class BVH:
         if any_hit and sources is not None:
             starts = self._start_nodes(sources)
             trailed = np.flatnonzero(starts >= 0)
+            # (The climbing steps meet WIDTH - 1 siblings: terms spread for those.)
+            climb_rows = _ray_terms(origins, inverse, dtype, WIDTH - 1) if len(trailed) else None
             for first in range(0, len(trailed), TRAIL_CHUNK):
                 part = trailed[first:first + TRAIL_CHUNK]
                 # (Rays with no end, a sun's or the world's, skip the slabs' bound: None.)
                 bound = None if np.isposinf(t_max.take(part)).all() else t_max
-                self._trail(part, starts.take(part), rows, t_min, bound, visit, found, stats,
-                            leaf_blocks)
+                self._trail(part, starts.take(part), rows, climb_rows, t_min, bound, visit,
+                            found, stats, leaf_blocks)
             if len(trailed) < n:
                 # The rest (rays leaving no primitive of the tree) from the root.
                 rest = np.flatnonzero(starts < 0)
@@ -556,6 +558,22 @@ class BVH:
         home[self.leaves[held]] = np.broadcast_to(leaf_home[:, None], self.leaves.shape)[held]
         return home, parent
 
+    @functools.cached_property
+    def _sibling_tables(self):
+        """(planes (6, M, WIDTH - 1) float32, children (M, WIDTH - 1), counts (M,)): for each
+        wide node, the boxes and references of its parent's other slots, in slot order (the
+        root's: none, NaN boxes no ray enters), which a trail's climbing step from the node
+        meets.  Built with ``_trail_tables``: 96 bytes a node (about 12 MB for a million
+        spheres)."""
+        rows, slots = np.nonzero(self.children >= 0)      # each inner child's parent, slot
+        child = self.children[rows, slots]
+        others = np.sort((slots[:, None] + np.arange(1, WIDTH)) % WIDTH, axis=1)
+        planes = np.full((6, self.node_count, WIDTH - 1), np.nan, np.float32)
+        planes[:, child] = self.blocks[:, rows[:, None], others]
+        children = np.full((self.node_count, WIDTH - 1), EMPTY, self.children.dtype)
+        children[child] = self.children[rows[:, None], others]
+        return planes, children, (children != EMPTY).sum(axis=1)
+
     def _start_nodes(self, sources):
         """(n,) the wide node holding the leaf of each ray's source primitive (-1: none)."""
         home = self._trail_tables[0]
@@ -563,12 +581,14 @@ class BVH:
         known = (sources >= 0) & (sources < len(home))
         return np.where(known, home.take(np.where(known, sources, 0)), -1)
 
-    def _trail(self, rays, starts, rows, t_min, t_max, visit, found, stats, leaf_blocks=None):
+    def _trail(self, rays, starts, rows, climb_rows, t_min, t_max, visit, found, stats,
+               leaf_blocks=None):
         """Any-hit traversal of rays (m,) (increasing) that leave primitives of the tree, from
         their leaves up.  Each ray's *home* (``starts`` (m,)) is the node whose slot holds its
         primitive's leaf.  The ray climbs from the home's parent: each step meets the children
-        of the next node up but the child already done, up to the root, until the ray is
-        blocked; the home's own children (the ray's leaf, with its primitive's neighbours,
+        of the next node up but the child already done (``_sibling_tables``: the slab terms
+        ``climb_rows`` are spread for those), up to the root, until the ray is blocked; the
+        home's own children (the ray's leaf, with its primitive's neighbours,
         and the leaf's siblings) are met after HOME_AFTER steps.  The subtrees met at a step
         are descended level by level (``_descend_all``) with no front-to-back sort: the
         steps go from near the ray's origin outwards, and blockers are mostly near (the
@@ -599,12 +619,11 @@ class BVH:
                 live = live[~found.take(live)]
             if len(live) == 0:
                 return
+            r_pairs, refs, _ = self._expand(live, done.take(live), *climb_rows, t_min, t_max,
+                                            stats, entries=False, table=self._sibling_tables)
+            self._descend_all(r_pairs, refs, rows, t_min, t_max, visit, found, stats,
+                              leaf_blocks)
             up = node.take(live)
-            r_pairs, refs, _ = self._expand(live, up, *rows, t_min, t_max, stats,
-                                            entries=False)
-            fresh = refs != done.take(r_pairs)
-            self._descend_all(r_pairs[fresh], refs[fresh], rows, t_min, t_max, visit, found,
-                              stats, leaf_blocks)
             done[live] = up
             up = parent.take(up)
             node[live] = up
@@ -753,16 +772,21 @@ class BVH:
                 np.minimum(far, _spread(t_max.take(rays), dtype, k).ravel(), out=far)
             return near.reshape(m, k), (near <= far).reshape(m, k)
 
-    def _expand(self, rays, nodes, origins, inverse, t_min, t_max, stats, entries=True):
+    def _expand(self, rays, nodes, origins, inverse, t_min, t_max, stats, entries=True,
+                table=None):
         """The children of pairs (ray, node) (m,) that the rays' segments reach: (rays,
-        child references, entry distances (None unless ``entries``)), still grouped by ray."""
-        near, hit = self._slabs(self.blocks.take(nodes, axis=1), rays, origins, inverse,
+        child references, entry distances (None unless ``entries``)), still grouped by ray.
+        table: (planes, children, counts) of k slots a node to meet instead of the node's
+        children (``_sibling_tables``; origins and inverse spread for k)."""
+        blocks, children, counts = (self.blocks, self.children, self.child_counts) \
+            if table is None else table
+        near, hit = self._slabs(blocks.take(nodes, axis=1), rays, origins, inverse,
                                 t_min, t_max)
         if stats is not None:
-            stats.node_tests += int(self.child_counts.take(nodes).sum())
+            stats.node_tests += int(counts.take(nodes).sum())
         pair_slot = hit.ravel().nonzero()[0]
         # (The pairs' rows of children, then the slots hit: a 32-byte row copy per pair is
         # faster than one index per slot.)
-        return (rays.take(pair_slot // WIDTH),
-                self.children.take(nodes, axis=0).ravel().take(pair_slot),
+        return (rays.take(pair_slot // blocks.shape[2]),
+                children.take(nodes, axis=0).ravel().take(pair_slot),
                 near.ravel().take(pair_slot) if entries else None)

@@ -472,6 +472,25 @@ def test_trail_tables_hold_each_primitives_leaf_and_each_nodes_parent():
     assert (tree.depths[parent[1:]] == tree.depths[1:] - 1).all()
 
 
+def test_sibling_tables_hold_each_nodes_parents_other_slots():
+    """A trail's climbing step from a node meets its parent's other slots (boxes and
+    references), and counts the real ones as box tests."""
+    from core.bvh import BVH, EMPTY, WIDTH
+    rng = np.random.default_rng(5)
+    low = rng.uniform(-5, 5, (4000, 3))
+    tree = BVH.build(np.arange(4000), low, low + rng.uniform(0.01, 0.2, (4000, 3)))
+    parent = tree._trail_tables[1]
+    planes, children, counts = tree._sibling_tables
+    assert planes.shape == (6, tree.node_count, WIDTH - 1) and children.shape[1] == WIDTH - 1
+    assert (children[0] == EMPTY).all() and np.isnan(planes[:, 0]).all() and counts[0] == 0
+    for node in range(1, tree.node_count):
+        up = parent[node]
+        others = np.flatnonzero(tree.children[up] != node)
+        assert np.array_equal(children[node], tree.children[up, others])
+        assert np.array_equal(planes[:, node], tree.blocks[:, up, others], equal_nan=True)
+        assert counts[node] == tree.child_counts[up] - 1
+
+
 def test_rays_leaving_a_dense_wall_are_blocked_near_their_leaf():
     """Rays leaving the spheres of a dense wall into it meet fewer boxes from their leaves up
     than from the root down, and are blocked the same."""
