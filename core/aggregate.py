@@ -453,12 +453,11 @@ class Aggregate:
         return blocked
 
     def _leaf_spheres(self):
-        """(x, y, z, radii, ids, fill): the tree's spheres in leaf order: x, y, z, radii
-        (L, MAX_LEAF) each leaf's centres and radii in the render precision (NaN in a padding
-        slot, which no ray meets), ids (L * MAX_LEAF,) their global ids (leaf i's at
-        i * MAX_LEAF ...; -1: padding), fill (L,) each leaf's spheres.  A (ray, leaf) pair then reads one short stretch of each
-        instead of a random element of a scene-long array per sphere.  Built on the first
-        occlusion trail (about 36 bytes a sphere in float64, 20 in float32)."""
+        """(x, y, z, radii, ids) (L * MAX_LEAF,): the tree's spheres in leaf-slot order (leaf
+        i's slots at i * MAX_LEAF ...): centres and radii in the render precision (NaN in a
+        padding slot) and global ids (-1: padding).  The pairs of a visit then read short
+        stretches of these instead of random elements of scene-long arrays.  Built on the
+        first occlusion trail (about 40 bytes a sphere in float64, 24 in float32)."""
         rows = self._leaf_rows
         if rows is None:
             with self._bins_lock:
@@ -471,36 +470,30 @@ class Aggregate:
                     columns.append(self._radii_t.take(safe))
                     for column in columns:
                         column[pad] = np.nan
-                    fill = (~pad).reshape(-1, MAX_LEAF).sum(axis=1)
-                    rows = (*(c.reshape(-1, MAX_LEAF) for c in columns), ids, fill)
-                    self._leaf_rows = rows
+                    rows = self._leaf_rows = (*columns, ids)
         return rows
 
-    def _leaf_blocks(self, rays: RayBatch, r, leaf, low, high, stats):
-        """The rays (k,) of pairs (ray r, leaf) (m,) that a sphere of the leaf blocks under the
-        default rules with the stable roots and no shared terms: ``_sphere_blocks`` over the
-        leaf's slots (the same operations on the same values, so the same flags), with the
-        exclusion (``exclude``) applied to the spheres met."""
-        x, y, z, radii, ids, fill = self._leaf_spheres()
+    def _leaf_blocks(self, rays: RayBatch, r, slots, low, high, stats):
+        """The rays (k,) of pairs (ray r, leaf slot) (E,) whose sphere blocks them under the
+        default rules with the stable roots and no shared terms: ``_sphere_blocks`` on the
+        leaf-ordered spheres (the same operations on the same values, so the same flags),
+        with the exclusion (``exclude``) applied to the spheres met."""
+        x, y, z, radii, ids = self._leaf_spheres()
         if stats is not None:
-            stats.sphere_tests += int(fill.take(leaf).sum())
-        # (Each leaf's row of slots copied whole: faster than an index per slot.)
-        pair_rays = np.repeat(r, MAX_LEAF)
-        origins = rays.origins
-        f = np.empty((3, len(pair_rays)), np.result_type(origins.dtype, self.dtype))
+            stats.sphere_tests += len(slots)
+        origins = rays.origins if rays.origins.shape[1] == 1 else take(rays.origins, r)
+        f = np.empty((3, len(slots)), np.result_type(origins.dtype, self.dtype))
         for k, column in enumerate((x, y, z)):
-            o = origins[k] if origins.shape[1] == 1 else origins[k].take(pair_rays)
-            np.subtract(o, column.take(leaf, axis=0).ravel(), out=f[k])
-        radius = radii.take(leaf, axis=0).ravel()
-        b, disc = offset_discriminants(f, take(rays.directions, pair_rays), radius)
+            np.subtract(origins[k], column.take(slots), out=f[k])
+        radius = radii.take(slots)
+        b, disc = offset_discriminants(f, take(rays.directions, r), radius)
         meet = np.flatnonzero(disc > 0)
         t_near, t_far = offset_press_roots(take(f, meet), radius.take(meet), b.take(meet),
                                            disc.take(meet))
-        met = pair_rays.take(meet)
+        met = r.take(meet)
         blocked = _roots_block(t_near, t_far, low.take(met), high.take(met), article=False)
         if rays.exclude is not None:
-            slots = leaf.take(meet // MAX_LEAF) * MAX_LEAF + meet % MAX_LEAF
-            blocked &= ids.take(slots) != rays.exclude.take(met)
+            blocked &= ids.take(slots.take(meet)) != rays.exclude.take(met)
         return met[blocked]
 
     def _triangle_pairs(self, rays: RayBatch, shear, r, triangle, t_min, t_max):

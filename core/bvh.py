@@ -166,6 +166,30 @@ def _leaf_table(ordered_ids, firsts, counts):
     return table
 
 
+def _slot_boxes(low, high, slots):
+    """(low, high) (L * MAX_LEAF, 3): the boxes low, high (P, 3) of a leaf table's slots
+    (``slots`` (L, MAX_LEAF) indices into them, -1: padding, whose box is NaN)."""
+    pad = slots.ravel() < 0
+    safe = np.where(pad, 0, slots.ravel())
+    out = low.take(safe, axis=0), high.take(safe, axis=0)
+    for boxes in out:
+        boxes[pad] = np.nan
+    return out
+
+
+def _box_planes(low, high, grow):
+    """(6, K) float32 planes (low xyz, high xyz) of boxes low, high (K, 3): each padded by
+    BOX_PADDING of its own magnitude and extent, which grow with the box (so a box's padding
+    covers its primitives', and parents still hold children), then grown by ``grow`` for
+    the float32 slabs (module docstring)."""
+    pad = BOX_PADDING * (2 * np.maximum(_row_max(np.abs(low)), _row_max(np.abs(high)))
+                         + _row_max(high - low))[:, None] + 1e-300
+    planes = np.empty((6, len(low)), np.float32)
+    planes[:3] = (low - pad - grow).T
+    planes[3:] = (high + pad + grow).T
+    return planes
+
+
 def _segment_boxes(low, high, starts):
     return np.minimum.reduceat(low, starts, axis=0), np.maximum.reduceat(high, starts, axis=0)
 
@@ -353,6 +377,10 @@ class BVH:
     child_counts: np.ndarray
     depths: np.ndarray
     origin_reach: float = np.inf     # float32 slabs for rays from within this of the origin
+    #: (6, L, MAX_LEAF) float32 planes of each leaf slot's primitive's own box, padded as the
+    #: nodes' are (NaN: an empty slot), or None: occlusion trails cull a leaf's primitives
+    #: by these before visiting them (``_descend_all``).
+    leaf_boxes: np.ndarray | None = None
 
     @classmethod
     def build(cls, ids: np.ndarray, low: np.ndarray, high: np.ndarray) -> "BVH":
@@ -367,7 +395,9 @@ class BVH:
             tree = build_binary_sah(low, high)
             counts = tree.count[tree.left < 0]
             firsts = tree.start[tree.left < 0]
-            return cls.collapse(tree, _leaf_table(ids[tree.order], firsts, counts))
+            slots = _leaf_table(tree.order, firsts, counts)
+            return cls.collapse(tree, _leaf_table(ids[tree.order], firsts, counts),
+                                _slot_boxes(low, high, slots))
         size = np.log2(np.maximum(_row_max(high - low), 1e-300))
         size_class = np.floor((size - size.min()) / 2).astype(np.intp)
         codes = morton_codes((low + high) / 2)
@@ -386,16 +416,19 @@ class BVH:
         firsts = np.flatnonzero(cut)
         counts = np.diff(np.r_[firsts, len(order)])
         c_low, c_high = _segment_boxes(lows, highs, firsts)
-        del lows, highs, codes, size, classes, run, lengths, cut, low, high
+        del codes, size, classes, run, lengths, cut, low, high
         tree = build_binary_sah(c_low, c_high, max_leaf=1, median_up_to=CLUSTER_MEDIAN_UP_TO)
-        leaves = _leaf_table(ids[order], firsts[tree.order], counts[tree.order])
         # Each binary leaf holds one cluster: the one at its position in the build's order.
-        return cls.collapse(tree, leaves[tree.start[tree.left < 0]])
+        chosen = tree.order[tree.start[tree.left < 0]]
+        leaves = _leaf_table(ids[order], firsts[chosen], counts[chosen])
+        slots = _leaf_table(np.arange(len(order)), firsts[chosen], counts[chosen])
+        return cls.collapse(tree, leaves, _slot_boxes(lows, highs, slots))
 
     @classmethod
-    def collapse(cls, tree: BinaryTree, leaves: np.ndarray) -> "BVH":
+    def collapse(cls, tree: BinaryTree, leaves: np.ndarray, slot_boxes=None) -> "BVH":
         """The WIDTH-wide tree of a binary one; leaves (L, MAX_LEAF): the primitives of its
-        leaves (in node order), padded with -1."""
+        leaves (in node order), padded with -1; slot_boxes (low, high (L * MAX_LEAF, 3), NaN
+        in padding slots): their own boxes (``leaf_boxes``), or None."""
         inner = tree.left >= 0
         leaf_nodes = np.flatnonzero(~inner)
         leaf_index = np.full(len(tree.left), -1, np.intp)
@@ -428,20 +461,16 @@ class BVH:
         reach = max(float(np.abs(tree.low[0]).max()), float(np.abs(tree.high[0]).max()))
         grow = SLAB_PADDING_32 * ORIGIN_REACH * reach
         blocks = np.full((6,) + slots.shape, np.nan, np.float32)
-        # Each box padded by BOX_PADDING of its own magnitude and extent, which grow with the
-        # box (so a box's padding covers its primitives', and parents still hold children),
-        # then grown for the float32 slabs.
-        low, high = tree.low[slots[real]], tree.high[slots[real]]
-        pad = BOX_PADDING * (2 * np.maximum(_row_max(np.abs(low)), _row_max(np.abs(high)))
-                             + _row_max(high - low))[:, None] + 1e-300
-        blocks[:3, real] = (low - pad - grow).T
-        blocks[3:, real] = (high + pad + grow).T
+        blocks[:, real] = _box_planes(tree.low[slots[real]], tree.high[slots[real]], grow)
+        # (A padding slot's NaN box stays NaN.)
+        leaf_boxes = None if slot_boxes is None else \
+            _box_planes(*slot_boxes, grow).reshape((6,) + leaves.shape)
         low, high = tree.low[0], tree.high[0]
         pad = BOX_PADDING * (2 * max(np.abs(low).max(), np.abs(high).max())
                              + (high - low).max()) + 1e-300
         root_box = np.concatenate([low - pad - grow, high + pad + grow]).astype(np.float32)
         return cls(root_box, blocks, children, leaves, real.sum(axis=1),
-                   tree.depth[wide] // 2, ORIGIN_REACH * reach)
+                   tree.depth[wide] // 2, ORIGIN_REACH * reach, leaf_boxes)
 
     @property
     def node_count(self) -> int:
@@ -475,9 +504,10 @@ class BVH:
         ``sources`` (n,) (any_hit only): the primitive each ray leaves (-1: none); a ray
         leaving a primitive of the tree follows its trail (``_trail``) instead of coming
         down from the root.
-        ``leaf_blocks(rays, leaves)`` (with sources; optional): the trails' visit by leaf
-        instead of by primitive: given (ray, leaf) pairs (m,) grouped by ray, the rays (k,)
-        (repeats allowed) that a primitive of the pair's leaf blocks, as ``visit`` would say.
+        ``leaf_blocks(rays, slots)`` (with sources; optional): the trails' visit by leaf
+        slot instead of by primitive: given (ray, slot) pairs (E,) (a slot indexes
+        ``leaves.ravel()``), the rays (k,) (repeats allowed) whose slot's primitive blocks
+        them, as ``visit`` would say.
         Returns (n,) bool: whether a hit (any_hit: a blocker) was found for each ray.
         """
         n = inverse.shape[1]
@@ -633,22 +663,48 @@ class BVH:
     def _descend_all(self, rays, refs, rows, t_min, t_max, visit, found, stats,
                      leaf_blocks=None):
         """Descends pairs (ray, child reference) (E,), grouped by ray, level by level,
-        visiting the leaves each level reaches for any hit (a blocked ray goes no deeper);
-        by leaf with ``leaf_blocks`` (``traverse``)."""
+        visiting the leaves each level reaches for any hit (a blocked ray goes no deeper):
+        only their primitives whose own boxes the rays reach (``_visit_slots``), when the
+        tree has them."""
         while len(rays):
             leaf = refs < 0
             if leaf.any():
-                if leaf_blocks is None:
+                if self.leaf_boxes is not None and MAX_LEAF == WIDTH:
+                    self._visit_slots(rays[leaf], -2 - refs[leaf], rows, t_min, t_max, visit,
+                                      found, stats, leaf_blocks)
+                else:
                     self._visit_leaves(rays[leaf], -2 - refs[leaf], t_max, visit, None, found,
                                        True)
-                else:
-                    found[leaf_blocks(rays[leaf], -2 - refs[leaf])] = True
                 going_on = ~leaf & ~found.take(rays)
                 rays, refs = rays[going_on], refs[going_on]
                 if len(rays) == 0:
                     return
             rays, refs, _ = self._expand(rays, refs, *rows, t_min, t_max, stats,
                                          entries=False)
+
+    def _visit_slots(self, rays, leaves, rows, t_min, t_max, visit, found, stats,
+                     leaf_blocks=None):
+        """Any-hit visit of pairs (ray, leaf) (m,), grouped by ray: only the primitives whose
+        own boxes (``leaf_boxes``) the rays' segments reach (rows: the slab terms, spread for
+        MAX_LEAF slots), through ``visit``, or ``leaf_blocks`` (``traverse``) by slot."""
+        _, hit = self._slabs(self.leaf_boxes.take(leaves, axis=1), rays, *rows, t_min, t_max)
+        if stats is not None:
+            stats.node_tests += int(self._leaf_fill.take(leaves).sum())
+        pair_slot = hit.ravel().nonzero()[0]
+        if len(pair_slot) == 0:
+            return
+        r = rays.take(pair_slot // MAX_LEAF)
+        if leaf_blocks is not None:
+            found[leaf_blocks(r, leaves.take(pair_slot // MAX_LEAF) * MAX_LEAF
+                              + pair_slot % MAX_LEAF)] = True
+            return
+        prims = self.leaves.take(leaves, axis=0).ravel().take(pair_slot)
+        found[r[visit(r, prims) < np.inf]] = True
+
+    @functools.cached_property
+    def _leaf_fill(self):
+        """(L,) the primitives of each leaf."""
+        return (self.leaves >= 0).sum(axis=1)
 
     def _rounds(self, first, rays, refs, near, levels, rows, t_min, t_max, visit, accept,
                 found, any_hit, stats):

@@ -441,16 +441,41 @@ def test_trails_by_leaf_block_exactly_the_rays_every_sphere_does(monkeypatch, dt
 def test_leaf_ordered_spheres_hold_each_leafs_spheres_in_its_slots():
     scene = _scene(2000)
     geometry = make_context(scene, core.RenderSettings(), np.float32).geometry
-    x, y, z, radii, ids, fill = geometry._leaf_spheres()
-    leaves = geometry._tree.leaves
-    assert np.array_equal(ids, leaves.ravel()) and np.array_equal(fill, (leaves >= 0).sum(axis=1))
+    x, y, z, radii, ids = geometry._leaf_spheres()
+    assert np.array_equal(ids, geometry._tree.leaves.ravel())
     held = ids >= 0
-    assert held.sum() == 2000 and fill.sum() == 2000
+    assert held.sum() == 2000
     for k, column in enumerate((x, y, z, radii)):
-        assert column.dtype == np.float32 and column.shape == leaves.shape
+        assert column.dtype == np.float32 and column.shape == ids.shape
         values = geometry._centers_t[k] if k < 3 else geometry._radii_t
-        assert np.array_equal(column.ravel()[held], values[ids[held]])
-        assert np.isnan(column.ravel()[~held]).all()
+        assert np.array_equal(column[held], values[ids[held]])
+        assert np.isnan(column[~held]).all()
+
+
+@pytest.mark.parametrize("count", [30, 70_000])
+def test_leaf_boxes_hold_each_slots_primitive_within_its_leafs_box(count):
+    """Each leaf slot's box (``BVH.leaf_boxes``) holds its primitive's box (float32, padded),
+    lies within the leaf's own box in its node, and is NaN in a padding slot: with and
+    without the Morton clusters (CLUSTER_FROM)."""
+    from core.bvh import BVH
+    rng = np.random.default_rng(9)
+    low = rng.uniform(-5, 5, (count, 3))
+    high = low + rng.uniform(0.001, 0.05, (count, 3))
+    ids = rng.permutation(count) + 3
+    tree = BVH.build(ids, low, high)
+    boxes = tree.leaf_boxes
+    assert boxes.shape == (6,) + tree.leaves.shape and boxes.dtype == np.float32
+    held = tree.leaves >= 0
+    where = np.empty(count + 3, np.intp)
+    where[ids] = np.arange(count)
+    prim = where[tree.leaves[held]]
+    assert (boxes[:3, held] <= low[prim].T).all() and (boxes[3:, held] >= high[prim].T).all()
+    assert np.isnan(boxes[:, ~held]).all()
+    node, slot = np.nonzero(tree.children <= -2)
+    leaf = -2 - tree.children[node, slot]
+    own = tree.blocks[:, node, slot]                                  # (6, L)
+    inside = (boxes[:3, leaf] >= own[:3, :, None]) & (boxes[3:, leaf] <= own[3:, :, None])
+    assert (inside | ~held[leaf][None]).all()
 
 
 def test_trail_tables_hold_each_primitives_leaf_and_each_nodes_parent():
