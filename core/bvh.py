@@ -593,8 +593,7 @@ class BVH:
         """(planes (6, M, WIDTH - 1) float32, children (M, WIDTH - 1), counts (M,)): for each
         wide node, the boxes and references of its parent's other slots, in slot order (the
         root's: none, NaN boxes no ray enters), which a trail's climbing step from the node
-        meets.  Built with ``_trail_tables``: 96 bytes a node (about 12 MB for a million
-        spheres)."""
+        meets.  Built on the first trail: 104 bytes a node (13 MiB for a million spheres)."""
         rows, slots = np.nonzero(self.children >= 0)      # each inner child's parent, slot
         child = self.children[rows, slots]
         others = np.sort((slots[:, None] + np.arange(1, WIDTH)) % WIDTH, axis=1)
