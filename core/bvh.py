@@ -15,7 +15,8 @@ binary child that is a leaf stays one child).
 Layout: ``blocks`` (6, M, WIDTH) each wide node's child boxes as planes (low xyz, high
 xyz; a plane of a node's children is contiguous), padded with NaN boxes no ray enters; ``children`` (M, WIDTH) each slot's child: a wide
 node (>= 0), a leaf ``-2 - leaf`` or EMPTY; ``leaves`` (L, MAX_LEAF) each leaf's primitive
-ids, padded with -1.  Node 0 is the root, whose own box is ``root_box``.
+ids, padded with -1; ``leaf_boxes`` (6, L, MAX_LEAF) each leaf slot's primitive's own box,
+padded as the nodes' boxes (NaN in a padding slot).  Node 0 is the root, whose own box is ``root_box``.
 
 Traversal (``BVH.traverse``) is wavefront-style over (ray, node) pairs.  From the root down
 every live pair is expanded to its children at once and kept where the ray's segment meets
@@ -36,9 +37,10 @@ visit, so per-ray reductions are ``reduceat``.
 Occlusion rays that leave a primitive of the tree (``traverse(sources=)``) take a trail
 instead (``_trail``): from the node holding their primitive's leaf up to the root, each step
 meets the children of the next node up but the one already done, and descends them level by
-level with no front-to-back sort, visiting leaves as it reaches them, until the ray is
-blocked.  Blockers are mostly near the ray's origin, so most rays never see the top of the
-tree; the steps' subtrees partition the tree, so the same rays are blocked.
+level with no front-to-back sort, visiting leaves as it reaches them (only the primitives
+whose own boxes the ray reaches), until the ray is blocked.  Blockers are mostly near the
+ray's origin, so most rays never see the top of the tree; the steps' subtrees partition the
+tree, so the same rays are blocked.
 
 Boxes are padded, so culling stays conservative for rays in either precision; slab tests
 run in float32 for rays that start near the origin (``ORIGIN_REACH``), else in float64.
@@ -368,7 +370,8 @@ def keep_nearest(rays, prims, t, t_max, found, accept, any_hit):
 class BVH:
     """A WIDTH-wide tree (module docstring): root_box (6,) low xyz, high xyz; blocks
     (6, M, WIDTH); children (M, WIDTH); leaves (L, MAX_LEAF) primitive ids or -1;
-    child_counts (M,) real slots of each node; depths (M,) each node's depth (root 0)."""
+    child_counts (M,) real slots of each node; depths (M,) each node's depth (root 0);
+    leaf_boxes (6, L, MAX_LEAF) or None (below)."""
 
     root_box: np.ndarray
     blocks: np.ndarray
