@@ -37,6 +37,7 @@ from .cull import (DENSE_CANDIDATES, REFLECTION_CELLS, SHADOW_CELLS, bundle_cand
 from .intersect import (FewSpheres, OriginTerms, first_hit_distance, offset_discriminants,
                         offset_press_roots, offset_roots, origin_roots)
 from .rays import ARTICLE_OFFSET, Hits, RayBatch, RayStats, SharedOrigin, ray_offsets, timed
+from .terminator import TerminatorLift, smooth_surface_lift
 from .triangles import Shear, watertight, watertight_pairs
 from .vectors import dot, take
 
@@ -128,6 +129,10 @@ class Aggregate:
             self._tri_normals = cast(t.normals)
             self._tri_corner_normals = (None if t.corner_normals is None
                                         else cast(t.corner_normals))
+            # Geometry offsets of the smooth triangles' shadow rays (None: no such triangle;
+            # the article's rules have none).
+            self._tri_terminator = (None if t.terminator_offset is None or article
+                                    else cast(t.terminator_offset))
             # Bounding spheres of the triangles, for the bundle's cone test.
             centre = (t.v0 + t.v1 + t.v2) / 3
             reach = np.sqrt(np.maximum.reduce([((v - centre) ** 2).sum(axis=0)
@@ -242,6 +247,7 @@ class Aggregate:
         else:
             hit_primitive = primitive
         is_triangle = hit_primitive >= self.sphere_count
+        lifted = None    # smooth triangles' terminator lift (``_terminator_lift``)
         if not is_triangle.any():
             points = t * directions
             points += origins
@@ -279,13 +285,32 @@ class Aggregate:
             if self._tri_corner_normals is not None:
                 shading = normals.copy()
                 corner = self._tri_corner_normals
-                smooth = (b0 * take(corner[0], triangle) + b1 * take(corner[1], triangle)
-                          + b2 * take(corner[2], triangle))
+                corners = tuple(take(c, triangle) for c in corner)
+                smooth = b0 * corners[0] + b1 * corners[1] + b2 * corners[2]
                 shading[:, tris] = smooth * (1 / np.sqrt(dot(smooth, smooth)))
+                if self._tri_terminator is not None:
+                    lifted = (tris, triangle, (v0, v1, v2), corners, (b0, b1, b2))
         cos_in = dot(directions, shading)
         front = cos_in < 0 if shading is normals else dot(directions, normals) < 0
+        terminator = None
+        if lifted is not None:
+            terminator = self._terminator_lift(normals, shading, front, *lifted)
         return Hits(keep, primitive, t, hit_primitive, material, points, directions, normals,
-                    shading, cos_in, front)
+                    shading, cos_in, front, terminator)
+
+    def _terminator_lift(self, normals, shading, front, tris, triangle, corners,
+                         corner_normals, barycentrics):
+        """The hits' ``TerminatorLift`` (``core.terminator``): the smooth-surface offsets
+        of the hits ``tris`` on triangles ``triangle`` (k,), their corners, corner normals
+        (3, k) each and barycentrics (k,) each; the other hits keep their origins."""
+        side = np.where(front, 1, -1).astype(self.dtype)
+        geometric, seen_shading = normals * side, shading * side
+        lift = np.zeros_like(normals)
+        lift[:, tris] = smooth_surface_lift(corners, corner_normals, barycentrics,
+                                            geometric[:, tris])
+        cutoff = np.zeros(normals.shape[1], self.dtype)
+        cutoff[tris] = self._tri_terminator.take(triangle)
+        return TerminatorLift(lift, cutoff, geometric, seen_shading)
 
     def _nearest_spheres(self, rays: RayBatch, stats):
         n = len(rays)

@@ -38,7 +38,9 @@ class TriangleArrays:
     instances); corner_normals (3 corners, 3, T) unit shading normals, or None when every
     triangle is flat; material (T,) indices into the scene's material table; surface (T,)
     which continuous surface each triangle belongs to (``_surfaces``), so that adaptive
-    anti-aliasing finds the edges a picture shows, not every edge of the tessellation."""
+    anti-aliasing finds the edges a picture shows, not every edge of the tessellation;
+    terminator_offset (T,) the shadow terminator's geometry offset of each triangle's mesh
+    (``core.terminator``; 0 on flat meshes), or None when no smooth mesh has one."""
 
     v0: np.ndarray
     v1: np.ndarray
@@ -47,6 +49,7 @@ class TriangleArrays:
     corner_normals: np.ndarray | None
     material: np.ndarray
     surface: np.ndarray
+    terminator_offset: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.v0.shape[1]
@@ -199,10 +202,16 @@ def _triangle_arrays(meshes, table: _MaterialTable) -> TriangleArrays:
         corner_normals = np.concatenate([
             p[2] if p[2] is not None else np.repeat(p[1][:, None, :], 3, axis=1)
             for p in parts]).transpose(1, 2, 0).copy()
+    terminator = None
+    if any(mesh.corner_normals is not None and mesh.shadow_terminator_offset > 0
+           for mesh in meshes):
+        terminator = np.concatenate([
+            np.full(len(mesh), mesh.shadow_terminator_offset
+                    if mesh.corner_normals is not None else 0.0) for mesh in meshes])
     vertices = corners.transpose(1, 2, 0)                                      # (3, 3, T)
     return TriangleArrays(vertices[0].copy(), vertices[1].copy(), vertices[2].copy(),
                           normals.T.copy(), corner_normals,
-                          np.concatenate([p[3] for p in parts]), surfaces)
+                          np.concatenate([p[3] for p in parts]), surfaces, terminator)
 
 
 def scene_arrays(scene: Scene) -> SceneArrays:

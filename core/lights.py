@@ -47,13 +47,23 @@ article's lights); a sun's rays leave the points instead.
 Sample shares.  A pixel given S anti-aliasing samples does not trace all of a light's F
 samples from each of them (S F shadow rays per pixel and light): as a path tracer takes one
 light sample per camera sample, its AA sample of slot s (``SampleShares``) traces only the
-light samples j = s (mod min(S, F)), about F / S of them (at least one), each weighted so
-that the pixel's mean weighs every sample as the full estimate does (``share_weights``).
-The S slots cover the F samples, so the pixel as a whole sees every stratum of the light
-(each once when S <= F), with max(F, S) shadow rays.  A pixel's slots are its AA sample indices
-rotated by a hash of the pixel (``pixel_shares``), so that which sub-pixel position sees which
-part of the light differs from pixel to pixel instead of repeating one pattern.  Pixel-centre
-passes (no AA, adaptive AA's first pass) have no shares: every point traces every sample.
+light samples j = s (mod S) when S <= F (about F / S of them), or the one sample
+j = floor(s F / S) when S > F, each weighted so that the pixel's mean weighs every sample as
+the full estimate does (``share_weights``).  The S slots cover the F samples, so the pixel as
+a whole sees every stratum of the light (each once when S <= F), with max(F, S) shadow rays.
+
+Adaptive AA stops many pixels after a prefix of their samples (4, 8, ...), so every prefix
+must see the light evenly, not one end of it: sample k of a pixel takes slot
+(``progressive_order(S)[k]`` + h) mod S, h a hash of the pixel (``pixel_shares``; the hash
+makes which sub-pixel position sees which part of the light differ from pixel to pixel), so
+the first 4 slots of any pixel lie in the 4 quarters of [0, S), the first 8 in its eighths;
+and a light's samples are stored so that such slots pick spread samples: the Fibonacci
+sphere's run from pole to pole, and the k x k grids (``_grid``) are numbered along
+diagonals, so that the samples j = h + S t / 4 (t = 0..3) of a 4 x 4 grid hold one cell of
+every row and every column.  (With consecutive slots, the first 4 samples of a pixel saw
+only the pole of a sphere light nearest one end of the sequence: where that pole was hidden
+or below a face's horizon, a pixel stopped there came out black.)  Pixel-centre passes (no
+AA, adaptive AA's first pass) have no shares: every point traces every sample.
 """
 
 from __future__ import annotations
@@ -109,12 +119,26 @@ class SampleShares:
         return SampleShares(self.slot[index], self.count)
 
 
+def progressive_order(count: int) -> np.ndarray:
+    """(count,) a permutation of range(count) whose every prefix is spread evenly over
+    [0, count): the van der Corput (bit-reversal) order, 0, 8, 4, 12, 2, 10, ... for 16, its
+    values scaled to count (first occurrences) when count is not a power of two."""
+    bits = max(1, (count - 1).bit_length())
+    index = np.arange(1 << bits)
+    reversed_bits = np.zeros_like(index)
+    for bit in range(bits):
+        reversed_bits |= ((index >> bit) & 1) << (bits - 1 - bit)
+    position = (reversed_bits * count) >> bits
+    _, first = np.unique(position, return_index=True)
+    return position[np.sort(first)]
+
+
 def pixel_shares(cols, rows, count: int) -> SampleShares | None:
     """The shares of ``count`` AA samples in each pixel (cols, rows) (n,), pixel by pixel
     (n * count rays, a pixel's samples side by side as ``core.render`` traces them): sample k
-    of a pixel takes slot (k + h) mod count, h an integer hash of the pixel's position (so the
-    slots do not depend on tiles, bundles or threads).  None for one sample per pixel: it
-    traces every light sample, as a pixel centre does."""
+    of a pixel takes slot (progressive_order(count)[k] + h) mod count, h an integer hash of
+    the pixel's position (so the slots do not depend on tiles, bundles or threads).  None for
+    one sample per pixel: it traces every light sample, as a pixel centre does."""
     if count <= 1:
         return None
     x = np.asarray(cols, np.int64).astype(np.uint64)
@@ -124,31 +148,39 @@ def pixel_shares(cols, rows, count: int) -> SampleShares | None:
     h *= np.uint64(0x2C1B3C6D)
     h ^= h >> np.uint64(12)
     shift = (h % np.uint64(count)).astype(np.intp)
-    slot = (np.arange(count)[None, :] + shift[:, None]) % count
+    slot = (progressive_order(count)[None, :] + shift[:, None]) % count
     return SampleShares(slot.ravel(), count)
 
 
 def share_weights(shares: SampleShares, count: int) -> np.ndarray:
     """(count, m): how much each of a light's ``count`` samples j counts at each of m points
     whose shares are ``shares`` (m slots): 0 where the point does not trace it, else S / u_j,
-    u_j the number of a pixel's S slots that trace sample j.  A sample weighted w_j in the
-    full estimate then adds w_j S / u_j in each of the u_j samples of a pixel that trace it,
-    so the pixel's mean weighs it w_j exactly, as a pixel centre tracing all samples does."""
+    u_j the number of a pixel's S slots that trace sample j (module docstring: j = s mod S,
+    or j = floor(s count / S) when S > count).  A sample weighted w_j in the full estimate
+    then adds w_j S / u_j in each of the u_j samples of a pixel that trace it, so the
+    pixel's mean weighs it w_j exactly, as a pixel centre tracing all samples does."""
     total = shares.count
-    period = min(total, count)
     sample = np.arange(count)
-    uses = 1 if total <= count else total // count + (sample < total % count)
-    chosen = (sample % period)[:, None] == (shares.slot % period)[None, :]
-    return np.where(chosen, (total / np.asarray(uses, np.float64) * np.ones(count))[:, None],
-                    0.0)
+    if total <= count:
+        uses = np.ones(count)
+        chosen = (sample % total)[:, None] == shares.slot[None, :]
+    else:
+        # Slots s with floor(s count / total) = j: from ceil(j total / count) on.
+        starts = -(-np.arange(count + 1) * total // count)
+        uses = np.diff(starts).astype(np.float64)
+        chosen = sample[:, None] == (shares.slot * count // total)[None, :]
+    return np.where(chosen, (total / uses)[:, None], 0.0)
 
 
 def _grid(count: int) -> np.ndarray:
-    """k x k cell centres (k^2, 2) in (-1, 1)^2, k = ceil(sqrt(count)) (>= count points)."""
+    """k x k cell centres (k^2, 2) in (-1, 1)^2, k = ceil(sqrt(count)) (>= count points),
+    numbered along diagonals: sample k r + d is the cell of row r and column (r + d) mod k,
+    so that samples d + k t of any fixed d (the strided slots of a pixel's first samples,
+    module docstring) hold one cell of every row and every column."""
     k = max(1, math.ceil(math.sqrt(count)))
     cells = (np.arange(k) + 0.5) / k * 2.0 - 1.0
-    u, v = np.meshgrid(cells, cells, indexing="ij")
-    return np.stack([u.ravel(), v.ravel()], axis=1)
+    row, diagonal = np.divmod(np.arange(k * k), k)
+    return np.stack([cells[row], cells[(row + diagonal) % k]], axis=1)
 
 
 def concentric_disk(square: np.ndarray) -> np.ndarray:

@@ -150,7 +150,9 @@ class Hits:
     (triangles: counter-clockwise winding); shading: (3, m) unit shading normals on the same
     side (interpolated corner normals; for spheres and flat triangles the geometric normal);
     cos_in: (m,) directions . shading normals; front: (m,) whether the ray arrived from the
-    outside / front side (directions . geometric normals < 0).
+    outside / front side (directions . geometric normals < 0); terminator: where the hits'
+    shadow rays leave (``core.terminator.TerminatorLift``, normals on the side the ray
+    arrived from), or None when no hit is on a smooth triangle with a geometry offset.
     """
 
     rays: np.ndarray
@@ -164,6 +166,7 @@ class Hits:
     shading: np.ndarray
     cos_in: np.ndarray
     front: np.ndarray
+    terminator: object = None
 
     def __len__(self) -> int:
         return len(self.rays)

@@ -29,6 +29,7 @@ import numpy as np
 
 from .choices import (ANTI_ALIASING, FILMS, PARALLELISM, PRECISIONS,  # noqa: F401
                       SEMANTICS)                                # (defined once there)
+from .terminator import DEFAULT_GEOMETRY_OFFSET
 
 Vec3 = tuple[float, float, float]
 
@@ -805,6 +806,10 @@ class TriangleMesh:
     material_indices (T,) into ``materials`` (at least one); transforms (K, 4, 4)
     object-to-world matrices, one per instance (affine: last row 0 0 0 1, invertible 3 x 3).
     Normals go to world space by the inverse transpose of each instance's 3 x 3.
+    shadow_terminator_offset: Blender's Shadow Terminator > Geometry Offset in [0, 1] (its
+    default 0.1): how many of a smooth mesh's grazing shadow rays leave from the smooth
+    surface over its facets rather than from the facets (``core.terminator``); 0 keeps the
+    facets' faceted terminator.  Flat meshes (corner_normals None) have none.
     """
 
     vertices: np.ndarray
@@ -814,6 +819,7 @@ class TriangleMesh:
     materials: tuple
     transforms: np.ndarray = field(default_factory=_identity_transforms)
     name: str = ""
+    shadow_terminator_offset: float = DEFAULT_GEOMETRY_OFFSET
 
     def __post_init__(self):
         where = _set_label("mesh", self.name)
@@ -858,6 +864,8 @@ class TriangleMesh:
                             ("corner_normals", normals), ("material_indices", indices),
                             ("materials", materials), ("transforms", transforms)):
             _set(self, name, value)
+        _set(self, "shadow_terminator_offset",
+             _fraction(f"{where}.shadow_terminator_offset", self.shadow_terminator_offset))
 
     def __len__(self) -> int:
         """Triangles drawn: triangles per instance times instances."""

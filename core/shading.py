@@ -47,6 +47,7 @@ from .context import TraceContext
 from .lights import (SampleShares, area_sample_irradiance, centre_irradiance,
                      cosine_directions, share_weights)
 from .rays import ARTICLE_OFFSET, RayBatch, RayStats, ray_offsets, timed
+from .terminator import TerminatorLift
 from .vectors import dot, length, normalize, normalize_in_place, take
 
 #: One digit of a shadow code per light: unlit (0) or visibility 0, 1/4, .., 1 (1 .. 5).
@@ -115,7 +116,8 @@ def light_blocked(ctx: TraceContext, origin, directions, distance, exclude, stat
 
 @timed("seconds_shading")
 def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
-          stats: RayStats, *, shares: SampleShares | None = None):
+          stats: RayStats, *, shares: SampleShares | None = None,
+          terminator: TerminatorLift | None = None):
     """(colour (3, m), goes_on (m,), shadow_code (m,) uint64) at m hit points.
 
     goes_on: whether the path continues (article shadows end it).  shadow_code: which lights
@@ -128,16 +130,19 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
     ``Aggregate.exclusions``), None in article semantics.  shares: which share of each soft
     light's samples (and of the world's directions) each point traces, for points reached by
     anti-aliasing samples (``core.lights.SampleShares``, m slots); None: all of them.
+    terminator: where the points' shadow rays leave (``Hits.terminator``: points on smooth
+    triangles leave from the smooth surface), None: from the points.
     (Light through translucent surfaces: ``shade_translucent``.)
     """
     if ctx.article:
         return _shade_article(ctx, points, normals, materials, stats)
     colour, goes_on, shadow_code = _shade_default(ctx, points, normals, directions, exclude,
-                                                  materials, shares, stats)
+                                                  materials, shares, stats, terminator)
     if ctx.look is not None and ctx.look.active:
         blender_colour, shadow_code = _shade_blender_lights(ctx, points, normals, directions,
                                                             materials, exclude, shadow_code,
-                                                            shares, stats)
+                                                            shares, stats,
+                                                            terminator=terminator)
         colour += blender_colour
     return colour, goes_on, shadow_code
 
@@ -186,7 +191,8 @@ def _subset(weights, sample):
     return None if weights is None else np.flatnonzero(weights[sample])
 
 
-def _shade_default(ctx, points, normals, directions, exclude, materials, shares, stats):
+def _shade_default(ctx, points, normals, directions, exclude, materials, shares, stats,
+                   terminator=None):
     """The default semantics' Blinn-Phong at m points (module docstring); each material's
     coefficient times a light's intensity comes from the table (``LightTerms``)."""
     lights = ctx.lights
@@ -214,6 +220,7 @@ def _shade_default(ctx, points, normals, directions, exclude, materials, shares,
         pick = (lambda a: a) if everywhere else (lambda a: take(a, lit))
         pick_row = (lambda a: a) if everywhere else (lambda a: a.take(lit))
         lit_points, lit_from_light = pick(points), pick(from_light)
+        lit_lift = None if terminator is None else terminator.take(lit)
         visibility = np.ones(len(lit), dtype)
         samples = lights.samples[light]
         shared = None
@@ -228,8 +235,11 @@ def _shade_default(ctx, points, normals, directions, exclude, materials, shares,
             else:
                 towards, reach = normalize(take(lit_points, part) - _column(sample, dtype))
             ahead = (lambda a: a) if part is None else (lambda a: a[part])
-            blocked = light_blocked(ctx, origin, towards, reach, ahead(pick_row(exclude)),
-                                    stats, end=ahead(pick_row(offset)))
+            ignored, ends = ahead(pick_row(exclude)), ahead(pick_row(offset))
+            blocked = _segments_blocked(
+                ctx, lit_lift, lit_points, part, -towards, sample, ignored,
+                lambda i: light_blocked(ctx, origin, _cols(towards, i), _rows(reach, i),
+                                        _rows(ignored, i), stats, end=_rows(ends, i)), stats)
             if part is None:
                 visibility -= blocked.astype(dtype) / len(samples)
             else:
@@ -320,7 +330,50 @@ def _rays_blocked(ctx, points, towards, offset, reach, exclude, stats):
         RayBatch(points, towards, offset, reach, None, exclude, source=exclude), stats)
 
 
-def _world_occlusion(ctx, points, normals, materials, offset, exclude, shares, stats):
+def _cols(a, index):
+    """Columns ``index`` of a (3, k) bundle (all of it for None)."""
+    return a if index is None else take(a, index)
+
+
+def _rows(a, index):
+    """Entries ``index`` of a (k,) array (all of it for None)."""
+    return a if index is None else a[index]
+
+
+def _segments_blocked(ctx, terminator, points, rows, to_light, target, exclude, trace, stats):
+    """(k,) whether the shadow rays of points ``rows`` (k,) of ``points`` (3, m) (None: all
+    m) are blocked, those of points on smooth triangles lifted off their facets
+    (``core.terminator``: ``terminator`` is the m points' TerminatorLift, or None).
+
+    to_light: (3, k) unit directions from the points towards the light; target: the light
+    sample's position (3,), or None for a direction (a sun, the world: unbounded rays along
+    to_light); exclude (k,) what the rays ignore; trace(index): the caller's own blocked flags
+    for its rays ``index`` (None: all k), as it traces them (from a light sample's shared
+    origin, or from the points)."""
+    if terminator is None:
+        return trace(None)
+    lift = terminator if rows is None else terminator.take(rows)
+    starts = points if rows is None else take(points, rows)
+    moved, origins, ignored = lift.origins(starts, to_light, exclude)
+    if len(moved) == 0:
+        return trace(None)
+    blocked = np.zeros(len(exclude), bool)
+    stay = np.ones(len(exclude), bool)
+    stay[moved] = False
+    stay = np.flatnonzero(stay)
+    if len(stay):
+        blocked[stay] = trace(stay)
+    if target is None:
+        along, reach = take(to_light, moved), np.inf
+    else:
+        along, reach = normalize(np.asarray(target, origins.dtype)[:, None] - origins)
+    blocked[moved] = _rays_blocked(ctx, origins, along, ray_offsets(origins), reach, ignored,
+                                   stats)
+    return blocked
+
+
+def _world_occlusion(ctx, points, normals, materials, offset, exclude, shares, stats,
+                     terminator=None):
     """(m,) the cosine-weighted share of the world hidden from each point (0 for the
     article's Materials), from ``world_samples`` fixed directions turned into each point's
     normal frame.  The ambient term (``_shade_default``) adds diffuse x world unoccluded;
@@ -343,22 +396,26 @@ def _world_occlusion(ctx, points, normals, materials, offset, exclude, shares, s
         count = max(count, shares.count)
     directions = cosine_directions(count).astype(points.dtype)
     origins = take(points, chosen)
+    lift = None if terminator is None else terminator.take(chosen)
     shared = None if shares is None else share_weights(shares.take(chosen), len(directions))
     for index, (x, y, z) in enumerate(directions):
         part = _subset(shared, index)
         if part is None:
-            along = x * first + y * second + z * n
-            blocked = _rays_blocked(ctx, origins, along, offset[chosen], np.inf,
-                                    exclude[chosen], stats)
-            hidden[chosen] += blocked / len(directions)
+            along, rows, starts = x * first + y * second + z * n, chosen, origins
+        elif len(part) == 0:
             continue
-        if len(part) == 0:
-            continue
-        along = x * take(first, part) + y * take(second, part) + z * take(n, part)
-        rows = chosen[part]
-        blocked = _rays_blocked(ctx, take(origins, part), along, offset[rows], np.inf,
-                                exclude[rows], stats)
-        hidden[rows] += blocked * (shared[index, part] / len(directions))
+        else:
+            along = x * take(first, part) + y * take(second, part) + z * take(n, part)
+            rows, starts = chosen[part], take(origins, part)
+        ignored, offsets = exclude[rows], offset[rows]
+        blocked = _segments_blocked(
+            ctx, lift, origins, part, along, None, ignored,
+            lambda i: _rays_blocked(ctx, _cols(starts, i), _cols(along, i), _rows(offsets, i),
+                                    np.inf, _rows(ignored, i), stats), stats)
+        if part is None:
+            hidden[rows] += blocked / len(directions)
+        else:
+            hidden[rows] += blocked * (shared[index, part] / len(directions))
     return hidden
 
 
@@ -373,7 +430,7 @@ def _sphere_sample_weights(light, towards):
 
 
 def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, shadow_code,
-                          shares, stats, surfaces=None, world_terms=True):
+                          shares, stats, surfaces=None, world_terms=True, terminator=None):
     """(radiance (3, m), shadow_code) from Blender's lights (``core.lights``) and the world's
     glossy, emitted and occluded terms (``core.bsdf``) at m points, default semantics.
 
@@ -382,7 +439,7 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
     blocked, partly visible or visible.  (Not quarters of visibility as for the article's
     lights: an area light's penumbra changes smoothly from pixel to pixel, and every pixel of
     it would count as an edge.)  surfaces: the lobes to shade with (default: the look's);
-    world_terms: False leaves the world's terms out."""
+    world_terms: False leaves the world's terms out; terminator: as for ``shade``."""
     look = ctx.look
     surfaces = look.surfaces if surfaces is None else surfaces
     dtype = points.dtype
@@ -395,7 +452,7 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
     if ctx.settings.world_samples and world.any() and len(ctx.geometry) > 1:
         seen_diffuse = diffuse_seen(surfaces, materials, np.clip(dot(normals, to_view), 0, 1))
         colour -= _world_occlusion(ctx, points, normals, materials, offset, exclude, shares,
-                                   stats) * (seen_diffuse * world)
+                                   stats, terminator) * (seen_diffuse * world)
     for light in look.lights:
         scale = _column(light.scale, dtype)
         shadow_code = shadow_code * np.uint64(_CODE_BASE)
@@ -421,8 +478,13 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
                     continue
                 reached[lit] = True
                 local = lit if part is None else np.arange(len(lit))   # into towards, e
-                blocked = light_blocked(ctx, origin, -take(towards, local), distance[local],
-                                        exclude[lit], stats, end=offset[lit])
+                to_light, reach = take(towards, local), distance[local]
+                ignored, ends = exclude[lit], offset[lit]
+                blocked = _segments_blocked(
+                    ctx, terminator, points, lit, to_light, light.samples[sample], ignored,
+                    lambda i: light_blocked(ctx, origin, -_cols(to_light, i), _rows(reach, i),
+                                            _rows(ignored, i), stats, end=_rows(ends, i)),
+                    stats)
                 seen, seen_local = lit[~blocked], local[~blocked]
                 visibility[seen] += (1 if shared is None else shared[sample, seen]) / count
                 colour[:, seen] += scale * light_response(
@@ -435,6 +497,7 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
                 continue
             reached[lit] = True
             lit_points, lit_towards = take(points, lit), take(towards, lit)
+            lit_lift = None if terminator is None else terminator.take(lit)
             weights = _sphere_sample_weights(light, lit_towards)
             shared = None
             if shares is not None and len(light.samples) > 1:
@@ -446,28 +509,42 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
                     facing = np.flatnonzero(weights[sample] > 0)
                     from_sample, reach = normalize(take(lit_points, facing)
                                                    - _column(position, dtype))
-                    blocked = light_blocked(ctx, light.terms[sample], from_sample, reach,
-                                            exclude[lit[facing]], stats,
-                                            end=offset[lit[facing]])
+                    ignored, ends = exclude[lit[facing]], offset[lit[facing]]
+                    blocked = _segments_blocked(
+                        ctx, lit_lift, lit_points, facing, -from_sample, position, ignored,
+                        lambda i: light_blocked(ctx, light.terms[sample], _cols(from_sample, i),
+                                                _rows(reach, i), _rows(ignored, i), stats,
+                                                end=_rows(ends, i)), stats)
                     visibility[lit[facing]] += weights[sample, facing] * ~blocked
                     continue
                 if shared is not None:   # a sun's share of its directions
                     part = np.flatnonzero(shared[sample])
                     rows = lit[part]
                     along = np.repeat(position.astype(dtype)[:, None], len(part), axis=1)
-                    blocked = _rays_blocked(ctx, take(lit_points, part), along, offset[rows],
-                                            np.inf, exclude[rows], stats)
+                    starts, ignored, offsets = take(lit_points, part), exclude[rows], offset[rows]
+                    blocked = _segments_blocked(
+                        ctx, lit_lift, lit_points, part, along, None, ignored,
+                        lambda i: _rays_blocked(ctx, _cols(starts, i), _cols(along, i),
+                                                _rows(offsets, i), np.inf, _rows(ignored, i),
+                                                stats), stats)
                     visibility[rows] += (~blocked) * (shared[sample, part] / len(light.samples))
                     continue
+                ignored, ends = exclude[lit], offset[lit]
                 if light.kind == "sun":
                     along = (lit_towards if len(light.samples) == 1 else
                              np.repeat(position.astype(dtype)[:, None], len(lit), axis=1))
-                    blocked = _rays_blocked(ctx, lit_points, along, offset[lit], np.inf,
-                                            exclude[lit], stats)
+                    blocked = _segments_blocked(
+                        ctx, lit_lift, lit_points, None, along, None, ignored,
+                        lambda i: _rays_blocked(ctx, _cols(lit_points, i), _cols(along, i),
+                                                _rows(ends, i), np.inf, _rows(ignored, i),
+                                                stats), stats)
                 else:
-                    blocked = light_blocked(ctx, light.terms[sample], -lit_towards,
-                                            distance[lit], exclude[lit], stats,
-                                            end=offset[lit])
+                    reach = distance[lit]
+                    blocked = _segments_blocked(
+                        ctx, lit_lift, lit_points, None, lit_towards, position, ignored,
+                        lambda i: light_blocked(ctx, light.terms[sample], -_cols(lit_towards, i),
+                                                _rows(reach, i), _rows(ignored, i), stats,
+                                                end=_rows(ends, i)), stats)
                 visibility[lit] += (~blocked) / len(light.samples)
             seen = lit[visibility[lit] > 0]
             colour[:, seen] += scale * visibility[seen] * light_response(

@@ -177,7 +177,8 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
         point_shares = None if shares is None else shares.take(path)
         illumination, goes_on, shadow_code = shade(ctx, points, normals, directions,
                                                    hits.material, exclude, stats,
-                                                   shares=point_shares)
+                                                   shares=point_shares,
+                                                   terminator=hits.terminator)
         if look is not None and look.translucent is not None:
             through, code = shade_translucent(ctx, points, normals, directions, hits.material,
                                               geometry.exclusions(primitive, ~front), stats,

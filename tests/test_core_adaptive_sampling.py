@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import core
-from core.lights import pixel_shares, share_weights
+from core.lights import _grid, fibonacci_sphere, pixel_shares, share_weights
 
 GREY = core.SurfaceMaterial(diffuse=(0.5, 0.5, 0.5))
 
@@ -168,3 +168,52 @@ def test_a_colour_step_is_an_edge_and_a_gradient_is_not():
     assert _edges(signature, line)[0][:, 2:5].all()
     # A step the signatures do not see (one surface) is left alone.
     assert not _edges(np.zeros((3, width), np.uint64), stepped)[0].any()
+
+
+def _prefix_estimates(visible, samples, first):
+    """(pixels,) each pixel's estimate of the share of a light's samples that are visible
+    (visible (F,) 0 or 1) from its first ``first`` AA samples of ``samples``, through the
+    sample shares (``share_weights``), for pixels of every hash rotation."""
+    cols, rows = np.meshgrid(np.arange(16), np.arange(16))
+    shares = pixel_shares(cols.ravel(), rows.ravel(), samples)
+    weights = share_weights(shares, len(visible)).reshape(len(visible), -1, samples)
+    # Each AA sample's estimate (its weighted visible samples over F), averaged over the
+    # pixel's first samples, as adaptive AA averages a pixel stopped there.
+    per_sample = (weights * visible[:, None, None]).sum(axis=0) / len(visible)
+    return per_sample[:, :first].mean(axis=1)
+
+
+@pytest.mark.parametrize("first", [4, 8])
+def test_the_first_samples_of_a_pixel_see_a_sphere_light_evenly(first):
+    # A sphere light (S Fibonacci points and their antipodes, as ``prepare_light`` makes)
+    # seen only through its equatorial band, |z| < 0.5 (a blocker above and one below): a
+    # pixel that stops after its first 4 or 8 AA samples (adaptive AA's rounds) must not see
+    # only the poles.  (Consecutive slots gave the first 4 samples of some pixels the 8
+    # points of both polar caps: an estimate of 0 where half the light is seen; such pixels
+    # came out black along edges lit by small sphere lights.)
+    normals = fibonacci_sphere(16)
+    normals = np.concatenate([normals, -normals])
+    visible = (np.abs(normals[:, 2]) < 0.5).astype(float)
+    estimates = _prefix_estimates(visible, 16, first)
+    assert np.allclose(_prefix_estimates(visible, 16, 16), visible.mean())
+    assert np.abs(estimates - visible.mean()).max() <= 0.5 / first + 1e-9
+
+
+@pytest.mark.parametrize("axis", [0, 1])
+def test_the_first_samples_of_a_pixel_see_every_row_and_column_of_a_grid(axis):
+    # A square light (or the world's directions) half hidden by an edge along either axis of
+    # its 4 x 4 grid: the first 4 AA samples of every pixel see exactly half of it.
+    visible = (_grid(16)[:, axis] < 0).astype(float)
+    assert visible.mean() == 0.5
+    assert np.allclose(_prefix_estimates(visible, 16, 4), 0.5)
+
+
+@pytest.mark.parametrize("count", [4, 9])
+def test_the_first_samples_of_a_pixel_trace_different_samples_of_a_small_light(count):
+    # Fewer light samples than AA samples: the first 4 AA samples of a pixel trace 4
+    # different light samples (and all of them when the light has 4).
+    cols, rows = np.meshgrid(np.arange(16), np.arange(16))
+    weights = share_weights(pixel_shares(cols.ravel(), rows.ravel(), 16), count)
+    traced = weights.reshape(count, -1, 16)[:, :, :4] > 0       # (count, pixels, 4)
+    assert (traced.sum(axis=0) == 1).all()                      # one light sample each
+    assert (traced.any(axis=2).sum(axis=0) == 4).all()          # four different ones

@@ -27,7 +27,7 @@ from typing import Optional
 import numpy as np
 
 from .geometry import STORED_INT, read_array
-from .meshes import EVALUATED_AS_MESH
+from .meshes import EVALUATED_AS_MESH, terminator_offset
 
 
 def _makes_instances(obj) -> bool:
@@ -126,10 +126,11 @@ class InstanceExporter:
         world = np.matmul(np.asarray(parent.matrix_world, np.float64), local)
         indices = self._reference_indices(points, count)
         holdout = self.context.is_holdout(parent)
+        offset = terminator_offset(parent)
         for index, mesh in enumerate(meshes):
             chosen = indices == index if len(meshes) > 1 else slice(None)
             self.meshes.add_bulk(mesh, tuple(mesh.materials), world[chosen],
-                                 f"{mesh.name} (instanced by {parent.name})", holdout)
+                                 f"{mesh.name} (instanced by {parent.name})", holdout, offset)
         return True
 
     def covers(self, objects, layer_objects) -> bool:

@@ -34,6 +34,7 @@ from typing import Optional
 import numpy as np
 
 from ...core import SceneError, Sphere, SphereSet, TriangleMesh
+from ...core.terminator import DEFAULT_GEOMETRY_OFFSET
 from .context import instance_name
 from .errors import ExportError
 from .geometry import (ANALYTIC_SPHERE_PROPERTY, STORED_FLOAT, STORED_INT, SphereFit,
@@ -110,6 +111,12 @@ def evaluated_materials(obj) -> tuple:
     return tuple(slot.material for slot in obj.material_slots)
 
 
+def terminator_offset(obj) -> float:
+    """The object's Shadow Terminator > Geometry Offset (Cycles' per-object setting, which
+    Glint's smooth triangles honour: ``core.terminator``)."""
+    return float(getattr(obj, "shadow_terminator_geometry_offset", DEFAULT_GEOMETRY_OFFSET))
+
+
 def forces_sphere(obj) -> bool:
     original = obj.original
     return bool(original.get(ANALYTIC_SPHERE_PROPERTY, False)) if original else False
@@ -123,6 +130,7 @@ class MeshUse:
     mesh: object                    # the evaluated bpy Mesh (read in ``finish``)
     materials: tuple                # bpy materials per slot
     holdout: bool = False           # its instances are holdouts (``ExportContext.is_holdout``)
+    terminator_offset: float = DEFAULT_GEOMETRY_OFFSET   # the objects' (``terminator_offset``)
     matrices: list = field(default_factory=list)   # per instance: 64 bytes, float32 4x4
     names: list = field(default_factory=list)      # per instance: its name, or None
     forced: list = field(default_factory=list)     # per instance: glint_analytic_sphere
@@ -198,23 +206,25 @@ class MeshExporter:
         if known is None:
             materials = evaluated_materials(obj)
             holdout = self.context.is_holdout(holder)
-            use_key = (key[1], _material_key(materials), holdout)
+            offset = terminator_offset(obj)
+            use_key = (key[1], _material_key(materials), holdout, offset)
             use = self.uses.get(use_key)
             if use is None:
                 use = self.uses[use_key] = MeshUse(instance_name(instance), obj.data, materials,
-                                                   holdout)
+                                                   holdout, offset)
             known = self.objects[key] = (use, forces_sphere(obj))
         use, forced = known
         return MeshPlacement(use, forced, obj.name if own_geometry(instance) else None)
 
     def add_bulk(self, mesh, materials: tuple, matrices: np.ndarray, display_name: str,
-                 holdout: bool = False) -> None:
+                 holdout: bool = False, offset: float = DEFAULT_GEOMETRY_OFFSET) -> None:
         """Instances of one evaluated mesh given as (K, 4, 4) world matrices (instances read
-        in bulk, ``instances``); holdout: their instancer is a holdout."""
-        key = (mesh.as_pointer(), _material_key(materials), holdout)
+        in bulk, ``instances``); holdout: their instancer is a holdout; offset: its
+        ``terminator_offset``."""
+        key = (mesh.as_pointer(), _material_key(materials), holdout, offset)
         use = self.uses.get(key)
         if use is None:
-            use = self.uses[key] = MeshUse(display_name, mesh, materials, holdout)
+            use = self.uses[key] = MeshUse(display_name, mesh, materials, holdout, offset)
         use.blocks.append(np.asarray(matrices, np.float64).reshape(-1, 4, 4))
 
     def finish(self) -> None:
@@ -285,6 +295,6 @@ class MeshExporter:
                 vertices=arrays.vertices, triangles=arrays.triangles,
                 corner_normals=arrays.corner_normals, material_indices=remap[slots],
                 materials=tuple(slot_materials[i] for i in used), transforms=matrices,
-                name=name))
+                name=name, shadow_terminator_offset=use.terminator_offset))
         except SceneError as error:
             raise ExportError(f"object '{use.name}': {error}") from None
