@@ -460,7 +460,7 @@ class BVH:
     def _treelet_depth(self) -> int:
         """The depth of the treelets: the deepest whose nodes, each holding about
         WIDTH ** TREELET_DEPTH leaves, are at most MAX_TREELETS."""
-        per_depth = np.bincount(self.depths)
+        per_depth = self._depth_counts
         fit = (per_depth * WIDTH ** TREELET_DEPTH <= len(self.leaves)) \
             & (per_depth <= MAX_TREELETS)
         fit[0] = True
@@ -502,7 +502,7 @@ class BVH:
                     t_min if np.ndim(t_min) == 0 else t_min[rest], t_max[rest],
                     lambda r, prims: visit(rest.take(r), prims), any_hit=True, stats=stats)
             return found
-        levels = self._levels() if any_hit else self._nearest_levels()
+        levels = self._levels() if any_hit else self._nearest_levels
         for first in range(0, n, RAY_CHUNK):
             self._traverse(first, min(first + RAY_CHUNK, n), levels, rows, t_min, t_max,
                            visit, accept, found, any_hit, stats)
@@ -538,6 +538,7 @@ class BVH:
         whole = float(_half_area(root[:3], root[3:]))
         return float(_half_area(low, high).sum()) / whole if whole > 0 else 0.0
 
+    @functools.cached_property
     def _nearest_levels(self):
         """The sort depths of nearest-hit traversal (``_levels``), or None where it does not
         sort (``sorts_nearest``).  In dense fields (``leaf_crossings`` of DEEP_SORT_CROSSINGS
@@ -553,7 +554,13 @@ class BVH:
             return None
         if self.leaf_crossings < DEEP_SORT_CROSSINGS:
             return self._levels()
-        return self._levels(int(np.argmax(np.bincount(self.depths))))
+        return self._levels(int(np.argmax(self._depth_counts)))
+
+    @functools.cached_property
+    def _depth_counts(self) -> np.ndarray:
+        """(D,) the number of wide nodes at each depth (counted once: a traversal asks for
+        its sort depths on every batch)."""
+        return np.bincount(self.depths)
 
     def _traverse(self, first, stop, levels, rows, t_min, t_max, visit, accept, found,
                   any_hit, stats):

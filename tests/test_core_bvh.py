@@ -62,7 +62,7 @@ def test_tree_finds_exactly_the_flat_paths_hits(monkeypatch, dtype, sorts):
     monkeypatch.setattr(bvh, "SORTED_FROM", 10 ** 9 if sorts == "unsorted" else 0)
     monkeypatch.setattr(bvh, "DEEP_SORT_CROSSINGS", 0.0 if sorts == "widest" else np.inf)
     tree, flat = _contexts(scene, monkeypatch, dtype)
-    levels = tree.geometry._tree._nearest_levels()
+    levels = tree.geometry._tree._nearest_levels
     widest = int(np.argmax(np.bincount(tree.geometry._tree.depths)))
     assert (levels is None) == (sorts == "unsorted")
     assert sorts == "unsorted" or (levels[-1] == widest) == (sorts == "widest")
