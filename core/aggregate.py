@@ -577,15 +577,23 @@ class Aggregate:
             prims = last["prims"]
             best[owner] = prims[pair]
             best_t[owner] = last["t"][pair]
+            if barycentrics is None:
+                return
+            # A sphere's hit clears what a triangle found before it (0, as before any hit):
+            # a ray's barycentrics do not depend on the order its leaves were visited in.
             bary = last["bary"]
-            if bary is not None:
-                tris, b0, b1, b2 = bary
-                slot = np.full(len(prims), -1, np.intp)
-                slot[tris] = np.arange(_size(tris))
-                chosen = slot[pair]
-                won = chosen >= 0
-                for store, b in zip(barycentrics, (b0, b1, b2)):
-                    store[owner[won]] = b[chosen[won]]
+            if bary is None:
+                for store in barycentrics:
+                    store[owner] = 0
+                return
+            tris, b0, b1, b2 = bary
+            slot = np.full(len(prims), -1, np.intp)
+            slot[tris] = np.arange(_size(tris))
+            chosen = slot[pair]
+            won = chosen >= 0
+            for store, b in zip(barycentrics, (b0, b1, b2)):
+                store[owner[won]] = b[chosen[won]]
+                store[owner[~won]] = 0
 
         bins, plan = self._origin_bins(rays)
         if plan is not None:

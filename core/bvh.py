@@ -99,6 +99,12 @@ ORIGIN_REACH = 4.0
 SLAB_PADDING_32 = 16 * float(np.finfo(np.float32).eps)
 #: A slot without a child.
 EMPTY = -1
+#: Nearest-hit traversal sorts front to back in trees of at least this many leaves
+#: (``BVH.sorts_nearest``).
+SORTED_FROM = 2048
+#: ... and down to the tree's widest depth where a line through the root crosses at least
+#: this many leaf boxes on average (``BVH._nearest_levels``).
+DEEP_SORT_CROSSINGS = 24.0
 
 
 def _spread21(values):
@@ -486,7 +492,7 @@ class BVH:
     def _treelet_depth(self) -> int:
         """The depth of the treelets: the deepest whose nodes, each holding about
         WIDTH ** TREELET_DEPTH leaves, are at most MAX_TREELETS."""
-        per_depth = np.bincount(self.depths)
+        per_depth = self._depth_counts
         fit = (per_depth * WIDTH ** TREELET_DEPTH <= len(self.leaves)) \
             & (per_depth <= MAX_TREELETS)
         fit[0] = True
@@ -537,26 +543,81 @@ class BVH:
                     t_min if np.ndim(t_min) == 0 else t_min[rest], t_max[rest],
                     lambda r, prims: visit(rest.take(r), prims), any_hit=True, stats=stats)
             return found
-        levels = self._levels()
+        levels = self._levels() if any_hit else self._nearest_levels
         for first in range(0, n, RAY_CHUNK):
             self._traverse(first, min(first + RAY_CHUNK, n), levels, rows, t_min, t_max,
                            visit, accept, found, any_hit, stats)
         return found
 
-    def _levels(self) -> list:
+    @functools.cached_property
+    def sorts_nearest(self) -> bool:
+        """Whether nearest-hit traversal visits (ray, node) pairs front to back
+        (``_rounds``), or descends every pair level by level with no sort, visiting leaves as
+        it reaches them (``_descend_all``): trees of fewer than SORTED_FROM leaves, where
+        rays meet few leaves (issue 9's 1,000 spheres: 1.6 a reflection ray) and the sorts
+        and nested rounds cost more than the box tests they save (its reflection rays'
+        nearest hits replayed: 0.89-0.91x the time with 8 % more box tests; a 10^4-sphere
+        set's rays: 1.4-1.8x, 3,000 spheres: even)."""
+        return len(self.leaves) >= SORTED_FROM
+
+    def _levels(self, deepest: int = None) -> list:
         """The depths at which traversal sorts (ray, node) pairs front to back: the treelets'
-        (``_treelet_depth``), and every TREELET_STEP levels above it down to depth 1."""
-        deepest = self._treelet_depth()
+        (``_treelet_depth``, or ``deepest``), and every TREELET_STEP levels above it down to
+        depth 1."""
+        deepest = self._treelet_depth() if deepest is None else deepest
         return sorted(range(deepest, 0, -TREELET_STEP)) or [0]
+
+    @functools.cached_property
+    def leaf_crossings(self) -> float:
+        """The expected number of leaf boxes a random line through the root box crosses:
+        the leaves' surface areas over the root's (the SAH's probabilities).  About 2.5 for
+        a terrain of triangles, 5 for 10^4 of issue 9's random spheres, 40 for 10^5."""
+        leaf = self.children < -1
+        low, high = (self.blocks[:3][:, leaf].T.astype(np.float64),
+                     self.blocks[3:][:, leaf].T.astype(np.float64))
+        root = self.root_box.astype(np.float64)
+        whole = float(_half_area(root[:3], root[3:]))
+        return float(_half_area(low, high).sum()) / whole if whole > 0 else 0.0
+
+    @functools.cached_property
+    def _nearest_levels(self):
+        """The sort depths of nearest-hit traversal (``_levels``), or None where it does not
+        sort (``sorts_nearest``).  In dense fields (``leaf_crossings`` of DEEP_SORT_CROSSINGS
+        or more) the last sort is at the tree's widest depth (the most nodes: below it nodes
+        hold a few leaves), not at the treelets of WIDTH ** TREELET_DEPTH leaves: a ray then
+        stops within a few leaves of its hit instead of visiting every leaf its segment
+        meets in a treelet.  (Every nearest-hit batch of a 640x360 frame replayed, issue 9's
+        sphere sets: 10^5 spheres, 39 crossings, 0.59-0.66x the time, sphere tests halved;
+        10^6, 276 crossings, 0.73-0.78x.  Where rays meet fewer leaves the sorts cost more
+        than they save: 3 x 10^4 spheres (15.6) 1.06-1.10x, 10^4 (5.4) 1.05x, a 320,000-
+        triangle terrain (2.5) 1.3x.)"""
+        if not self.sorts_nearest:
+            return None
+        if self.leaf_crossings < DEEP_SORT_CROSSINGS:
+            return self._levels()
+        return self._levels(int(np.argmax(self._depth_counts)))
+
+    @functools.cached_property
+    def _depth_counts(self) -> np.ndarray:
+        """(D,) the number of wide nodes at each depth (counted once: a traversal asks for
+        its sort depths on every batch)."""
+        return np.bincount(self.depths)
 
     def _traverse(self, first, stop, levels, rows, t_min, t_max, visit, accept, found,
                   any_hit, stats):
+        """Rays first .. stop - 1 from the root: front to back, sorting at ``levels``
+        (``_levels``), or (levels None) level by level unsorted (``sorts_nearest``)."""
         rays = np.arange(first, stop)
         # (A copy: the slab test works in place on boxes it is given for one ray.)
         near, hit = self._slabs(self.root_box[:, None, None].copy(), rays, *rows, t_min, t_max)
         if stats is not None:
             stats.node_tests += len(rays)
         keep = hit[:, 0]
+        if levels is None:
+            rays = rays[keep]
+            self._descend_all(rays, np.zeros(len(rays), np.intp), rows, t_min, t_max, visit,
+                              found, stats, accept, any_hit)
+            return
         # Items: (ray, child reference, entry distance); a reference is a node or a leaf.
         rays, refs, near = rays[keep], np.zeros(int(keep.sum()), np.intp), near[keep, 0]
         for _ in range(levels[0]):
@@ -646,7 +707,7 @@ class BVH:
                     r_pairs, refs, _ = self._expand(rays.take(open_), home.take(open_), *rows,
                                                     t_min, t_max, stats, entries=False)
                     self._descend_all(r_pairs, refs, rows, t_min, t_max, visit, found, stats,
-                                      leaf_blocks)
+                                      leaf_blocks=leaf_blocks)
                 home_met = True
                 live = live[~found.take(live)]
             if len(live) == 0:
@@ -654,7 +715,7 @@ class BVH:
             r_pairs, refs, _ = self._expand(live, done.take(live), *climb_rows, t_min, t_max,
                                             stats, entries=False, table=self._sibling_tables)
             self._descend_all(r_pairs, refs, rows, t_min, t_max, visit, found, stats,
-                              leaf_blocks)
+                              leaf_blocks=leaf_blocks)
             up = node.take(live)
             done[live] = up
             up = parent.take(up)
@@ -662,22 +723,23 @@ class BVH:
             live = live[(up >= 0) & ~found.take(live)]
             climbed += 1
 
-    def _descend_all(self, rays, refs, rows, t_min, t_max, visit, found, stats,
-                     leaf_blocks=None):
+    def _descend_all(self, rays, refs, rows, t_min, t_max, visit, found, stats, accept=None,
+                     any_hit=True, leaf_blocks=None):
         """Descends pairs (ray, child reference) (E,), grouped by ray, level by level,
-        visiting the leaves each level reaches for any hit (a blocked ray goes no deeper):
-        only their primitives whose own boxes the rays reach (``_visit_slots``), when the
-        tree has them."""
+        visiting the leaves each level reaches: for any hit (a blocked ray goes no deeper),
+        only their primitives whose own boxes the rays reach (``_visit_slots``) when the tree
+        has them; or (not any_hit) for nearest hits, told to ``accept`` (the hits found lower
+        t_max, which prunes the levels below)."""
         while len(rays):
             leaf = refs < 0
             if leaf.any():
-                if self.leaf_boxes is not None and MAX_LEAF == WIDTH:
+                if any_hit and self.leaf_boxes is not None and MAX_LEAF == WIDTH:
                     self._visit_slots(rays[leaf], -2 - refs[leaf], rows, t_min, t_max, visit,
                                       found, stats, leaf_blocks)
                 else:
-                    self._visit_leaves(rays[leaf], -2 - refs[leaf], t_max, visit, None, found,
-                                       True)
-                going_on = ~leaf & ~found.take(rays)
+                    self._visit_leaves(rays[leaf], -2 - refs[leaf], t_max, visit, accept,
+                                       found, any_hit)
+                going_on = ~leaf & ~found.take(rays) if any_hit else ~leaf
                 rays, refs = rays[going_on], refs[going_on]
                 if len(rays) == 0:
                     return

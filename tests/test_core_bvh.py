@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import core
-from core import aggregate
+from core import aggregate, bvh
 from core.context import RayStats, make_context
 from core_scenes import dense_wall_scene
 from core.rays import RayBatch
@@ -46,17 +46,26 @@ def _rays(rng, n, dtype, shared_origin=None):
     return rng.uniform(-6, 6, (3, n)).astype(dtype), directions.astype(dtype)
 
 
+@pytest.mark.parametrize("sorts", ["treelets", "widest", "unsorted"])
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
-def test_tree_finds_exactly_the_flat_paths_hits(monkeypatch, dtype):
+def test_tree_finds_exactly_the_flat_paths_hits(monkeypatch, dtype, sorts):
     """3,000 spheres, a floor kept out of the tree, 200 triangles: nearest hits (distance and
     primitive) and occlusion agree with the flat paths ray for ray, for rays with their own
-    origins, rays sharing one (with its terms) and rays that exclude what they leave."""
+    origins, rays sharing one (with its terms) and rays that exclude what they leave; with
+    nearest hits found front to back (sorting down to the treelets or to the widest depth,
+    ``BVH._nearest_levels``) and level by level unsorted (``BVH.sorts_nearest``)."""
     rng = np.random.default_rng(1)
     corners = rng.uniform(-5, 5, (200, 1, 3)) + rng.normal(scale=0.3, size=(200, 3, 3))
     soup = core.TriangleMesh(corners.reshape(-1, 3), np.arange(600).reshape(200, 3), None,
                              np.zeros(200, np.int64), MATERIALS)
     scene = _scene(3000, meshes=(soup,))
+    monkeypatch.setattr(bvh, "SORTED_FROM", 10 ** 9 if sorts == "unsorted" else 0)
+    monkeypatch.setattr(bvh, "DEEP_SORT_CROSSINGS", 0.0 if sorts == "widest" else np.inf)
     tree, flat = _contexts(scene, monkeypatch, dtype)
+    levels = tree.geometry._tree._nearest_levels
+    widest = int(np.argmax(np.bincount(tree.geometry._tree.depths)))
+    assert (levels is None) == (sorts == "unsorted")
+    assert sorts == "unsorted" or (levels[-1] == widest) == (sorts == "widest")
     assert 0 in tree.geometry._flat_ids            # the floor stays flat beside the tree
     for shared in (None, (0.5, 1.0, 11.0)):
         origins, directions = _rays(rng, 4000, dtype, shared)
