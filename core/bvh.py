@@ -102,7 +102,7 @@ EMPTY = -1
 SORTED_FROM = 2048
 #: ... and down to the tree's widest depth where a line through the root crosses at least
 #: this many leaf boxes on average (``BVH._nearest_levels``).
-DEEP_SORT_CROSSINGS = 24.0
+DEEP_SORT_CROSSINGS = 32.0
 
 
 def _spread21(values):
@@ -547,9 +547,10 @@ class BVH:
         stops within a few leaves of its hit instead of visiting every leaf its segment
         meets in a treelet.  (Every nearest-hit batch of a 640x360 frame replayed, issue 9's
         sphere sets: 10^5 spheres, 39 crossings, 0.59-0.66x the time, sphere tests halved;
-        10^6, 276 crossings, 0.73-0.78x.  Where rays meet fewer leaves the sorts cost more
-        than they save: 3 x 10^4 spheres (15.6) 1.06-1.10x, 10^4 (5.4) 1.05x, a 320,000-
-        triangle terrain (2.5) 1.3x.)"""
+        10^6, 276 crossings, 0.73-0.78x; the lead's 10^6 point cloud, 64 crossings, even.
+        Where rays meet fewer leaves the sorts cost more than they save: its 10^5 GN
+        instances (24.2) 1.05-1.17x, 3 x 10^4 spheres (15.6) 1.06-1.10x, 10^4 (5.4) 1.05x,
+        a 320,000-triangle terrain (2.5) 1.3x.)"""
         if not self.sorts_nearest:
             return None
         if self.leaf_crossings < DEEP_SORT_CROSSINGS:
