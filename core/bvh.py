@@ -15,7 +15,8 @@ binary child that is a leaf stays one child).
 Layout: ``blocks`` (6, M, WIDTH) each wide node's child boxes as planes (low xyz, high
 xyz; a plane of a node's children is contiguous), padded with NaN boxes no ray enters; ``children`` (M, WIDTH) each slot's child: a wide
 node (>= 0), a leaf ``-2 - leaf`` or EMPTY; ``leaves`` (L, MAX_LEAF) each leaf's primitive
-ids, padded with -1.  Node 0 is the root, whose own box is ``root_box``.
+ids, padded with -1; ``leaf_boxes`` (6, L, MAX_LEAF) each leaf slot's primitive's own box,
+padded as the nodes' boxes (NaN in a padding slot).  Node 0 is the root, whose own box is ``root_box``.
 
 Traversal (``BVH.traverse``) is wavefront-style over (ray, node) pairs.  From the root down
 every live pair is expanded to its children at once and kept where the ray's segment meets
@@ -36,9 +37,10 @@ visit, so per-ray reductions are ``reduceat``.
 Occlusion rays that leave a primitive of the tree (``traverse(sources=)``) take a trail
 instead (``_trail``): from the node holding their primitive's leaf up to the root, each step
 meets the children of the next node up but the one already done, and descends them level by
-level with no front-to-back sort, visiting leaves as it reaches them, until the ray is
-blocked.  Blockers are mostly near the ray's origin, so most rays never see the top of the
-tree; the steps' subtrees partition the tree, so the same rays are blocked.
+level with no front-to-back sort, visiting leaves as it reaches them (only the primitives
+whose own boxes the ray reaches), until the ray is blocked.  Blockers are mostly near the
+ray's origin, so most rays never see the top of the tree; the steps' subtrees partition the
+tree, so the same rays are blocked.
 
 Boxes are padded, so culling stays conservative for rays in either precision; slab tests
 run in float32 for rays that start near the origin (``ORIGIN_REACH``), else in float64.
@@ -170,6 +172,30 @@ def _leaf_table(ordered_ids, firsts, counts):
     table[np.repeat(np.arange(len(counts)), counts), within] = \
         ordered_ids[np.repeat(firsts, counts) + within]
     return table
+
+
+def _slot_boxes(low, high, slots):
+    """(low, high) (L * MAX_LEAF, 3): the boxes low, high (P, 3) of a leaf table's slots
+    (``slots`` (L, MAX_LEAF) indices into them, -1: padding, whose box is NaN)."""
+    pad = slots.ravel() < 0
+    safe = np.where(pad, 0, slots.ravel())
+    out = low.take(safe, axis=0), high.take(safe, axis=0)
+    for boxes in out:
+        boxes[pad] = np.nan
+    return out
+
+
+def _box_planes(low, high, grow):
+    """(6, K) float32 planes (low xyz, high xyz) of boxes low, high (K, 3): each padded by
+    BOX_PADDING of its own magnitude and extent, which grow with the box (so a box's padding
+    covers its primitives', and parents still hold children), then grown by ``grow`` for
+    the float32 slabs (module docstring)."""
+    pad = BOX_PADDING * (2 * np.maximum(_row_max(np.abs(low)), _row_max(np.abs(high)))
+                         + _row_max(high - low))[:, None] + 1e-300
+    planes = np.empty((6, len(low)), np.float32)
+    planes[:3] = (low - pad - grow).T
+    planes[3:] = (high + pad + grow).T
+    return planes
 
 
 def _segment_boxes(low, high, starts):
@@ -311,13 +337,13 @@ def _spread(values, dtype, k=WIDTH):
     return out
 
 
-def _ray_terms(origins, inverse, dtype):
+def _ray_terms(origins, inverse, dtype, k=WIDTH):
     """The rays' terms of the slab tests, in dtype: origins (3, 1) (a shared origin) or
-    (3, n, WIDTH), inverse (3, n, WIDTH) (``_spread``: each ray's value once per slot, so that
-    a node's (6, m, WIDTH) child planes meet them element for element)."""
+    (3, n, k), inverse (3, n, k) (``_spread``: each ray's value once per slot, so that
+    a node's (6, m, k) child planes meet them element for element)."""
     if origins.shape[1] == 1:
-        return origins.astype(dtype), _spread(inverse, dtype)
-    return _spread(origins, dtype), _spread(inverse, dtype)
+        return origins.astype(dtype), _spread(inverse, dtype, k)
+    return _spread(origins, dtype, k), _spread(inverse, dtype, k)
 
 
 def keep_nearest(rays, prims, t, t_max, found, accept, any_hit):
@@ -350,7 +376,8 @@ def keep_nearest(rays, prims, t, t_max, found, accept, any_hit):
 class BVH:
     """A WIDTH-wide tree (module docstring): root_box (6,) low xyz, high xyz; blocks
     (6, M, WIDTH); children (M, WIDTH); leaves (L, MAX_LEAF) primitive ids or -1;
-    child_counts (M,) real slots of each node; depths (M,) each node's depth (root 0)."""
+    child_counts (M,) real slots of each node; depths (M,) each node's depth (root 0);
+    leaf_boxes (6, L, MAX_LEAF) or None (below)."""
 
     root_box: np.ndarray
     blocks: np.ndarray
@@ -359,6 +386,10 @@ class BVH:
     child_counts: np.ndarray
     depths: np.ndarray
     origin_reach: float = np.inf     # float32 slabs for rays from within this of the origin
+    #: (6, L, MAX_LEAF) float32 planes of each leaf slot's primitive's own box, padded as the
+    #: nodes' are (NaN: an empty slot), or None: occlusion trails cull a leaf's primitives
+    #: by these before visiting them (``_descend_all``).
+    leaf_boxes: np.ndarray | None = None
 
     @classmethod
     def build(cls, ids: np.ndarray, low: np.ndarray, high: np.ndarray) -> "BVH":
@@ -373,7 +404,9 @@ class BVH:
             tree = build_binary_sah(low, high)
             counts = tree.count[tree.left < 0]
             firsts = tree.start[tree.left < 0]
-            return cls.collapse(tree, _leaf_table(ids[tree.order], firsts, counts))
+            slots = _leaf_table(tree.order, firsts, counts)
+            return cls.collapse(tree, _leaf_table(ids[tree.order], firsts, counts),
+                                _slot_boxes(low, high, slots))
         size = np.log2(np.maximum(_row_max(high - low), 1e-300))
         size_class = np.floor((size - size.min()) / 2).astype(np.intp)
         codes = morton_codes((low + high) / 2)
@@ -392,16 +425,19 @@ class BVH:
         firsts = np.flatnonzero(cut)
         counts = np.diff(np.r_[firsts, len(order)])
         c_low, c_high = _segment_boxes(lows, highs, firsts)
-        del lows, highs, codes, size, classes, run, lengths, cut, low, high
+        del codes, size, classes, run, lengths, cut, low, high
         tree = build_binary_sah(c_low, c_high, max_leaf=1, median_up_to=CLUSTER_MEDIAN_UP_TO)
-        leaves = _leaf_table(ids[order], firsts[tree.order], counts[tree.order])
         # Each binary leaf holds one cluster: the one at its position in the build's order.
-        return cls.collapse(tree, leaves[tree.start[tree.left < 0]])
+        chosen = tree.order[tree.start[tree.left < 0]]
+        leaves = _leaf_table(ids[order], firsts[chosen], counts[chosen])
+        slots = _leaf_table(np.arange(len(order)), firsts[chosen], counts[chosen])
+        return cls.collapse(tree, leaves, _slot_boxes(lows, highs, slots))
 
     @classmethod
-    def collapse(cls, tree: BinaryTree, leaves: np.ndarray) -> "BVH":
+    def collapse(cls, tree: BinaryTree, leaves: np.ndarray, slot_boxes=None) -> "BVH":
         """The WIDTH-wide tree of a binary one; leaves (L, MAX_LEAF): the primitives of its
-        leaves (in node order), padded with -1."""
+        leaves (in node order), padded with -1; slot_boxes (low, high (L * MAX_LEAF, 3), NaN
+        in padding slots): their own boxes (``leaf_boxes``), or None."""
         inner = tree.left >= 0
         leaf_nodes = np.flatnonzero(~inner)
         leaf_index = np.full(len(tree.left), -1, np.intp)
@@ -434,20 +470,16 @@ class BVH:
         reach = max(float(np.abs(tree.low[0]).max()), float(np.abs(tree.high[0]).max()))
         grow = SLAB_PADDING_32 * ORIGIN_REACH * reach
         blocks = np.full((6,) + slots.shape, np.nan, np.float32)
-        # Each box padded by BOX_PADDING of its own magnitude and extent, which grow with the
-        # box (so a box's padding covers its primitives', and parents still hold children),
-        # then grown for the float32 slabs.
-        low, high = tree.low[slots[real]], tree.high[slots[real]]
-        pad = BOX_PADDING * (2 * np.maximum(_row_max(np.abs(low)), _row_max(np.abs(high)))
-                             + _row_max(high - low))[:, None] + 1e-300
-        blocks[:3, real] = (low - pad - grow).T
-        blocks[3:, real] = (high + pad + grow).T
+        blocks[:, real] = _box_planes(tree.low[slots[real]], tree.high[slots[real]], grow)
+        # (A padding slot's NaN box stays NaN.)
+        leaf_boxes = None if slot_boxes is None else \
+            _box_planes(*slot_boxes, grow).reshape((6,) + leaves.shape)
         low, high = tree.low[0], tree.high[0]
         pad = BOX_PADDING * (2 * max(np.abs(low).max(), np.abs(high).max())
                              + (high - low).max()) + 1e-300
         root_box = np.concatenate([low - pad - grow, high + pad + grow]).astype(np.float32)
         return cls(root_box, blocks, children, leaves, real.sum(axis=1),
-                   tree.depth[wide] // 2, ORIGIN_REACH * reach)
+                   tree.depth[wide] // 2, ORIGIN_REACH * reach, leaf_boxes)
 
     @property
     def node_count(self) -> int:
@@ -469,7 +501,7 @@ class BVH:
     # ---- traversal ----------------------------------------------------------------------
 
     def traverse(self, origins, inverse, t_min, t_max, visit, accept=None, *, any_hit=False,
-                 sources=None, stats=None):
+                 sources=None, leaf_blocks=None, stats=None):
         """Visit, front to back, the primitives whose leaves each ray's segment reaches.
 
         origins (3, n) or (3, 1) and inverse (3, n) (1 / direction) float64; t_min scalar
@@ -481,6 +513,10 @@ class BVH:
         ``sources`` (n,) (any_hit only): the primitive each ray leaves (-1: none); a ray
         leaving a primitive of the tree follows its trail (``_trail``) instead of coming
         down from the root.
+        ``leaf_blocks(rays, slots)`` (with sources; optional): the trails' visit by leaf
+        slot instead of by primitive: given (ray, slot) pairs (E,) (a slot indexes
+        ``leaves.ravel()``), the rays (k,) (repeats allowed) whose slot's primitive blocks
+        them, as ``visit`` would say.
         Returns (n,) bool: whether a hit (any_hit: a blocker) was found for each ray.
         """
         n = inverse.shape[1]
@@ -491,9 +527,14 @@ class BVH:
         if any_hit and sources is not None:
             starts = self._start_nodes(sources)
             trailed = np.flatnonzero(starts >= 0)
+            # (The climbing steps meet WIDTH - 1 siblings: terms spread for those.)
+            climb_rows = _ray_terms(origins, inverse, dtype, WIDTH - 1) if len(trailed) else None
             for first in range(0, len(trailed), TRAIL_CHUNK):
                 part = trailed[first:first + TRAIL_CHUNK]
-                self._trail(part, starts.take(part), rows, t_min, t_max, visit, found, stats)
+                # (Rays with no end, a sun's or the world's, skip the slabs' bound: None.)
+                bound = None if np.isposinf(t_max.take(part)).all() else t_max
+                self._trail(part, starts.take(part), rows, climb_rows, t_min, bound, visit,
+                            found, stats, leaf_blocks)
             if len(trailed) < n:
                 # The rest (rays leaving no primitive of the tree) from the root.
                 rest = np.flatnonzero(starts < 0)
@@ -612,6 +653,21 @@ class BVH:
         home[self.leaves[held]] = np.broadcast_to(leaf_home[:, None], self.leaves.shape)[held]
         return home, parent
 
+    @functools.cached_property
+    def _sibling_tables(self):
+        """(planes (6, M, WIDTH - 1) float32, children (M, WIDTH - 1), counts (M,)): for each
+        wide node, the boxes and references of its parent's other slots, in slot order (the
+        root's: none, NaN boxes no ray enters), which a trail's climbing step from the node
+        meets.  Built on the first trail: 104 bytes a node (13 MiB for a million spheres)."""
+        rows, slots = np.nonzero(self.children >= 0)      # each inner child's parent, slot
+        child = self.children[rows, slots]
+        others = np.sort((slots[:, None] + np.arange(1, WIDTH)) % WIDTH, axis=1)
+        planes = np.full((6, self.node_count, WIDTH - 1), np.nan, np.float32)
+        planes[:, child] = self.blocks[:, rows[:, None], others]
+        children = np.full((self.node_count, WIDTH - 1), EMPTY, self.children.dtype)
+        children[child] = self.children[rows[:, None], others]
+        return planes, children, (children != EMPTY).sum(axis=1)
+
     def _start_nodes(self, sources):
         """(n,) the wide node holding the leaf of each ray's source primitive (-1: none)."""
         home = self._trail_tables[0]
@@ -619,12 +675,14 @@ class BVH:
         known = (sources >= 0) & (sources < len(home))
         return np.where(known, home.take(np.where(known, sources, 0)), -1)
 
-    def _trail(self, rays, starts, rows, t_min, t_max, visit, found, stats):
+    def _trail(self, rays, starts, rows, climb_rows, t_min, t_max, visit, found, stats,
+               leaf_blocks=None):
         """Any-hit traversal of rays (m,) (increasing) that leave primitives of the tree, from
         their leaves up.  Each ray's *home* (``starts`` (m,)) is the node whose slot holds its
         primitive's leaf.  The ray climbs from the home's parent: each step meets the children
-        of the next node up but the child already done, up to the root, until the ray is
-        blocked; the home's own children (the ray's leaf, with its primitive's neighbours,
+        of the next node up but the child already done (``_sibling_tables``: the slab terms
+        ``climb_rows`` are spread for those), up to the root, until the ray is blocked; the
+        home's own children (the ray's leaf, with its primitive's neighbours,
         and the leaf's siblings) are met after HOME_AFTER steps.  The subtrees met at a step
         are descended level by level (``_descend_all``) with no front-to-back sort: the
         steps go from near the ray's origin outwards, and blockers are mostly near (the
@@ -635,47 +693,83 @@ class BVH:
         primitive) pairs: the rays blocked are exactly those the root-down traversal finds."""
         parent = self._trail_tables[1]
         home = starts.astype(np.intp)
-        node = parent.take(home)
-        done = home.copy()                  # the child already done
-        live = np.flatnonzero(node >= 0)
+        # Per ray of the batch (indexed by the rays themselves): the node the ray meets next,
+        # and the child of it already done.
+        node = np.empty(len(found), np.intp)
+        done = np.empty(len(found), np.intp)
+        node[rays] = parent.take(home)
+        done[rays] = home
+        live = rays[node.take(rays) >= 0]
         climbed, home_met = 0, False
         while True:
             if not home_met and (climbed == HOME_AFTER or len(live) == 0):
                 open_ = np.flatnonzero(~found.take(rays))
                 if len(open_):
                     r_pairs, refs, _ = self._expand(rays.take(open_), home.take(open_), *rows,
-                                                    t_min, t_max, stats)
-                    self._descend_all(r_pairs, refs, rows, t_min, t_max, visit, found, stats)
+                                                    t_min, t_max, stats, entries=False)
+                    self._descend_all(r_pairs, refs, rows, t_min, t_max, visit, found, stats,
+                                      leaf_blocks=leaf_blocks)
                 home_met = True
-                live = live[~found.take(rays.take(live))]
+                live = live[~found.take(live)]
             if len(live) == 0:
                 return
-            r = rays.take(live)
-            r_pairs, refs, _ = self._expand(r, node.take(live), *rows, t_min, t_max, stats)
-            fresh = refs != done.take(live).take(np.searchsorted(r, r_pairs))
-            self._descend_all(r_pairs[fresh], refs[fresh], rows, t_min, t_max, visit, found,
-                              stats)
-            done[live] = node.take(live)
-            node[live] = parent.take(node.take(live))
-            live = live[(node.take(live) >= 0) & ~found.take(rays.take(live))]
+            r_pairs, refs, _ = self._expand(live, done.take(live), *climb_rows, t_min, t_max,
+                                            stats, entries=False, table=self._sibling_tables)
+            self._descend_all(r_pairs, refs, rows, t_min, t_max, visit, found, stats,
+                              leaf_blocks=leaf_blocks)
+            up = node.take(live)
+            done[live] = up
+            up = parent.take(up)
+            node[live] = up
+            live = live[(up >= 0) & ~found.take(live)]
             climbed += 1
 
     def _descend_all(self, rays, refs, rows, t_min, t_max, visit, found, stats, accept=None,
-                     any_hit=True):
+                     any_hit=True, leaf_blocks=None):
         """Descends pairs (ray, child reference) (E,), grouped by ray, level by level,
         visiting the leaves each level reaches: for any hit (a blocked ray goes no deeper),
-        or (not any_hit) for nearest hits, told to ``accept`` (the hits found lower t_max,
-        which prunes the levels below)."""
+        only their primitives whose own boxes the rays reach (``_visit_slots``) when the tree
+        has them; or (not any_hit) for nearest hits, told to ``accept`` (the hits found lower
+        t_max, which prunes the levels below)."""
         while len(rays):
             leaf = refs < 0
             if leaf.any():
-                self._visit_leaves(rays[leaf], -2 - refs[leaf], t_max, visit, accept, found,
-                                   any_hit)
+                if any_hit and self.leaf_boxes is not None and MAX_LEAF == WIDTH:
+                    self._visit_slots(rays[leaf], -2 - refs[leaf], rows, t_min, t_max, visit,
+                                      found, stats, leaf_blocks)
+                else:
+                    self._visit_leaves(rays[leaf], -2 - refs[leaf], t_max, visit, accept,
+                                       found, any_hit)
                 going_on = ~leaf & ~found.take(rays) if any_hit else ~leaf
                 rays, refs = rays[going_on], refs[going_on]
                 if len(rays) == 0:
                     return
-            rays, refs, _ = self._expand(rays, refs, *rows, t_min, t_max, stats)
+            rays, refs, _ = self._expand(rays, refs, *rows, t_min, t_max, stats,
+                                         entries=False)
+
+    def _visit_slots(self, rays, leaves, rows, t_min, t_max, visit, found, stats,
+                     leaf_blocks=None):
+        """Any-hit visit of pairs (ray, leaf) (m,), grouped by ray: only the primitives whose
+        own boxes (``leaf_boxes``) the rays' segments reach (rows: the slab terms, spread for
+        MAX_LEAF slots), through ``visit``, or ``leaf_blocks`` (``traverse``) by slot."""
+        _, hit = self._slabs(self.leaf_boxes.take(leaves, axis=1), rays, *rows, t_min, t_max)
+        if stats is not None:
+            stats.node_tests += int(self._leaf_fill.take(leaves).sum())
+        pair_slot = hit.ravel().nonzero()[0]
+        if len(pair_slot) == 0:
+            return
+        r = rays.take(pair_slot // MAX_LEAF)
+        if leaf_blocks is not None:
+            found[leaf_blocks(r, leaves.take(pair_slot // MAX_LEAF) * MAX_LEAF
+                              + pair_slot % MAX_LEAF)] = True
+            return
+        prims = self.leaves.take(leaves, axis=0).ravel().take(pair_slot)
+        found[r[visit(r, prims) < np.inf]] = True
+
+    @functools.cached_property
+    def _leaf_fill(self):
+        """(L,) the primitives of each leaf."""
+        return (self.leaves >= 0).sum(axis=1)
 
     def _rounds(self, first, rays, refs, near, levels, rows, t_min, t_max, visit, accept,
                 found, any_hit, stats):
@@ -755,7 +849,8 @@ class BVH:
     @staticmethod
     def _slabs(planes, rays, origins, inverse, t_min, t_max):
         """(entry distance (m, k), hit (m, k)) of rays (m,) against boxes given as planes
-        (6, m, k) (low xyz, high xyz; k = WIDTH), or against one box (6, 1, 1).
+        (6, m, k) (low xyz, high xyz; k = WIDTH), or against one box (6, 1, 1), for
+        segments from t_min (scalar or (n,)) to t_max (n,) (None: every ray unbounded).
 
         origins, inverse: the rays' terms (``_ray_terms``: (3, n, WIDTH), origins possibly
         (3, 1)).  Every operation runs over whole (3, m * k) planes, element for element: a
@@ -794,19 +889,25 @@ class BVH:
                 np.maximum(near, _spread(t_min.take(rays), dtype, k).ravel(), out=near)
             else:
                 np.maximum(near, t_min, out=near)
-            np.minimum(far, _spread(t_max.take(rays), dtype, k).ravel(), out=far)
+            if t_max is not None:
+                np.minimum(far, _spread(t_max.take(rays), dtype, k).ravel(), out=far)
             return near.reshape(m, k), (near <= far).reshape(m, k)
 
-    def _expand(self, rays, nodes, origins, inverse, t_min, t_max, stats):
+    def _expand(self, rays, nodes, origins, inverse, t_min, t_max, stats, entries=True,
+                table=None):
         """The children of pairs (ray, node) (m,) that the rays' segments reach: (rays,
-        child references, entry distances), still grouped by ray."""
-        near, hit = self._slabs(self.blocks.take(nodes, axis=1), rays, origins, inverse,
+        child references, entry distances (None unless ``entries``)), still grouped by ray.
+        table: (planes, children, counts) of k slots a node to meet instead of the node's
+        children (``_sibling_tables``; origins and inverse spread for k)."""
+        blocks, children, counts = (self.blocks, self.children, self.child_counts) \
+            if table is None else table
+        near, hit = self._slabs(blocks.take(nodes, axis=1), rays, origins, inverse,
                                 t_min, t_max)
         if stats is not None:
-            stats.node_tests += int(self.child_counts.take(nodes).sum())
+            stats.node_tests += int(counts.take(nodes).sum())
         pair_slot = hit.ravel().nonzero()[0]
         # (The pairs' rows of children, then the slots hit: a 32-byte row copy per pair is
         # faster than one index per slot.)
-        return (rays.take(pair_slot // WIDTH),
-                self.children.take(nodes, axis=0).ravel().take(pair_slot),
-                near.ravel().take(pair_slot))
+        return (rays.take(pair_slot // blocks.shape[2]),
+                children.take(nodes, axis=0).ravel().take(pair_slot),
+                near.ravel().take(pair_slot) if entries else None)

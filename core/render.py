@@ -36,6 +36,7 @@ from .frame import canonical_scene, scene_frame
 from .lights import SampleShares, pixel_shares
 from .precision import choose_precision
 from .scene import RenderSettings, Scene, SceneError
+from .shading import shares_matter
 from .trace import trace_bundle
 from . import allocator, workers
 
@@ -322,28 +323,28 @@ def _staged_supersample(ctx, camera, cols, rows, count, centre_rgb, centre_cover
     large.  A pixel's samples are always a prefix of the one sequence, with the soft lights'
     shares of ``count`` samples (``core.lights.pixel_shares``), so a pixel that goes to
     ``count`` gets fixed AA's samples, and a pixel's value depends only on its own samples and
-    its centre's step (n,) to its neighbours: never on the tile.  In article semantics (point
-    lights only, no shares) a pixel's centre is its sample 0 and is not traced again."""
+    its centre's step (n,) to its neighbours: never on the tile.  Where the shares change
+    nothing (``core.shading.shares_matter``: article semantics, or only point lights) a
+    pixel's centre is its sample 0 and is not traced again."""
     n = len(cols)
     rgb_sum = np.zeros((n, 3), np.float64)
     coverage_sum = np.zeros(n, np.float64)
     low = np.full((n, 4), np.inf)
     high = np.full((n, 4), -np.inf)
-    done = 0
     counts = np.zeros(n)
-    if ctx.article:
-        rgb_sum += centre_rgb
-        coverage_sum += centre_coverage
-        low = _display(ctx, centre_rgb, centre_coverage).astype(np.float64)
-        high = low.copy()
-        done = 1
-        counts += 1
+    centre = not shares_matter(ctx)   # the first round starts from the centres
     live = np.arange(n)
-    target = min(FIRST_SAMPLES, count)
+    done, target = 0, min(FIRST_SAMPLES, count)
     while len(live):
-        for part, colour, hit in _sample_bundles(ctx, camera, cols[live], rows[live], count,
-                                                 np.arange(done, target), stats, stop):
+        ks = np.arange(int(centre) if done == 0 else done, target)
+        rounds = (_sample_bundles(ctx, camera, cols[live], rows[live], count, ks, stats, stop)
+                  if len(ks) else [(slice(None), np.zeros((n, 0, 3), ctx.dtype),
+                                    np.zeros((n, 0), ctx.dtype))])
+        for part, colour, hit in rounds:
             part = live[part]
+            if centre and done == 0:   # sample 0 first, so sums run in the samples' order
+                colour = np.concatenate([centre_rgb[part, None], colour], axis=1)
+                hit = np.concatenate([centre_coverage[part, None], hit], axis=1)
             display = _display(ctx, colour.reshape(-1, 3), hit.ravel()).reshape(
                 len(part), -1, 4)
             rgb_sum[part] += colour.sum(axis=1)

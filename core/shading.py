@@ -114,6 +114,19 @@ def light_blocked(ctx: TraceContext, origin, directions, distance, exclude, stat
     return ctx.geometry.occluded(segments, stats)
 
 
+def shares_matter(ctx: TraceContext) -> bool:
+    """Whether an anti-aliasing sample's share of the soft lights' samples (``shares`` of
+    ``shade``) can change what it traces: not in article semantics (point lights), nor in
+    the default semantics' Blinn-Phong when every light is a point (one sample each); always
+    assumed with Blender's look (its lights and the world's occlusion sample by shares).
+    Where it cannot, a pixel's centre is its AA sample 0 (``core.render``)."""
+    if ctx.article:
+        return False
+    if ctx.look is not None and ctx.look.active:
+        return True
+    return any(len(samples) > 1 for samples in ctx.lights.samples)
+
+
 @timed("seconds_shading")
 def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
           stats: RayStats, *, shares: SampleShares | None = None,

@@ -6,6 +6,7 @@ error with fewer camera rays, the same image for any tiling or thread count."""
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 
 import numpy as np
@@ -35,6 +36,11 @@ def _adaptive(scene, samples=16, **settings):
     settings = {"semantics": "article", "precision": "float64", **settings}
     return core.render(scene, core.RenderSettings(anti_aliasing="adaptive", samples=samples,
                                                   **settings))
+
+
+def _centres(scene, semantics="article"):
+    return core.render(scene, core.RenderSettings(anti_aliasing="off", semantics=semantics,
+                                                  precision="float64"))
 
 
 def _fixed(scene, samples):
@@ -129,3 +135,33 @@ def test_staged_samples_do_not_depend_on_tiles_or_threads():
     default = [_adaptive(scene, semantics="default", tile_size=tile, threads=threads).image
                for tile, threads in ((128, 1), (8, 2))]
     assert np.array_equal(*default)
+
+
+def test_a_centre_is_sample_zero_where_the_light_shares_change_nothing(monkeypatch):
+    # Default semantics with point lights only: a sample's share of the lights' samples
+    # changes nothing, so the centres already traced are the edge pixels' sample 0 (as in
+    # article semantics); a light with a radius samples by shares, so there sample 0 is
+    # traced again, with its share.  Every edge pixel goes to the end here.
+    monkeypatch.setattr(render_module, "SAMPLE_ERROR", -1.0)
+    point = _field(size=(40, 30), count=600)
+    soft = dataclasses.replace(point, lights=(core.PointLight((5, 5, 5), radius=0.5),))
+    for scene, again in ((point, 0), (soft, 1)):
+        for semantics in ("default", "article") if scene is point else ("default",):
+            staged = _adaptive(scene, semantics=semantics)
+            edges = staged.stats.supersampled_pixels
+            assert edges > 100
+            assert staged.stats.camera_rays == 40 * 30 + (15 + again) * edges
+            # ... and a pixel that goes to the end has fixed AA's value either way.
+            fixed = core.render(scene, core.RenderSettings(
+                anti_aliasing="fixed", samples=16, semantics=semantics, precision="float64"))
+            sampled = np.abs(staged.image - _centres(scene, semantics).image).max(-1) > 0
+            assert sampled.sum() > 0.5 * edges
+            assert np.allclose(staged.image[sampled], fixed.image[sampled], rtol=0, atol=1e-12)
+
+
+def test_adaptive_with_one_sample_is_the_centres():
+    scene = _field(size=(40, 30), count=600)
+    for semantics in ("article", "default"):
+        one = _adaptive(scene, samples=1, semantics=semantics)
+        assert one.stats.camera_rays == 40 * 30
+        assert np.array_equal(one.image, _centres(scene, semantics).image)

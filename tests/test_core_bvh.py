@@ -435,6 +435,101 @@ def test_occlusion_trails_block_exactly_the_rays_the_flat_paths_do(monkeypatch, 
         assert trail_stats.node_tests != root_stats.node_tests     # the trail was taken
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_trails_by_leaf_block_exactly_the_rays_every_sphere_does(monkeypatch, dtype):
+    """A tree of spheres alone (a floor kept out of it) visits its trails' leaves through the
+    leaf-ordered spheres (``Aggregate._leaf_blocks``): the same blocked rays as the flat path
+    (every sphere tested) and as the visit by primitive, with the same sphere tests, for
+    rays leaving spheres, the floor and nothing, short segments and infinite."""
+    from core.bvh import BVH
+    rng = np.random.default_rng(8)
+    tree, flat = _contexts(_scene(3000), monkeypatch, dtype)
+    rays = _leaving_rays(tree, rng, 6000)
+    n = len(rays)
+    source = rays.source.copy()
+    source[rng.random(n) < 0.1] = -1
+    assert (source >= 1).sum() > 1000 and (source < 1).sum() > 100
+    traverse, leaf_blocks = BVH.traverse, tree.geometry._leaf_blocks
+    calls = []
+
+    def by_primitive(self, *args, leaf_blocks=None, **kwargs):
+        return traverse(self, *args, **kwargs)
+
+    def counted(*args):
+        calls.append(1)
+        return leaf_blocks(*args)
+
+    monkeypatch.setattr(tree.geometry, "_leaf_blocks", counted)
+
+    for length in (np.inf, rng.uniform(0.05, 3, n).astype(dtype)):
+        segments = RayBatch(rays.origins, rays.directions, rays.t_min, length, None,
+                            rays.exclude, source)
+        leaf_stats, prim_stats = RayStats(), RayStats()
+        blocked = tree.geometry.occluded(segments, leaf_stats)
+        assert calls                                       # the leaf path was taken
+        monkeypatch.setattr(BVH, "traverse", by_primitive)
+        calls.clear()
+        assert np.array_equal(blocked, tree.geometry.occluded(segments, prim_stats))
+        assert not calls
+        monkeypatch.setattr(BVH, "traverse", traverse)
+        assert np.array_equal(blocked, flat.geometry.occluded(segments, RayStats()))
+        assert leaf_stats.sphere_tests == prim_stats.sphere_tests > 0
+        assert leaf_stats.node_tests == prim_stats.node_tests
+        assert blocked.mean() > 0.1 and not blocked.all()
+    # Segments from random points to the centres of the spheres they leave and ignore:
+    # blocked only by another sphere.
+    aimed = rng.integers(1, 3001, n)
+    centers = tree.geometry.spheres.centers[aimed].T
+    start = rng.uniform(-6, 6, (3, n))
+    towards = centers - start
+    length = np.linalg.norm(towards, axis=0)
+    segments = RayBatch(start.astype(dtype), (towards / length).astype(dtype), 0.0,
+                        length.astype(dtype), None, aimed, aimed)
+    blocked = tree.geometry.occluded(segments, RayStats())
+    assert np.array_equal(blocked, flat.geometry.occluded(segments, RayStats()))
+    assert 0.1 < blocked.mean() < 0.9
+
+
+def test_leaf_ordered_spheres_hold_each_leafs_spheres_in_its_slots():
+    scene = _scene(2000)
+    geometry = make_context(scene, core.RenderSettings(), np.float32).geometry
+    x, y, z, radii, ids = geometry._leaf_spheres()
+    assert np.array_equal(ids, geometry._tree.leaves.ravel())
+    held = ids >= 0
+    assert held.sum() == 2000
+    for k, column in enumerate((x, y, z, radii)):
+        assert column.dtype == np.float32 and column.shape == ids.shape
+        values = geometry._centers_t[k] if k < 3 else geometry._radii_t
+        assert np.array_equal(column[held], values[ids[held]])
+        assert np.isnan(column[~held]).all()
+
+
+@pytest.mark.parametrize("count", [30, 70_000])
+def test_leaf_boxes_hold_each_slots_primitive_within_its_leafs_box(count):
+    """Each leaf slot's box (``BVH.leaf_boxes``) holds its primitive's box (float32, padded),
+    lies within the leaf's own box in its node, and is NaN in a padding slot: with and
+    without the Morton clusters (CLUSTER_FROM)."""
+    from core.bvh import BVH
+    rng = np.random.default_rng(9)
+    low = rng.uniform(-5, 5, (count, 3))
+    high = low + rng.uniform(0.001, 0.05, (count, 3))
+    ids = rng.permutation(count) + 3
+    tree = BVH.build(ids, low, high)
+    boxes = tree.leaf_boxes
+    assert boxes.shape == (6,) + tree.leaves.shape and boxes.dtype == np.float32
+    held = tree.leaves >= 0
+    where = np.empty(count + 3, np.intp)
+    where[ids] = np.arange(count)
+    prim = where[tree.leaves[held]]
+    assert (boxes[:3, held] <= low[prim].T).all() and (boxes[3:, held] >= high[prim].T).all()
+    assert np.isnan(boxes[:, ~held]).all()
+    node, slot = np.nonzero(tree.children <= -2)
+    leaf = -2 - tree.children[node, slot]
+    own = tree.blocks[:, node, slot]                                  # (6, L)
+    inside = (boxes[:3, leaf] >= own[:3, :, None]) & (boxes[3:, leaf] <= own[3:, :, None])
+    assert (inside | ~held[leaf][None]).all()
+
+
 def test_trail_tables_hold_each_primitives_leaf_and_each_nodes_parent():
     from core.bvh import BVH, EMPTY
     rng = np.random.default_rng(4)
@@ -452,6 +547,25 @@ def test_trail_tables_hold_each_primitives_leaf_and_each_nodes_parent():
     inner = tree.children[parent[1:]]
     assert ((inner == np.arange(1, tree.node_count)[:, None]) & (inner != EMPTY)).any(axis=1).all()
     assert (tree.depths[parent[1:]] == tree.depths[1:] - 1).all()
+
+
+def test_sibling_tables_hold_each_nodes_parents_other_slots():
+    """A trail's climbing step from a node meets its parent's other slots (boxes and
+    references), and counts the real ones as box tests."""
+    from core.bvh import BVH, EMPTY, WIDTH
+    rng = np.random.default_rng(5)
+    low = rng.uniform(-5, 5, (4000, 3))
+    tree = BVH.build(np.arange(4000), low, low + rng.uniform(0.01, 0.2, (4000, 3)))
+    parent = tree._trail_tables[1]
+    planes, children, counts = tree._sibling_tables
+    assert planes.shape == (6, tree.node_count, WIDTH - 1) and children.shape[1] == WIDTH - 1
+    assert (children[0] == EMPTY).all() and np.isnan(planes[:, 0]).all() and counts[0] == 0
+    for node in range(1, tree.node_count):
+        up = parent[node]
+        others = np.flatnonzero(tree.children[up] != node)
+        assert np.array_equal(children[node], tree.children[up, others])
+        assert np.array_equal(planes[:, node], tree.blocks[:, up, others], equal_nan=True)
+        assert counts[node] == tree.child_counts[up] - 1
 
 
 def test_rays_leaving_a_dense_wall_are_blocked_near_their_leaf():
