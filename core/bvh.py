@@ -104,7 +104,7 @@ EMPTY = -1
 SORTED_FROM = 2048
 #: ... and down to the tree's widest depth where a line through the root crosses at least
 #: this many leaf boxes on average (``BVH._nearest_levels``).
-DEEP_SORT_CROSSINGS = 24.0
+DEEP_SORT_CROSSINGS = 32.0
 
 
 def _spread21(values):
@@ -588,9 +588,10 @@ class BVH:
         stops within a few leaves of its hit instead of visiting every leaf its segment
         meets in a treelet.  (Every nearest-hit batch of a 640x360 frame replayed, issue 9's
         sphere sets: 10^5 spheres, 39 crossings, 0.59-0.66x the time, sphere tests halved;
-        10^6, 276 crossings, 0.73-0.78x.  Where rays meet fewer leaves the sorts cost more
-        than they save: 3 x 10^4 spheres (15.6) 1.06-1.10x, 10^4 (5.4) 1.05x, a 320,000-
-        triangle terrain (2.5) 1.3x.)"""
+        10^6, 276 crossings, 0.73-0.78x; the lead's 10^6 point cloud, 64 crossings, even.
+        Where rays meet fewer leaves the sorts cost more than they save: its 10^5 GN
+        instances (24.2) 1.05-1.17x, 3 x 10^4 spheres (15.6) 1.06-1.10x, 10^4 (5.4) 1.05x,
+        a 320,000-triangle terrain (2.5) 1.3x.)"""
         if not self.sorts_nearest:
             return None
         if self.leaf_crossings < DEEP_SORT_CROSSINGS:
@@ -608,16 +609,18 @@ class BVH:
         """Rays first .. stop - 1 from the root: front to back, sorting at ``levels``
         (``_levels``), or (levels None) level by level unsorted (``sorts_nearest``)."""
         rays = np.arange(first, stop)
+        if levels is None:
+            # (No test of the root's own box: its children's tests answer for it, which
+            # saves a test a ray where nearly every ray enters the root: issue 9's 1,000
+            # spheres' reflection rays replayed 0.92-0.96x.)
+            self._descend_all(rays, np.zeros(len(rays), np.intp), rows, t_min, t_max, visit,
+                              found, stats, accept, any_hit)
+            return
         # (A copy: the slab test works in place on boxes it is given for one ray.)
         near, hit = self._slabs(self.root_box[:, None, None].copy(), rays, *rows, t_min, t_max)
         if stats is not None:
             stats.node_tests += len(rays)
         keep = hit[:, 0]
-        if levels is None:
-            rays = rays[keep]
-            self._descend_all(rays, np.zeros(len(rays), np.intp), rows, t_min, t_max, visit,
-                              found, stats, accept, any_hit)
-            return
         # Items: (ray, child reference, entry distance); a reference is a node or a leaf.
         rays, refs, near = rays[keep], np.zeros(int(keep.sum()), np.intp), near[keep, 0]
         for _ in range(levels[0]):

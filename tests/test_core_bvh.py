@@ -152,6 +152,49 @@ def _check_tree(tree, ids, low, high):
     assert (tree.root_box[3:] >= high.max(axis=0)).all()
 
 
+def test_leaf_crossings_count_the_leaf_boxes_random_lines_cross():
+    """``BVH.leaf_crossings`` (the leaves' areas over the root's) is the mean number of leaf
+    boxes crossed by isotropic random lines through the root box (Cauchy-Crofton), counted
+    here by brute force over 6,000 such lines; and it tells a sparse field from a dense one
+    (``_nearest_levels`` sorts deeper in the dense)."""
+    rng = np.random.default_rng(11)
+    low, high = _mixed_boxes(rng, 600, 40)
+    tree = bvh.BVH.build(np.arange(len(low)), low, high)
+    leaf = tree.children < -1
+    leaf_low = tree.blocks[:3][:, leaf].astype(float)          # (3, L)
+    leaf_high = tree.blocks[3:][:, leaf].astype(float)
+    root_low, root_high = tree.root_box[:3].astype(float), tree.root_box[3:].astype(float)
+    centre, reach = (root_low + root_high) / 2, np.linalg.norm(root_high - root_low) / 2
+    # Lines of uniform direction through uniform points of a disc (radius: the root's half
+    # diagonal) across it, kept where they cross the root box.
+    d = rng.normal(size=(20000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    e1 = np.cross(d, np.where(np.abs(d[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(d, e1)
+    radius, angle = reach * np.sqrt(rng.uniform(size=20000)), rng.uniform(0, 2 * np.pi, 20000)
+    o = centre + radius[:, None] * (np.cos(angle)[:, None] * e1 + np.sin(angle)[:, None] * e2)
+
+    def crossed(lo, hi, o, d):          # (lines, boxes): whether each line crosses each box
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1 = (lo[None] - o[:, :, None]) / d[:, :, None]
+            t2 = (hi[None] - o[:, :, None]) / d[:, :, None]
+        return np.fmax.reduce(np.fmin(t1, t2), axis=1) <= np.fmin.reduce(np.fmax(t1, t2), axis=1)
+
+    through = crossed(root_low[:, None], root_high[:, None], o, d)[:, 0]
+    o, d = o[through][:6000], d[through][:6000]
+    counts = crossed(leaf_low, leaf_high, o, d).sum(axis=1)
+    error = counts.std() / np.sqrt(len(counts))
+    assert len(counts) == 6000 and counts.mean() > 0.5
+    assert abs(counts.mean() - tree.leaf_crossings) < 4 * error + 0.01 * tree.leaf_crossings
+    # 60,000 boxes filling a cube: a dense field, sorted down to the widest depth.
+    dense_centre = rng.uniform(-1, 1, (60000, 3))
+    dense = bvh.BVH.build(np.arange(60000), dense_centre - 0.03, dense_centre + 0.03)
+    assert tree.leaf_crossings < bvh.DEEP_SORT_CROSSINGS <= dense.leaf_crossings
+    assert tree._nearest_levels in (None, tree._levels())
+    assert dense._nearest_levels[-1] == int(np.argmax(np.bincount(dense.depths)))
+
+
 @pytest.mark.parametrize("cluster_from", [10 ** 9, 500])
 def test_sah_tree_holds_every_primitive_once_and_bounds_its_children(monkeypatch,
                                                                      cluster_from):
