@@ -250,9 +250,10 @@ def _shade_default(ctx, points, normals, directions, exclude, materials, shares,
             ahead = (lambda a: a) if part is None else (lambda a: a[part])
             ignored, ends = ahead(pick_row(exclude)), ahead(pick_row(offset))
             blocked = _segments_blocked(
-                ctx, lit_lift, lit_points, part, -towards, sample, ignored,
+                ctx, lit_lift, lit_points, part, towards, sample, ignored,
                 lambda i: light_blocked(ctx, origin, _cols(towards, i), _rows(reach, i),
-                                        _rows(ignored, i), stats, end=_rows(ends, i)), stats)
+                                        _rows(ignored, i), stats, end=_rows(ends, i)), stats,
+                from_light=True)
             if part is None:
                 visibility -= blocked.astype(dtype) / len(samples)
             else:
@@ -353,18 +354,22 @@ def _rows(a, index):
     return a if index is None else a[index]
 
 
-def _segments_blocked(ctx, terminator, points, rows, to_light, target, exclude, trace, stats):
+def _segments_blocked(ctx, terminator, points, rows, directions, target, exclude, trace, stats,
+                      *, from_light=False):
     """(k,) whether the shadow rays of points ``rows`` (k,) of ``points`` (3, m) (None: all
     m) are blocked, those of points on smooth triangles lifted off their facets
     (``core.terminator``: ``terminator`` is the m points' TerminatorLift, or None).
 
-    to_light: (3, k) unit directions from the points towards the light; target: the light
-    sample's position (3,), or None for a direction (a sun, the world: unbounded rays along
-    to_light); exclude (k,) what the rays ignore; trace(index): the caller's own blocked flags
+    directions: (3, k) unit directions from the points towards the light, or (from_light)
+    from the light towards the points, as the caller's segments from a light sample run (so
+    that it need not turn them round where nothing is lifted); target: the light sample's
+    position (3,), or None for a direction (a sun, the world: unbounded rays towards the
+    light); exclude (k,) what the rays ignore; trace(index): the caller's own blocked flags
     for its rays ``index`` (None: all k), as it traces them (from a light sample's shared
     origin, or from the points)."""
     if terminator is None:
         return trace(None)
+    to_light = -directions if from_light else directions
     lift = terminator if rows is None else terminator.take(rows)
     starts = points if rows is None else take(points, rows)
     moved, origins, ignored = lift.origins(starts, to_light, exclude)
@@ -524,10 +529,10 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
                                                    - _column(position, dtype))
                     ignored, ends = exclude[lit[facing]], offset[lit[facing]]
                     blocked = _segments_blocked(
-                        ctx, lit_lift, lit_points, facing, -from_sample, position, ignored,
+                        ctx, lit_lift, lit_points, facing, from_sample, position, ignored,
                         lambda i: light_blocked(ctx, light.terms[sample], _cols(from_sample, i),
                                                 _rows(reach, i), _rows(ignored, i), stats,
-                                                end=_rows(ends, i)), stats)
+                                                end=_rows(ends, i)), stats, from_light=True)
                     visibility[lit[facing]] += weights[sample, facing] * ~blocked
                     continue
                 if shared is not None:   # a sun's share of its directions
