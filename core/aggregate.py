@@ -74,6 +74,10 @@ BINS_MAX_BYTES = 64 * 1024 ** 2
 #: one such batch more (and a frame has a batch per tile).  The rule depends on the batch
 #: alone, so which batches use bins does not depend on the order tiles run in.
 BINS_PRIMITIVES_PER_RAY = 1
+#: Rays leaving one primitive whose lines pass this close to one point (a fraction of the
+#: tree's median box half side; ``Aggregate._mirror_groups``) are answered by direction bins
+#: around that point, with the boxes grown by as much.
+MIRROR_SLACK = 0.125
 
 
 def _roots_block(t_near, t_far, low, high, article: bool):
@@ -148,6 +152,7 @@ class Aggregate:
         # One tree over the rest, spheres and triangles together (global ids).
         self._tree = None
         self._tree_boxes = None
+        self.mirror_slack = 0.0
         self._surface_keys = None   # built on first use (adaptive anti-aliasing only)
         self._tree_spheres = len(tree_spheres)
         self._tree_triangles = len(tree_triangles)
@@ -171,6 +176,9 @@ class Aggregate:
             self._tree = BVH.build(ids, low, high)
             # The boxes again for direction bins (``_origin_bins``), while they may pay.
             self._tree_boxes = (ids, low, high) if len(ids) <= BINS_MAX_PRIMITIVES else None
+            # How far from a common point mirror images' lines may pass (``_mirror_groups``):
+            # a fraction of the boxes' typical half side, so grown boxes list few more rays.
+            self.mirror_slack = MIRROR_SLACK * float(np.median((high - low).max(axis=1))) / 2
             del low, high
         self._bins = {}     # origin (bytes) -> OriginBins, or None: the tree answers there
         self._bins_bytes = 0
@@ -434,13 +442,16 @@ class Aggregate:
 
     # ---- the tree -----------------------------------------------------------------------
 
-    def _pair_setup(self, rays: RayBatch):
-        """Per-batch arrays the tree's pair kernels share: float64 origins and inverse
-        directions for the box tests, the rays' shears for triangles."""
+    def _box_terms(self, rays: RayBatch, keep=None):
+        """The tree's box tests' terms of the batch's rays (of rays ``keep`` (k,), None:
+        all): float64 origins and inverse directions (only where the tree is traversed:
+        rays answered by bins need neither)."""
+        directions = rays.directions if keep is None else take(rays.directions, keep)
+        origins = rays.origins if keep is None or rays.origins.shape[1] == 1 \
+            else take(rays.origins, keep)
         with np.errstate(divide="ignore"):
-            inverse = 1 / rays.directions.astype(np.float64)
-        shear = Shear.of(rays.directions) if self.triangle_count else None
-        return rays.origins.astype(np.float64, copy=False), inverse, shear
+            inverse = 1 / directions.astype(np.float64)
+        return origins.astype(np.float64, copy=False), inverse
 
     def _sphere_pairs(self, rays: RayBatch, r, sphere):
         """(t_near, t_far, valid) (E,) of pairs (ray r, sphere), with the batch's shared
@@ -546,15 +557,16 @@ class Aggregate:
         """Improves best_t, best (n,) and the triangle barycentrics in place with the tree's
         primitives."""
         n = len(rays)
-        origins, inverse, shear = self._pair_setup(rays)
+        shear = Shear.of(rays.directions) if self.triangle_count else None
         reach = np.minimum(best_t.astype(np.float64), _per_ray(rays.t_max, n))
         t_min = _per_ray(rays.t_min, n, self.dtype)
         exclude = rays.exclude
         last = {}
 
-        def visit(r, prims):
+        def visit(r, prims, reached=None):
+            # (reached: (E,) the pairs' rays' reach, when a group of rays keeps its own.)
             t = np.full(len(r), np.inf, self.dtype)
-            limit = reach[r].astype(self.dtype)
+            limit = (reach[r] if reached is None else reached).astype(self.dtype)
             spheres, tris = self._pairs_by_kind(prims, stats)
             if _size(spheres):
                 pr = r[spheres]
@@ -599,13 +611,34 @@ class Aggregate:
         if plan is not None:
             bins.traverse(plan, reach, visit, accept, exclude=exclude)
             return
+        rest = None     # the rays the tree answers (None: all of them)
+        for members, bins, plan, shift in self._mirror_groups(rays):
+            # (Numbered within the group: the kernels' rays mapped back to the batch's.)
+            local = reach.take(members)
+            bins.traverse(plan, local,
+                          lambda r, prims, m=members, local=local: visit(m.take(r), prims,
+                                                                         local.take(r)),
+                          lambda owner, pair, m=members: accept(m.take(owner), pair),
+                          exclude=None if exclude is None else exclude.take(members),
+                          reach_shift=shift)
+            rest = np.ones(n, bool) if rest is None else rest
+            rest[members] = False
         box_t_min = _box_start(rays.t_min)
-        self._tree.traverse(origins, inverse, box_t_min, reach, visit, accept,
-                            stats=stats)
+        if rest is None:
+            self._tree.traverse(*self._box_terms(rays), box_t_min, reach, visit, accept,
+                                stats=stats)
+            return
+        rest = np.flatnonzero(rest)
+        if len(rest):
+            local = reach.take(rest)
+            self._tree.traverse(
+                *self._box_terms(rays, rest), box_t_min, local,
+                lambda r, prims: visit(rest.take(r), prims, local.take(r)),
+                lambda owner, pair: accept(rest.take(owner), pair), stats=stats)
 
     def _occluded_in_tree(self, segments: RayBatch, stats) -> np.ndarray:
         n = len(segments)
-        origins, inverse, shear = self._pair_setup(segments)
+        shear = Shear.of(segments.directions) if self.triangle_count else None
         reach = np.array(_per_ray(segments.t_max, n), np.float64)
         low = _per_ray(segments.t_min, n, self.dtype)
         high = _per_ray(segments.t_max, n, self.dtype)
@@ -644,9 +677,9 @@ class Aggregate:
                 and (segments.shared is None or segments.shared.tree_terms is None)):
             def leaf_blocks(r, leaf):
                 return self._leaf_blocks(segments, r, leaf, low, high, stats)
-        return self._tree.traverse(origins, inverse, box_t_min, reach, visit, any_hit=True,
-                                   sources=segments.source, leaf_blocks=leaf_blocks,
-                                   stats=stats)
+        return self._tree.traverse(*self._box_terms(segments), box_t_min, reach, visit,
+                                   any_hit=True, sources=segments.source,
+                                   leaf_blocks=leaf_blocks, stats=stats)
 
     def _origin_bins(self, rays: RayBatch):
         """(bins, plan): the direction bins of the batch's shared origin and the batch's
@@ -657,7 +690,19 @@ class Aggregate:
         if (rays.shared is None or self._tree_boxes is None
                 or len(rays) * BINS_PRIMITIVES_PER_RAY < len(self._tree_boxes[0])):
             return None, None
-        key = np.asarray(rays.shared.position, np.float64).tobytes()
+        bins = self._bins_at(rays.shared.position)
+        if bins is None:
+            return None, None
+        plan = bins.plan(rays.directions)
+        return (bins, plan) if plan is not None else (None, None)
+
+    def _bins_at(self, position, mirror: bool = False):
+        """The direction bins around ``position`` (3,) of the tree's boxes (mirror: grown by
+        ``mirror_slack``, ``_mirror_groups``), or None where they do not pay or the bins
+        held are at their bound.  Built on first use, once per origin, under a lock (tiles
+        run in threads)."""
+        position = np.asarray(position, np.float64)
+        key = (position.tobytes(), mirror)
         bins = self._bins.get(key, False)
         if bins is False:
             with self._bins_lock:
@@ -665,13 +710,95 @@ class Aggregate:
                 if bins is False:
                     bins = None
                     if self._bins_bytes < BINS_MAX_BYTES:
-                        bins = OriginBins.build(rays.shared.position, *self._tree_boxes)
+                        ids, low, high = self._tree_boxes
+                        if mirror:
+                            low, high = low - self.mirror_slack, high + self.mirror_slack
+                        bins = OriginBins.build(position, ids, low, high)
                     self._bins[key] = bins
                     self._bins_bytes += 0 if bins is None else bins.nbytes
-        if bins is None:
-            return None, None
-        plan = bins.plan(rays.directions)
-        return (bins, plan) if plan is not None else (None, None)
+        return bins
+
+    def _mirror_groups(self, rays: RayBatch):
+        """[(members (k,), bins, plan, reach shift (k,))]: groups of the batch's rays whose
+        lines pass within ``mirror_slack`` (per axis) of one point q behind their origins,
+        enough of them to pay for bins (``BINS_PRIMITIVES_PER_RAY``), and the direction bins
+        around q of the tree's boxes grown by that much.
+
+        A flat mirror's reflections of rays from one point E (``RayBatch.arrived_from``: a
+        camera's eye) all pass through E's mirror image in its plane, and a large sphere's
+        (the article's floor) near the image of E in its tangent plane nearest to E: the
+        first bounce's rays off a floor, which cross the whole field, are answered as if
+        they left q, as camera rays are.  q is that image for each ray's source primitive
+        (rounded to a grid of a quarter of the slack, so that the triangles of one plane
+        share it), and each ray is checked.  Exact: a ray o + t d (t >= 0) whose line passes
+        within e of q, with q behind o (tau = (q - o).d / |d|^2 <= 0), is q + e + s d with
+        s = t - tau >= 0, so every box it meets, grown by |e| per axis, is met by the ray
+        from q along d, and listed in d's cell; and a grown box at a distance D from q is
+        met by the ray at t >= D + tau (so ``reach_shift`` = -tau)."""
+        eye = rays.arrived_from
+        if (eye is None or rays.source is None or self._tree_boxes is None
+                or not self.mirror_slack > 0):
+            return []
+        need = len(self._tree_boxes[0]) * BINS_PRIMITIVES_PER_RAY
+        if len(rays) < need:
+            return []
+        grid = self.mirror_slack / 4
+        images = self._mirror_images(np.asarray(eye, np.float64), rays.source, grid)
+        if images is None:
+            return []
+        cell, points = images
+        groups = []
+        for key in np.flatnonzero(np.bincount(cell + 1)[1:] >= need):
+            members = np.flatnonzero(cell == key)
+            point = points[key]
+            towards = point[:, None] - take(rays.origins, members)
+            directions = take(rays.directions, members).astype(np.float64)
+            tau = dot(towards, directions) / dot(directions, directions)
+            towards -= tau * directions
+            miss = np.abs(towards).max(axis=0)
+            near = np.flatnonzero((miss <= self.mirror_slack * (1 - 1e-6)) & (tau <= 0))
+            if len(near) < need:
+                continue
+            members = members.take(near)
+            bins = self._bins_at(point, mirror=True)
+            plan = None if bins is None else bins.plan(take(rays.directions, members))
+            if plan is not None:
+                groups.append((members, bins, plan, -tau.take(near)))
+        return groups
+
+    def _mirror_images(self, eye, source, grid):
+        """(image (n,) index into points or -1, points (G, 3)): the mirror image of ``eye``
+        (3,) in the tangent plane of each ray's source primitive (``source`` (n,), -1:
+        none) nearest to it (a sphere's) or in its plane (a triangle's), rounded to
+        multiples of ``grid``; None when no ray has a source."""
+        primitives, inverse = np.unique(source, return_inverse=True)
+        known = primitives >= 0
+        if not known.any():
+            return None
+        prims = primitives[known]
+        normal = np.empty((len(prims), 3))
+        plane = np.empty(len(prims))        # the image is eye - 2 plane * normal
+        spheres = prims < self.sphere_count
+        if spheres.any():
+            k = prims[spheres]
+            away = eye - self.spheres.centers[k]
+            size = np.sqrt((away * away).sum(axis=1))
+            normal[spheres] = away / size[:, None]
+            plane[spheres] = size - self.spheres.radii[k]
+        if not spheres.all():
+            k = prims[~spheres] - self.sphere_count
+            n = self.triangles.normals[:, k].T
+            normal[~spheres] = n
+            plane[~spheres] = ((eye - self.triangles.v0[:, k].T) * n).sum(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            images = np.round((eye - 2 * plane[:, None] * normal) / grid)
+        images[~np.isfinite(images).all(axis=1)] = np.nan
+        points, which = np.unique(images, axis=0, return_inverse=True)
+        image = np.full(len(primitives), -1, np.intp)
+        image[known] = which.ravel()
+        finite = np.isfinite(points).all(axis=1)
+        image[known] = np.where(finite[which.ravel()], which.ravel(), -1)
+        return image.take(inverse.ravel()), points * grid
 
     # ---- occlusion ----------------------------------------------------------------------
 
@@ -740,7 +867,8 @@ class Aggregate:
         leaving it (it is flat)."""
         return np.where(leave_front | (primitive >= self.sphere_count), primitive, -1)
 
-    def spawn(self, points, normals, primitive, directions, leave_front) -> RayBatch:
+    def spawn(self, points, normals, primitive, directions, leave_front,
+              arrived_from=None) -> RayBatch:
         """Rays leaving m hit points (3, m) along ``directions`` (3, m), on the front side of
         their geometric ``normals`` (3, m) (front / outside) where ``leave_front`` (m,).
 
@@ -748,21 +876,22 @@ class Aggregate:
         point's magnitude) along the geometric normal, on the side the ray leaves, and the
         ray ignores its own primitive where it cannot hit it again (``exclusions``).
         Article rules: the article's fixed offset along the sphere's outward normal (for a
-        triangle, on the side the ray leaves), no exclusion."""
+        triangle, on the side the ray leaves), no exclusion.  arrived_from: (3,) the point
+        the rays that arrived at the points all left, or None (``RayBatch.arrived_from``)."""
         everywhere = bool(leave_front.all())
         side = None if everywhere else np.where(leave_front, 1, -1).astype(self.dtype)
         if self.article:
             if self.triangle_count and side is not None:
                 side = np.where(primitive >= self.sphere_count, side, 1).astype(self.dtype)
                 return RayBatch(points + ARTICLE_OFFSET * (normals * side), directions,
-                                source=primitive)
+                                source=primitive, arrived_from=arrived_from)
             origins = ARTICLE_OFFSET * normals
             origins += points
-            return RayBatch(origins, directions, source=primitive)
+            return RayBatch(origins, directions, source=primitive, arrived_from=arrived_from)
         # (Multiplying by a side of 1 everywhere would change nothing: skipped.)
         origins = points + ray_offsets(points) * (normals if side is None else normals * side)
         return RayBatch(origins, directions, exclude=self.exclusions(primitive, leave_front),
-                        source=primitive)
+                        source=primitive, arrived_from=arrived_from)
 
 
 def _size(index) -> int:
@@ -787,7 +916,7 @@ def _subset(rays: RayBatch, keep) -> RayBatch:
     return RayBatch(origins, take(rays.directions, keep), pick(rays.t_min), pick(rays.t_max),
                     rays.shared,
                     None if rays.exclude is None else rays.exclude[keep],
-                    None if rays.source is None else rays.source[keep])
+                    None if rays.source is None else rays.source[keep], rays.arrived_from)
 
 
 def _partition(sizes: np.ndarray, flat_limit: int):

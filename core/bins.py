@@ -270,7 +270,8 @@ class OriginBins:
             return None
         return start, count
 
-    def traverse(self, plan, t_max, visit, accept=None, *, any_hit=False, exclude=None):
+    def traverse(self, plan, t_max, visit, accept=None, *, any_hit=False, exclude=None,
+                 reach_shift=None):
         """``BVH.traverse``'s contract over the batch's candidate pairs: plan from ``plan``;
         t_max (n,) float64, lowered in place to each ray's nearest hit; ``visit(rays,
         prims)`` gets (ray, primitive) pairs (E,) grouped by ray, each ray's pairs in id
@@ -278,7 +279,9 @@ class OriginBins:
         value < inf blocks); ``accept(rays, pairs)`` learns which pair (index into that
         visit's pairs) is each improved ray's nearest hit (ties: the lower primitive id).
         exclude: (n,) the primitive each ray ignores (-1: none), or None; a ray's pair with
-        it is not visited at all (``visit`` would find no hit there).
+        it is not visited at all (``visit`` would find no hit there).  reach_shift: (n,)
+        how much further than its t_max each ray may be from the bins' origin at its t_max
+        (rays that do not leave the origin itself: ``Aggregate._mirror_groups``), or None.
         Returns (n,) bool: whether a hit (any_hit: a blocker) was found for each ray."""
         start, count = plan
         n = len(count)
@@ -295,7 +298,10 @@ class OriginBins:
             ray = np.repeat(np.arange(first, stop), part_count)
             # Pairs whose ray stops before the primitive's box, or ignores the primitive, are
             # never intersected.
-            keep = self.near.take(entry) < t_max.take(ray)
+            reach = t_max.take(ray)
+            if reach_shift is not None:
+                reach += reach_shift.take(ray)
+            keep = self.near.take(entry) < reach
             if exclude is not None:
                 keep &= self.primitives.take(entry) != exclude.take(ray)
             keep = np.flatnonzero(keep)

@@ -124,7 +124,10 @@ class RayBatch:
     exclude: (n,) primitive each ray ignores (-1: none), or None (the primitive a ray leaves,
         when it cannot hit it again: ``Aggregate.spawn`` fills it in);
     source: (n,) primitive each ray leaves (-1: none), or None: rays leaving one primitive
-        in similar directions are traced together.
+        in similar directions are traced together;
+    arrived_from: (3,) the point the rays that arrived where these leave all left (a
+        perspective camera's eye), or None: reflections off flat or large surfaces then pass
+        near its mirror image (``Aggregate._mirror_groups``).
     """
 
     origins: np.ndarray
@@ -134,6 +137,7 @@ class RayBatch:
     shared: SharedOrigin | None = None
     exclude: np.ndarray | None = None
     source: np.ndarray | None = None
+    arrived_from: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.directions.shape[1]

@@ -207,7 +207,8 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
             if bounces_left == 0:
                 break
             batch = _secondary_rays(ctx, look, hits, normals, cos_in, path, weight,
-                                    bounces_left, cutoff, camera_path, held_object)
+                                    bounces_left, cutoff, camera_path, held_object,
+                                    _arrived_from(batch))
             if batch is None:
                 break
             batch, path, weight, camera_path = batch
@@ -230,13 +231,20 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
         reflected = normals * (2 * cos_in)
         directions = np.subtract(directions, reflected, out=reflected)
         # Reflections leave on the side the ray came from.
-        batch = geometry.spawn(points, geometric, primitive, directions, front)
+        batch = geometry.spawn(points, geometric, primitive, directions, front,
+                               _arrived_from(batch))
         camera_path = np.zeros(len(path), bool)  # mirror rays
         stats.reflection_rays += len(path)
     alpha = np.subtract(1, transparency, out=transparency)
     # clipped to [0, 1] (as np.clip, without its Python wrapper's cost on every bundle)
     np.minimum(np.maximum(alpha, 0, out=alpha), 1, out=alpha)
     return BundleResult(colour, alpha, signature, primary, emission)
+
+
+def _arrived_from(batch: RayBatch):
+    """The point every ray of the batch left (a perspective camera's eye), or None: where
+    the rays the batch's hits spawn arrived from (``RayBatch.arrived_from``)."""
+    return None if batch.shared is None else batch.shared.position
 
 
 def _hold_out(surfaces, materials, camera_path, path, weight, transparency, unique):
@@ -259,12 +267,13 @@ def _hold_out(surfaces, materials, camera_path, path, weight, transparency, uniq
 
 
 def _secondary_rays(ctx, look, hits, normals, cos_in, path, weight, bounces_left, cutoff,
-                    camera_path, held_object=None):
+                    camera_path, held_object=None, arrived_from=None):
     """The next bounce's rays for Blender's look (``core.bsdf.scatter``), or None:
     (RayBatch, path (k,), weight (3, k), camera_path (k,)).  Mirror rays leave on the side
     the ray came from; refracted and straight-through rays on the other
     (``Aggregate.spawn``).  camera_path (m,): which hits the camera sees (module docstring);
-    held_object: indices of hits on holdout objects, which only pass their transparency on."""
+    held_object: indices of hits on holdout objects, which only pass their transparency on;
+    arrived_from: ``RayBatch.arrived_from`` of the rays spawned."""
     branches = scatter(look.surfaces, normals, hits.directions, cos_in, hits.material,
                        hits.front)
     blocked = None
@@ -284,7 +293,7 @@ def _secondary_rays(ctx, look, hits, normals, cos_in, path, weight, bounces_left
         front = hits.front[index]
         rays = ctx.geometry.spawn(take(hits.points, index), take(hits.normals, index),
                                   hits.primitive[index], take(branch.directions, alive),
-                                  ~front if branch.through else front)
+                                  ~front if branch.through else front, arrived_from)
         seen = camera_path[index] if branch.straight else np.zeros(len(index), bool)
         parts.append((rays, path[index], w[:, alive], seen))
     if not parts:
@@ -294,6 +303,7 @@ def _secondary_rays(ctx, look, hits, normals, cos_in, path, weight, bounces_left
     joined = RayBatch(np.concatenate([p[0].origins for p in parts], axis=1),
                       np.concatenate([p[0].directions for p in parts], axis=1),
                       exclude=np.concatenate([p[0].exclude for p in parts]),
-                      source=np.concatenate([p[0].source for p in parts]))
+                      source=np.concatenate([p[0].source for p in parts]),
+                      arrived_from=arrived_from)
     return (joined, np.concatenate([p[1] for p in parts]),
             np.concatenate([p[2] for p in parts], axis=1), np.concatenate([p[3] for p in parts]))
