@@ -459,8 +459,8 @@ class Aggregate:
         directions = take(rays.directions, r)
         terms = rays.shared.tree_terms if rays.shared is not None else None
         if terms is not None:
-            return origin_roots(terms.f[sphere].T, terms.c_prime[sphere],
-                                terms.article_c[sphere], self.spheres.radii[sphere],
+            return origin_roots(take(terms.rows, sphere), terms.c_prime.take(sphere),
+                                terms.article_c.take(sphere), self.spheres.radii.take(sphere),
                                 directions, article=self._textbook)
         origins = rays.origins if rays.origins.shape[1] == 1 else take(rays.origins, r)
         return offset_roots(origins - take(self._centers_t, sphere), directions,

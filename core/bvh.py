@@ -78,6 +78,9 @@ TRAVERSAL_COST = 0.5
 #: Rays traversed together: bounds the (ray, node) pairs held at once (and the rays' local
 #: index fits the 16 bits of the radix sort that groups leaf pairs by ray).
 RAY_CHUNK = 4096
+#: Rays of a nearest-hit traversal descending a small tree unsorted (``sorts_nearest``)
+#: together: nothing is sorted, and a ray holds a few pairs a level.
+UNSORTED_CHUNK = 16384
 #: Rays an occlusion trail (``BVH._trail``) follows together: its (ray, node) pairs are never
 #: sorted, and it holds only one step's at a time (the 10^6-sphere field of issue 9: 4,096
 #: rays 2.05 s, 8,192 1.87 s, 16,384 1.78 s; the 10^5 field 1.64, 1.44, 1.45 s).
@@ -363,10 +366,13 @@ def keep_nearest(rays, prims, t, t_max, found, accept, any_hit):
     lengths = np.diff(group, append=len(t))
     # The pairs at an improved ray's minimum, then of those its lowest primitive id.
     at_min = np.flatnonzero((t == np.repeat(nearest, lengths)) & np.repeat(hit, lengths))
-    tied = prims.take(at_min)
     first = value_run_starts(rays.take(at_min))
-    lowest = np.minimum.reduceat(tied, first)
-    winner = at_min[tied == np.repeat(lowest, np.diff(first, append=len(at_min)))]
+    if len(first) == len(at_min):
+        winner = at_min     # (no ray has two pairs at its minimum: nothing to break)
+    else:
+        tied = prims.take(at_min)
+        lowest = np.minimum.reduceat(tied, first)
+        winner = at_min[tied == np.repeat(lowest, np.diff(first, append=len(at_min)))]
     t_max[owner[hit]] = nearest[hit]
     if accept is not None:
         accept(owner[hit], winner)
@@ -544,8 +550,11 @@ class BVH:
                     lambda r, prims: visit(rest.take(r), prims), any_hit=True, stats=stats)
             return found
         levels = self._levels() if any_hit else self._nearest_levels
-        for first in range(0, n, RAY_CHUNK):
-            self._traverse(first, min(first + RAY_CHUNK, n), levels, rows, t_min, t_max,
+        # (Unsorted descents hold a few pairs a ray and sort nothing: larger chunks, fewer
+        # calls.)
+        chunk = RAY_CHUNK if levels is not None else UNSORTED_CHUNK
+        for first in range(0, n, chunk):
+            self._traverse(first, min(first + chunk, n), levels, rows, t_min, t_max,
                            visit, accept, found, any_hit, stats)
         return found
 

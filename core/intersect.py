@@ -30,6 +30,7 @@ reproduced; a test shows the stable kernels give the same reference image within
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,11 +51,20 @@ def _press_roots(b, c_prime, disc):
 
 
 def _textbook_roots(b, c):
-    """The article's (smaller, larger, valid) from b = 2 d.f and c = |f|^2 - r^2."""
-    delta = b * b - 4.0 * c
+    """The article's (smaller, larger, valid) from b = 2 d.f and c = |f|^2 - r^2.
+    (Halved by products with 0.5, which round as the article's division by 2 does, and
+    with fewer temporaries.)"""
+    delta = b * b
+    delta -= 4.0 * c
     valid = delta > 0
-    root = np.sqrt(np.where(valid, delta, 0))
-    return (-b - root) / 2, (-b + root) / 2, valid
+    root = np.where(valid, delta, 0)
+    np.sqrt(root, out=root)
+    low = np.negative(b)
+    high = low + root
+    low -= root
+    low *= 0.5
+    high *= 0.5
+    return low, high, valid
 
 
 def offset_roots(f, rays, radii, *, article=False):
@@ -95,6 +105,11 @@ class OriginTerms:
     c_prime: np.ndarray
     article_c: np.ndarray
 
+    @functools.cached_property
+    def rows(self) -> np.ndarray:
+        """(3, N) f as contiguous rows, for gathering pairs' columns (``vectors.take``)."""
+        return np.ascontiguousarray(self.f.T)
+
     @classmethod
     def at(cls, origin, centers, radii) -> "OriginTerms":
         """Terms at ``origin`` (3,) for spheres (N, 3), (N,).  c' is formed in extended
@@ -112,9 +127,9 @@ def origin_roots(f, c_prime, article_c, radii, rays, *, article=False):
     c_prime, article_c, radii (...) as ``OriginTerms`` gives them (float64), rays (3, ...) unit
     directions in the render precision."""
     dtype = rays.dtype
-    f = f.astype(dtype)
+    f = f.astype(dtype, copy=False)     # (read, never written)
     if article:
-        return _textbook_roots(2.0 * dot(f, rays), article_c.astype(dtype))
+        return _textbook_roots(2.0 * dot(f, rays), article_c.astype(dtype, copy=False))
     b = dot(f, rays)
     c_cast = c_prime.astype(dtype)
     cheap = c_prime <= CHEAP_DISCRIMINANT_RATIO[np.dtype(dtype)] * radii * radii
