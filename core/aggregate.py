@@ -12,8 +12,9 @@ triangles (``core.triangles``, watertight).  Behind the interface, spheres are f
 cone culling over Morton clusters with coherent packets (``core.cull``) while the scene has
 few of them, and through a binned-SAH BVH with every triangle otherwise (``core.bvh``), whose
 primitives rays sharing an origin find through direction bins where those are cheaper
-(``core.bins``); a scene of four spheres builds no tree and pays nothing for triangle
-support.
+(``core.bins``), as do a floor's reflections of the camera's rays, around the eye's mirror
+image (``Aggregate._mirror_groups``); a scene of four spheres builds no tree and pays
+nothing for triangle support.
 
 Two choices are made once, when the aggregate is built: the hit rules (``article``: the
 article's, where a sphere counts only if both roots are positive, a shadow segment counts
