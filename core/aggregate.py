@@ -780,25 +780,24 @@ class Aggregate:
         normal = np.empty((len(prims), 3))
         plane = np.empty(len(prims))        # the image is eye - 2 plane * normal
         spheres = prims < self.sphere_count
-        if spheres.any():
-            k = prims[spheres]
-            away = eye - self.spheres.centers[k]
-            size = np.sqrt((away * away).sum(axis=1))
-            normal[spheres] = away / size[:, None]
-            plane[spheres] = size - self.spheres.radii[k]
-        if not spheres.all():
-            k = prims[~spheres] - self.sphere_count
-            n = self.triangles.normals[:, k].T
-            normal[~spheres] = n
-            plane[~spheres] = ((eye - self.triangles.v0[:, k].T) * n).sum(axis=1)
+        # (An eye at a sphere's centre has no image: NaN, dropped below.)
         with np.errstate(invalid="ignore", divide="ignore"):
+            if spheres.any():
+                k = prims[spheres]
+                away = eye - self.spheres.centers[k]
+                size = np.sqrt((away * away).sum(axis=1))
+                normal[spheres] = away / size[:, None]
+                plane[spheres] = size - self.spheres.radii[k]
+            if not spheres.all():
+                k = prims[~spheres] - self.sphere_count
+                n = self.triangles.normals[:, k].T
+                normal[~spheres] = n
+                plane[~spheres] = ((eye - self.triangles.v0[:, k].T) * n).sum(axis=1)
             images = np.round((eye - 2 * plane[:, None] * normal) / grid)
-        images[~np.isfinite(images).all(axis=1)] = np.nan
         points, which = np.unique(images, axis=0, return_inverse=True)
+        which = which.ravel()   # (numpy 2.x keeps the axis's shape)
         image = np.full(len(primitives), -1, np.intp)
-        image[known] = which.ravel()
-        finite = np.isfinite(points).all(axis=1)
-        image[known] = np.where(finite[which.ravel()], which.ravel(), -1)
+        image[known] = np.where(np.isfinite(points).all(axis=1)[which], which, -1)
         return image.take(inverse.ravel()), points * grid
 
     # ---- occlusion ----------------------------------------------------------------------
