@@ -87,9 +87,18 @@ START_TIMEOUT_SECONDS = 60.0
 END_TIMEOUT_SECONDS = 5.0
 #: Tiles in flight per worker: one rendering, one queued, so no worker waits for the parent.
 TILES_IN_FLIGHT = 2
-#: Renders below this many pixels stay in the calling process: starting a worker (a Python
-#: and NumPy import, 0.1-0.3 s, once per process) costs more than a small render gains.
+#: Renders of less work than this many of the article scene's camera samples (pixels x
+#: samples per pixel x TREE_SAMPLE_WEIGHT for scenes with a tree) stay in the calling
+#: process: starting a worker (a Python and NumPy import, 0.1-0.3 s, once per process) costs
+#: more than a small render gains.
 MIN_PIXELS = 300_000
+#: A camera sample of a scene that needs a tree (``aggregate.builds_tree``) counts as this
+#: many of the article scene's: at 640 x 360 (230,400 pixels, under MIN_PIXELS) 1,000 spheres
+#: took 14x the article scene's time (2 threads, same run), a million point-cloud spheres and
+#: 100,000 instanced ones about 100x and 70x, and there processes took 0.71x and 0.57x of
+#: threads' wall time (5.2 vs 7.3 s, 2.9 vs 5.1 s, two free cores): two threads in one
+#: process gain little over one (the GIL).
+TREE_SAMPLE_WEIGHT = 10
 #: A context's arrays of at least this many bytes reach the workers through shared memory
 #: (``_SharedPayload``); smaller ones travel inside the pickle (a page per array and a slice
 #: of the file would cost more than copying them).

@@ -559,20 +559,24 @@ def test_auto_takes_processes_where_their_start_up_pays(monkeypatch):
 
     render_module = importlib.import_module("core.render")
 
-    def in_processes(width, height, threads=2, **settings):
+    def in_processes(width, height, threads=2, tree=False, **settings):
         tiles = len(render_module._tiles(width, height, 128))
         return render_module._in_processes(core.RenderSettings(parallelism="auto", **settings),
-                                           width * height, tiles, threads)
+                                           width * height, tiles, threads, tree)
 
     monkeypatch.setattr(workers, "one_render", False)   # a session: workers live on
     assert in_processes(1920, 1080)
     assert not in_processes(1920, 1080, threads=1)      # one worker only moves the work
     assert not in_processes(500, 500)                    # under MIN_PIXELS
+    assert in_processes(500, 500, anti_aliasing="fixed", samples=4)   # 1 M samples
+    assert in_processes(640, 360, tree=True)             # a tree's samples weigh more
+    assert not in_processes(128, 128, tree=True)         # 164 k weighted samples
     monkeypatch.setattr(workers, "one_render", True)    # render once, then exit
     monkeypatch.setattr(workers, "warm", lambda count: False)
     assert not in_processes(1920, 1080)                  # 2 M samples: start-up does not pay
     assert in_processes(1920, 1080, anti_aliasing="fixed", samples=4)     # 8.3 M samples
     assert in_processes(3840, 2160)                      # 8.3 M
+    assert in_processes(1920, 1080, tree=True)           # 20.7 M weighted samples
     monkeypatch.setattr(workers, "warm", lambda count: True)
     assert in_processes(1920, 1080)                      # already paid
     for parallelism in ("threads", "processes"):         # explicit choices are kept
