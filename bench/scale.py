@@ -386,6 +386,7 @@ class GlintSplit:
             stats = result.stats
             self.last = {"drawn": _drawn(render_job.scene), "warnings": render_job.warnings,
                          "precision": result.precision,
+                         "parallelism": result.parallelism,
                          "phases": dict(stats.phases(), tiles=stats.seconds_tiles),
                          "rays": {"camera": stats.camera_rays, "shadow": stats.shadow_rays,
                                   "reflection": stats.reflection_rays,
