@@ -878,6 +878,8 @@ class Aggregate:
         Article rules: the article's fixed offset along the sphere's outward normal (for a
         triangle, on the side the ray leaves), no exclusion.  arrived_from: (3,) the point
         the rays that arrived at the points all left, or None (``RayBatch.arrived_from``)."""
+        if not self.mirror_slack > 0:
+            arrived_from = None     # (no bins for mirror images: nothing to carry)
         everywhere = bool(leave_front.all())
         side = None if everywhere else np.where(leave_front, 1, -1).astype(self.dtype)
         if self.article:
