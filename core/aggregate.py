@@ -744,7 +744,7 @@ class Aggregate:
         if len(rays) < need:
             return []
         grid = self.mirror_slack / 4
-        images = self._mirror_images(np.asarray(eye, np.float64), rays.source, grid)
+        images = self._mirror_images(np.asarray(eye, np.float64), rays.source, grid, need)
         if images is None:
             return []
         cell, points = images
@@ -767,16 +767,18 @@ class Aggregate:
                 groups.append((members, bins, plan, -tau.take(near)))
         return groups
 
-    def _mirror_images(self, eye, source, grid):
+    def _mirror_images(self, eye, source, grid, need):
         """(image (n,) index into points or -1, points (G, 3)): the mirror image of ``eye``
         (3,) in the tangent plane of each ray's source primitive (``source`` (n,), -1:
         none) nearest to it (a sphere's) or in its plane (a triangle's), rounded to
-        multiples of ``grid``; None when no ray has a source."""
-        primitives, inverse = np.unique(source, return_inverse=True)
-        known = primitives >= 0
-        if not known.any():
+        multiples of ``grid``; None when no ray has a source.  Only for the spheres that
+        ``need`` rays or more leave (no two spheres share an image) and every triangle
+        (the triangles of a plane do); -1 for the rest."""
+        counts = np.bincount(source + 1)[1:]
+        ids = np.arange(len(counts))
+        prims = np.flatnonzero((counts >= need) | ((ids >= self.sphere_count) & (counts > 0)))
+        if len(prims) == 0:
             return None
-        prims = primitives[known]
         normal = np.empty((len(prims), 3))
         plane = np.empty(len(prims))        # the image is eye - 2 plane * normal
         spheres = prims < self.sphere_count
@@ -796,9 +798,10 @@ class Aggregate:
             images = np.round((eye - 2 * plane[:, None] * normal) / grid)
         points, which = np.unique(images, axis=0, return_inverse=True)
         which = which.ravel()   # (numpy 2.x keeps the axis's shape)
-        image = np.full(len(primitives), -1, np.intp)
-        image[known] = np.where(np.isfinite(points).all(axis=1)[which], which, -1)
-        return image.take(inverse.ravel()), points * grid
+        # Per primitive id (and -1 for none, the last entry): its image or -1.
+        image = np.full(len(counts) + 1, -1, np.intp)
+        image[prims] = np.where(np.isfinite(points).all(axis=1)[which], which, -1)
+        return image.take(source), points * grid
 
     # ---- occlusion ----------------------------------------------------------------------
 
