@@ -53,6 +53,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .allocator import small_pages
 from .runs import rank_within_runs, run_starts, value_run_starts
 
 #: Most primitives in a leaf, children per inner node, and the least depth (in wide levels
@@ -398,8 +399,13 @@ class BVH:
         Up to CLUSTER_FROM primitives the SAH build sees every primitive; above, it sees
         clusters of CLUSTER_SIZE primitives consecutive in Morton order (of one size class:
         their boxes' largest side within a factor of 4), which become the leaves: the build
-        then costs a CLUSTER_SIZE-th, and the clusters are as tight as Morton leaves."""
-        ids = np.asarray(ids)
+        then costs a CLUSTER_SIZE-th, and the clusters are as tight as Morton leaves.
+        (Built without transparent huge pages: ``allocator.small_pages``.)"""
+        with small_pages():
+            return cls._build(np.asarray(ids), low, high)
+
+    @classmethod
+    def _build(cls, ids, low, high) -> "BVH":
         if len(ids) < CLUSTER_FROM:
             tree = build_binary_sah(low, high)
             counts = tree.count[tree.left < 0]
