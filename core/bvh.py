@@ -293,116 +293,200 @@ def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF
     at the median of their order instead (for boxes given in Morton order, which the
     stable partitions keep within every node: a cheap split, as good for small nodes).
 
-    Each level works on the primitives of the nodes it splits, held in order (grouped by
-    node) as columns of ``data`` (centre, low, high: (9, E)) beside their indices ``prims``;
-    a level's partition moves the columns of the nodes that split on to the next level.  A
-    node split by SAH gets its children's boxes from its bins; one split at the median, by
-    reducing its children's columns."""
+    Each level works on the primitives of its nodes, held in order (grouped by node) as
+    columns of ``data`` (centre, low, high: (9, E)) beside their indices ``prims``
+    (``_sah_level``); a level's partition moves the columns of the nodes that split on to
+    the next level (``_partition``).  A node split by SAH gets its children's boxes from
+    its bins; one split at the median, by reducing its children's columns.  A node of at
+    most ``median_up_to`` boxes is *parked*: its subtree (halves of its order, down to
+    leaves) follows from its count alone, so its columns drop out, and its subtree's boxes
+    are made bottom up at the end (``_parked_boxes``)."""
     count_all = low.shape[1]
     order = np.arange(count_all)
     data = np.concatenate([(low + high) / 2, low, high])
     prims = np.arange(count_all)
-    # Per level: the nodes' boxes, first child (-1: leaf), first primitive, count, depth.
-    out_low, out_high, out_left, out_start, out_count, out_depth = [], [], [], [], [], []
+    # Per level: the nodes' boxes, first child (-1: leaf), first primitive, count, depth,
+    # parked.
+    outs = tuple([] for _ in range(7))
     level_low, level_high = low.min(axis=1)[:, None], high.max(axis=1)[:, None]
     starts, counts = np.zeros(1, np.intp), np.array([count_all])
+    parked = counts <= median_up_to
     total, depth = 1, 0
     while True:
         k = len(counts)
         lefts = np.full(k, -1, np.intp)
-        out_low.append(level_low)
-        out_high.append(level_high)
-        out_left.append(lefts)
-        out_start.append(starts)
-        out_count.append(counts)
-        out_depth.append(np.full(k, depth, np.intp))
-        local_starts = run_starts(counts)
-        segment = np.repeat(np.arange(k), counts)
-        rank = np.arange(len(prims)) - np.repeat(local_starts, counts)
-        # SAH costs per size class (bins per axis: BINS, or SMALL_BINS for small nodes, so
-        # the bins' work stays within the primitives'); nodes of one primitive are leaves.
-        best_cost = np.full(k, np.inf)
-        go_left = np.zeros(len(prims), bool)
-        n_left = counts // 2
-        sides = np.empty((4, 3, k))         # the SAH children's boxes (left low, high, right)
-        for bins, members in ((BINS, counts > max(BINS, median_up_to)),
-                              (SMALL_BINS, (counts > median_up_to) & (counts <= BINS))):
-            nodes = np.flatnonzero(members)
-            if len(nodes) == 0:
-                continue
-            if len(nodes) == k:
-                mine, local, local_first = data, segment, local_starts
-            else:
-                mine = np.compress(np.repeat(members, counts), data, axis=1)
-                local = np.repeat(np.arange(len(nodes)), counts[nodes])
-                local_first = run_starts(counts[nodes])
-            best_cost[nodes], left, n_left[nodes], *boxes = _binned_splits(
-                mine[:3], mine[3:6], mine[6:], local, counts[nodes], local_first, bins)
-            sides[:, :, nodes] = boxes
-            if len(nodes) == k:
-                go_left = left
-            else:
-                go_left[np.repeat(members, counts)] = left
-        area = _half_area(level_low, level_high, axis=0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            split_cost = TRAVERSAL_COST + best_cost / area
-        # A split is taken when it costs less than a leaf of N primitives (cost N), and
-        # always for a node too big for a leaf: at the median of its order when no plane
-        # separates its primitives (all centres in one bin: coincident primitives).
-        median = ~np.isfinite(split_cost)
-        splits = (counts > max_leaf) | (~median & (split_cost < counts))
+        for out, part in zip(outs, (level_low, level_high, lefts, starts, counts,
+                                    np.full(k, depth, np.intp), parked)):
+            out.append(part)
+        active = np.flatnonzero(~parked)
+        if len(active):
+            # The active nodes' columns: their node (among the active) and rank within it.
+            counts_a = counts.take(active)
+            local_starts = run_starts(counts_a)
+            segment = np.repeat(np.arange(len(active)), counts_a)
+            rank = np.arange(len(prims)) - np.repeat(local_starts, counts_a)
+            runs = (active, counts_a, local_starts, segment, rank)
+            splits, n_left, by_sah, sides, go_left = _sah_level(
+                data, counts, runs, level_low, level_high, max_leaf, median_up_to)
+        else:       # (parked nodes only: halves)
+            splits, n_left = counts > max_leaf, counts // 2
         parents = np.flatnonzero(splits)
         if len(parents) == 0:
             break
-        by_median = median & splits
-        if by_median.any():
-            n_left = np.where(median, counts // 2, n_left)
-            go_left = np.where(np.repeat(median, counts), rank < np.repeat(n_left, counts),
-                               go_left)
-        # Stable partition of each splitting node's columns, its lefts first, packed for the
-        # next level (columns of nodes that stay leaves drop out).
-        before = np.cumsum(go_left) - go_left
-        left_rank = before - np.repeat(before.take(local_starts), counts)
-        within = np.where(go_left, left_rank, np.repeat(n_left, counts) + rank - left_rank)
-        if len(parents) == k:
-            order[np.repeat(starts, counts) + within] = prims
-            source = np.empty_like(prims)
-            source[np.repeat(local_starts, counts) + within] = np.arange(len(prims))
-        else:
-            packed_starts = np.zeros(k, np.intp)
-            packed_starts[parents] = run_starts(counts[parents])
-            rows = np.flatnonzero(np.repeat(splits, counts))
-            within = within.take(rows)
-            row_nodes = segment.take(rows)
-            order[starts.take(row_nodes) + within] = prims.take(rows)
-            source = np.empty_like(rows)
-            source[packed_starts.take(row_nodes) + within] = rows
-        prims = prims.take(source)
-        data = data.take(source, axis=1)
+        # The children, in order (those of parked nodes too), and which of them are parked.
         m = len(parents)
         lefts[parents] = total + 2 * np.arange(m)
-        starts = np.column_stack([starts[parents], starts[parents] + n_left[parents]]).ravel()
-        counts = np.column_stack([n_left[parents], counts[parents] - n_left[parents]]).ravel()
-        # The children's boxes: from the bins of nodes split by SAH, else from their columns.
-        level_low, level_high = np.empty((3, 2 * m)), np.empty((3, 2 * m))
-        level_low[:, 0::2], level_high[:, 0::2] = sides[0][:, parents], sides[1][:, parents]
-        level_low[:, 1::2], level_high[:, 1::2] = sides[2][:, parents], sides[3][:, parents]
-        reduced = np.repeat(by_median[parents], 2)
-        if reduced.any():
-            child_starts = run_starts(counts)
-            if reduced.all():
-                columns, first = data[3:], child_starts
-                segment = np.repeat(np.arange(2 * m), counts)
-            else:
-                columns = np.compress(np.repeat(reduced, counts), data[3:], axis=1)
-                first = run_starts(counts[reduced])
-                segment = np.repeat(np.arange(len(first)), counts[reduced])
-            level_low[:, reduced] = _segment_reduce(np.minimum, columns[:3], first, segment)
-            level_high[:, reduced] = _segment_reduce(np.maximum, columns[3:], first, segment)
+        first = starts.take(parents)
+        n = n_left.take(parents)
+        child_starts = np.column_stack([first, first + n]).ravel()
+        child_counts = np.column_stack([n, counts.take(parents) - n]).ravel()
+        child_parked = child_counts <= median_up_to
+        level_low, level_high = np.full((3, 2 * m), np.nan), np.full((3, 2 * m), np.nan)
+        if len(active):
+            source = _partition(order, prims, go_left, starts, runs, splits, n_left, parents,
+                                child_parked)
+            prims = prims.take(source)
+            data = data.take(source, axis=1)
+            # The children's boxes: from the bins of nodes split by SAH; from their columns
+            # for nodes split at the median; those of parked children are made at the end.
+            from_bins = by_sah.take(parents)
+            binned = parents[from_bins]
+            for side in range(2):
+                level_low[:, side::2][:, from_bins] = sides[2 * side][:, binned]
+                level_high[:, side::2][:, from_bins] = sides[2 * side + 1][:, binned]
+            reduced = ~np.repeat(from_bins, 2) & ~child_parked
+            if reduced.any():
+                counts_on = child_counts[~child_parked]
+                columns = data[3:] if reduced[~child_parked].all() else np.compress(
+                    np.repeat(reduced[~child_parked], counts_on), data[3:], axis=1)
+                first = run_starts(child_counts[reduced])
+                segment = np.repeat(np.arange(len(first)), child_counts[reduced])
+                level_low[:, reduced] = _segment_reduce(np.minimum, columns[:3], first, segment)
+                level_high[:, reduced] = _segment_reduce(np.maximum, columns[3:], first,
+                                                         segment)
+        starts, counts, parked = child_starts, child_counts, child_parked
         total += 2 * m
         depth += 1
-    return BinaryTree(*(np.concatenate(parts, axis=-1) for parts in (
-        out_low, out_high, out_left, out_start, out_count, out_depth)), order)
+    tree_low, tree_high, left, start, count, depths, parked = (
+        np.concatenate(parts, axis=-1) for parts in outs)
+    if parked.any():
+        _parked_boxes(tree_low, tree_high, left, start, count, parked,
+                      np.cumsum([0] + [len(part) for part in outs[2]]), low, high, order)
+    return BinaryTree(tree_low, tree_high, left, start, count, depths, order)
+
+
+def _sah_level(data, counts, runs, level_low, level_high, max_leaf, median_up_to):
+    """A level's splits: its nodes (k,) (counts; boxes level_low, level_high (3, k)), of
+    which the active ones (``runs``: active (a,), their counts and first columns (a,), each
+    column's node among them and rank within it (E,)) have their columns data (9, E).
+    Returns (splits (k,) whether each node splits, n_left (k,) the primitives of its left
+    child, by_sah (k,) split at an SAH plane, sides (4, 3, k) the boxes of those nodes'
+    children (left low, high, right low, high), go_left (E,) each column's side; True for
+    every column of a node that stays a leaf, so that its order stays)."""
+    active, counts_a, local_starts, segment, rank = runs
+    k = len(counts)
+    # SAH costs per size class (bins per axis: BINS, or SMALL_BINS for small nodes, so
+    # the bins' work stays within the primitives'); nodes of one primitive are leaves.
+    best_cost = np.full(k, np.inf)
+    go_left = np.zeros(data.shape[1], bool)
+    n_left = counts // 2
+    sides = np.full((4, 3, k), np.nan)
+    for bins, members in ((BINS, counts_a > max(BINS, median_up_to)),
+                          (SMALL_BINS, (counts_a > median_up_to) & (counts_a <= BINS))):
+        nodes = np.flatnonzero(members)
+        if len(nodes) == 0:
+            continue
+        if len(nodes) == len(active):
+            mine, local, local_first = data, segment, local_starts
+        else:
+            mine = np.compress(np.repeat(members, counts_a), data, axis=1)
+            local = np.repeat(np.arange(len(nodes)), counts_a[nodes])
+            local_first = run_starts(counts_a[nodes])
+        binned = active.take(nodes)
+        best_cost[binned], left, n_left[binned], *boxes = _binned_splits(
+            mine[:3], mine[3:6], mine[6:], local, counts_a[nodes], local_first, bins)
+        sides[:, :, binned] = boxes
+        if len(nodes) == len(active):
+            go_left = left
+        else:
+            go_left[np.repeat(members, counts_a)] = left
+    area = _half_area(level_low, level_high, axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        split_cost = TRAVERSAL_COST + best_cost / area
+    # A split is taken when it costs less than a leaf of N primitives (cost N), and always
+    # for a node too big for a leaf: at the median of its order when no plane separates its
+    # primitives (all centres in one bin: coincident primitives), or when it is small (the
+    # parked nodes, whose boxes are not known yet, among them: their cost is inf).
+    median = ~np.isfinite(split_cost)
+    splits = (counts > max_leaf) | (~median & (split_cost < counts))
+    n_left = np.where(median, counts // 2, n_left)
+    median_a, splits_a = median.take(active), splits.take(active)
+    if median_a.any():
+        go_left = np.where(np.repeat(median_a, counts_a),
+                           rank < np.repeat(n_left.take(active), counts_a), go_left)
+    if not splits_a.all():
+        go_left |= np.repeat(~splits_a, counts_a)
+    return splits, n_left, splits & ~median, sides, go_left
+
+
+def _partition(order, prims, go_left, starts, runs, splits, n_left, parents, child_parked):
+    """The stable partition of a level's columns (``_sah_level``): each splitting node's
+    primitives, its lefts first, written into ``order`` at its starts (k,); returns the
+    columns (E',) that go on to the next level, in its order: those of the children
+    (2 * len(parents),) that are not parked (``child_parked``)."""
+    active, counts_a, local_starts, segment, rank = runs
+    splits_a = splits.take(active)
+    n_left_a = np.where(splits_a, n_left.take(active), counts_a)    # a leaf: all left
+    before = np.cumsum(go_left) - go_left
+    left_rank = before - np.repeat(before.take(local_starts), counts_a)
+    right_rank = rank - left_rank
+    within = np.where(go_left, left_rank, np.repeat(n_left_a, counts_a) + right_rank)
+    order[np.repeat(starts.take(active), counts_a) + within] = prims
+    # Where each column goes with every node's lefts, then rights, packed; then without
+    # the parts that do not go on (leaves, parked children).
+    dest = np.repeat(local_starts, counts_a) + within
+    parent_rank = np.zeros(len(splits), np.intp)
+    parent_rank[parents] = np.arange(len(parents))
+    child = 2 * parent_rank.take(active)
+    keep = np.column_stack([splits_a & ~child_parked.take(child),
+                            splits_a & ~child_parked.take(child + 1)]).ravel()
+    if keep.all():
+        source = np.empty_like(dest)
+        source[dest] = np.arange(len(dest))
+        return source
+    dropped = np.where(keep, 0, np.column_stack([n_left_a, counts_a - n_left_a]).ravel())
+    shift = np.cumsum(dropped) - dropped
+    part = 2 * segment + ~go_left
+    rows = np.flatnonzero(keep.take(part))
+    source = np.empty_like(rows)
+    source[dest.take(rows) - shift.take(part.take(rows))] = rows
+    return source
+
+
+def _parked_boxes(tree_low, tree_high, left, start, count, parked, level_starts, low, high,
+                  order):
+    """Fill in the boxes (3, K) of the parked nodes of a binary tree (``build_binary_sah``;
+    level_starts: the first node of each level, and the node count): a leaf's from its
+    primitives' boxes low, high (3, P) (``order[start:start + count]``), an inner node's
+    from its children's, the deepest level first (children of a parked node are parked)."""
+    leaf = np.flatnonzero(parked & (left < 0))
+    n = count.take(leaf)
+    members = order.take(np.repeat(start.take(leaf), n) + rank_within_runs(n))
+    if (n == 1).all():
+        tree_low[:, leaf], tree_high[:, leaf] = low.take(members, axis=1), high.take(members,
+                                                                                     axis=1)
+    else:
+        first, segment = run_starts(n), np.repeat(np.arange(len(leaf)), n)
+        for boxes, ufunc, source in ((tree_low, np.minimum, low), (tree_high, np.maximum, high)):
+            boxes[:, leaf] = _segment_reduce(ufunc, source.take(members, axis=1), first, segment)
+    for level in range(len(level_starts) - 2, -1, -1):
+        span = slice(level_starts[level], level_starts[level + 1])
+        inner = span.start + np.flatnonzero(parked[span] & (left[span] >= 0))
+        if len(inner) == 0:
+            continue
+        pair = left.take(inner)
+        for boxes, ufunc in ((tree_low, np.minimum), (tree_high, np.maximum)):
+            boxes[:, inner] = ufunc(boxes.take(pair, axis=1), boxes.take(pair + 1, axis=1))
 
 
 def _spread(values, dtype, k=WIDTH):
