@@ -202,15 +202,9 @@ def _leaf_ids(ids, slots):
     return table
 
 
-def _slot_boxes(low, high, slots):
-    """(low, high) (3, L * MAX_LEAF): the boxes low, high (3, P) of a leaf table's slots
-    (``slots`` (L, MAX_LEAF) indices into them, -1: padding, whose box is NaN)."""
-    pad = slots.ravel() < 0
-    safe = np.where(pad, 0, slots.ravel())
-    out = low.take(safe, axis=1), high.take(safe, axis=1)
-    for boxes in out:
-        boxes[:, pad] = np.nan
-    return out
+#: Boxes whose planes ``_box_planes`` makes at a time (its float64 temporaries then stay in
+#: cache: 1.3 million boxes in 42 ms instead of 103).
+PLANE_CHUNK = 16384
 
 
 def _box_planes(low, high, grow):
@@ -218,12 +212,29 @@ def _box_planes(low, high, grow):
     BOX_PADDING of its own magnitude and extent, which grow with the box (so a box's padding
     covers its primitives', and parents still hold children), then grown by ``grow`` for
     the float32 slabs (module docstring)."""
-    pad = BOX_PADDING * (2 * _row_max(np.maximum(np.abs(low), np.abs(high)))
-                         + _row_max(high - low)) + 1e-300
     planes = np.empty((6, low.shape[1]), np.float32)
-    planes[:3] = low - pad - grow
-    planes[3:] = high + pad + grow
+    for first in range(0, low.shape[1], PLANE_CHUNK):
+        part = slice(first, first + PLANE_CHUNK)
+        lo, hi = low[:, part], high[:, part]
+        pad = BOX_PADDING * (2 * _row_max(np.maximum(np.abs(lo), np.abs(hi)))
+                             + _row_max(hi - lo)) + 1e-300
+        planes[:3, part] = lo - pad - grow
+        planes[3:, part] = hi + pad + grow
     return planes
+
+
+def _reach(root_low, root_high) -> float:
+    """The largest coordinate of a root box root_low, root_high (3,): R in the module docstring."""
+    return max(float(np.abs(root_low).max()), float(np.abs(root_high).max()))
+
+
+def _leaf_planes(planes, slots):
+    """(6, L, MAX_LEAF) the planes (6, P) of a leaf table's slots (L, MAX_LEAF) (indices into
+    them; -1: padding, whose planes are NaN: no ray enters)."""
+    pad = slots < 0
+    out = planes.take(np.where(pad, 0, slots), axis=1)
+    out[:, pad] = np.nan
+    return out
 
 
 #: Segments at least this long on average are reduced by ``reduceat``, shorter ones by
@@ -572,11 +583,15 @@ class BVH:
         # The boxes as columns (3, P): every pass below then runs over contiguous rows.
         low, high = np.ascontiguousarray(low.T), np.ascontiguousarray(high.T)
         count = low.shape[1]
+        # Each primitive's own box as float32 planes, for the leaves' slots (``leaf_boxes``);
+        # the root's box is every primitive's.
+        grow = SLAB_PADDING_32 * ORIGIN_REACH * _reach(low.min(axis=1), high.max(axis=1))
+        planes = _box_planes(low, high, grow)
         if count < CLUSTER_FROM:
             tree = build_binary_sah(low, high)
             leaf = tree.left < 0
             slots = _leaf_table(tree.order, tree.start[leaf], tree.count[leaf])
-            return cls.collapse(tree, _leaf_ids(ids, slots), _slot_boxes(low, high, slots))
+            return cls.collapse(tree, _leaf_ids(ids, slots), _leaf_planes(planes, slots))
         size = np.log2(np.maximum(_row_max(high - low), 1e-300))
         size_class = np.floor((size - size.min()) / 2).astype(np.intp)
         codes = morton_codes((low + high) / 2)
@@ -597,23 +612,26 @@ class BVH:
         per_run = -(-np.diff(np.r_[run, count]) // CLUSTER_SIZE)
         firsts = np.repeat(run, per_run) + CLUSTER_SIZE * rank_within_runs(per_run)
         counts = np.diff(np.r_[firsts, count])
-        lows, highs = low.take(order, axis=1), high.take(order, axis=1)
-        cluster = np.repeat(np.arange(len(firsts)), counts)
-        c_low = _segment_reduce(np.minimum, lows, firsts, cluster)
-        c_high = _segment_reduce(np.maximum, highs, firsts, cluster)
+        # The clusters' boxes, reduced from the primitives where they are (cheaper than
+        # gathering them in Morton order first).
+        cluster = np.empty(count, np.intp)
+        cluster[order] = np.repeat(np.arange(len(firsts)), counts)
+        c_low, c_high = np.full((3, len(firsts)), np.inf), np.full((3, len(firsts)), -np.inf)
+        for axis in range(3):
+            np.minimum.at(c_low[axis], cluster, low[axis])
+            np.maximum.at(c_high[axis], cluster, high[axis])
         del codes, size, size_class, run_start, run, per_run, cluster, low, high
         tree = build_binary_sah(c_low, c_high, max_leaf=1, median_up_to=CLUSTER_MEDIAN_UP_TO)
         # Each binary leaf holds one cluster: the one at its position in the build's order.
         chosen = tree.order[tree.start[tree.left < 0]]
-        slots = _leaf_table(np.arange(count), firsts[chosen], counts[chosen])
-        return cls.collapse(tree, _leaf_ids(ids.take(order), slots),
-                            _slot_boxes(lows, highs, slots))
+        slots = _leaf_table(order, firsts[chosen], counts[chosen])
+        return cls.collapse(tree, _leaf_ids(ids, slots), _leaf_planes(planes, slots))
 
     @classmethod
-    def collapse(cls, tree: BinaryTree, leaves: np.ndarray, slot_boxes=None) -> "BVH":
+    def collapse(cls, tree: BinaryTree, leaves: np.ndarray, leaf_boxes=None) -> "BVH":
         """The WIDTH-wide tree of a binary one; leaves (L, MAX_LEAF): the primitives of its
-        leaves (in node order), padded with -1; slot_boxes (low, high (3, L * MAX_LEAF), NaN
-        in padding slots): their own boxes (``leaf_boxes``), or None."""
+        leaves (in node order), padded with -1; leaf_boxes (6, L, MAX_LEAF): their own boxes'
+        planes (``_leaf_planes``; grown as the tree's), or None."""
         inner = tree.left >= 0
         leaf_nodes = np.flatnonzero(~inner)
         leaf_index = np.full(len(tree.left), -1, np.intp)
@@ -643,15 +661,13 @@ class BVH:
                             np.where(inner[safe], wide_index[safe],
                                      -2 - leaf_index[safe]))
         # float32 boxes, grown by SLAB_PADDING_32 of the tree's reach (module docstring).
-        reach = max(float(np.abs(tree.low[:, 0]).max()), float(np.abs(tree.high[:, 0]).max()))
+        reach = _reach(tree.low[:, 0], tree.high[:, 0])
         grow = SLAB_PADDING_32 * ORIGIN_REACH * reach
         blocks = np.full((6,) + slots.shape, np.nan, np.float32)
         held = slots[real]
         blocks[:, real] = _box_planes(tree.low.take(held, axis=1), tree.high.take(held, axis=1),
                                       grow)
         # (A padding slot's NaN box stays NaN.)
-        leaf_boxes = None if slot_boxes is None else \
-            _box_planes(*slot_boxes, grow).reshape((6,) + leaves.shape)
         low, high = tree.low[:, 0], tree.high[:, 0]
         pad = BOX_PADDING * (2 * max(np.abs(low).max(), np.abs(high).max())
                              + (high - low).max()) + 1e-300
