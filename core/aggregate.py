@@ -163,21 +163,25 @@ class Aggregate:
     def _build_tree(self, spheres, triangles, tree_spheres, tree_triangles):
         """The tree over spheres tree_spheres (k,) and triangles tree_triangles (t,) (indices),
         under global ids (triangles after every sphere)."""
+        # The boxes as columns (3, P), which the build works on (passed as their (P, 3) views).
         lows, highs = [], []
         if len(tree_spheres):
-            c, r = spheres.centers[tree_spheres], spheres.radii[tree_spheres, None]
-            lows.append(c - r)
-            highs.append(c + r)
+            every = len(tree_spheres) == len(spheres)       # (then tree_spheres is 0 .. N-1)
+            c = spheres.centers.T if every else spheres.centers[tree_spheres].T
+            r = spheres.radii if every else spheres.radii[tree_spheres]
+            lows.append(np.subtract(c, r, out=np.empty(c.shape)))
+            highs.append(np.add(c, r, out=np.empty(c.shape)))
+            del c, r
         if len(tree_triangles):
             v0, v1, v2 = (take(v, tree_triangles) for v in (triangles.v0, triangles.v1,
                                                              triangles.v2))
-            lows.append(np.minimum(np.minimum(v0, v1), v2).T)
-            highs.append(np.maximum(np.maximum(v0, v1), v2).T)
+            lows.append(np.minimum(np.minimum(v0, v1), v2))
+            highs.append(np.maximum(np.maximum(v0, v1), v2))
             del v0, v1, v2
         ids = np.concatenate([tree_spheres, tree_triangles + self.sphere_count])
         # (One kind only: its boxes as they are, no concatenated copy held beside them.)
-        low = lows[0] if len(lows) == 1 else np.concatenate(lows)
-        high = highs[0] if len(highs) == 1 else np.concatenate(highs)
+        low = (lows[0] if len(lows) == 1 else np.concatenate(lows, axis=1)).T
+        high = (highs[0] if len(highs) == 1 else np.concatenate(highs, axis=1)).T
         del lows, highs
         self._tree = BVH.build(ids, low, high)
         # The boxes again for direction bins (``_origin_bins``), while they may pay.

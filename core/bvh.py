@@ -592,16 +592,19 @@ class BVH:
             leaf = tree.left < 0
             slots = _leaf_table(tree.order, tree.start[leaf], tree.count[leaf])
             return cls.collapse(tree, _leaf_ids(ids, slots), _leaf_planes(planes, slots))
-        size = np.log2(np.maximum(_row_max(high - low), 1e-300))
-        size_class = np.floor((size - size.min()) / 2).astype(np.intp)
+        size = np.maximum(_row_max(high - low), 1e-300)
+        # One size class when the largest box is under 2 ** 1.5 times the smallest (every
+        # log2 then within 2 of the least: floor 0 below), as for a cloud of equal spheres.
+        mixed = np.log2(size.max()) - np.log2(size.min()) >= 1.5
         codes = morton_codes((low + high) / 2)
         order = np.argsort(codes)
-        size_class = size_class.take(order)
-        mixed = size_class.min() < size_class.max()
         if mixed:       # (a stable sort of one class would keep the order)
+            size = np.log2(size)
+            size_class = np.floor((size - size.min()) / 2).astype(np.intp).take(order)
             by_class = np.argsort(np.minimum(size_class, np.iinfo(np.uint16).max)
                                   .astype(np.uint16), kind="stable")
             order, size_class = order.take(by_class), size_class.take(by_class)
+            mixed = size_class.min() < size_class.max()
         # Cluster boundaries: every CLUSTER_SIZE primitives within a run of one size class
         # in one Morton cell (cells of about CLUSTER_SIZE primitives: a cluster never
         # spans a jump of the curve).
@@ -620,7 +623,7 @@ class BVH:
         for axis in range(3):
             np.minimum.at(c_low[axis], cluster, low[axis])
             np.maximum.at(c_high[axis], cluster, high[axis])
-        del codes, size, size_class, run_start, run, per_run, cluster, low, high
+        del codes, size, run_start, run, per_run, cluster, low, high
         tree = build_binary_sah(c_low, c_high, max_leaf=1, median_up_to=CLUSTER_MEDIAN_UP_TO)
         # Each binary leaf holds one cluster: the one at its position in the build's order.
         chosen = tree.order[tree.start[tree.left < 0]]
