@@ -808,6 +808,8 @@ def _partition(sizes: np.ndarray, flat_limit: int):
     everything = np.arange(count)
     if count <= flat_limit:
         return everything, np.zeros(0, np.intp)
+    if sizes.max() <= HUGE_RATIO * sizes.min():     # (none above HUGE_RATIO times the least)
+        return np.zeros(0, np.intp), everything
     huge = np.flatnonzero(sizes > HUGE_RATIO * np.median(sizes))
     if len(huge) > MAX_HUGE:
         huge = np.sort(huge[np.argsort(sizes[huge])[-MAX_HUGE:]])
