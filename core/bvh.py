@@ -207,17 +207,20 @@ def _leaf_ids(ids, slots):
     return table
 
 
-def _box_planes(low, high, grow):
+def _box_planes(low, high, grow, sides=None):
     """(6, K) float32 planes (low xyz, high xyz) of boxes low, high (3, K): each padded by
     BOX_PADDING of its own magnitude and extent, which grow with the box (so a box's padding
     covers its primitives', and parents still hold children), then grown by ``grow`` for
-    the float32 slabs (module docstring)."""
+    the float32 slabs (module docstring).  sides (K,), if given, is filled with each box's
+    largest side."""
     planes = np.empty((6, low.shape[1]), np.float32)
     for first in range(0, low.shape[1], PLANE_CHUNK):
         part = slice(first, first + PLANE_CHUNK)
         lo, hi = low[:, part], high[:, part]
-        pad = BOX_PADDING * (2 * _row_max(np.maximum(np.abs(lo), np.abs(hi)))
-                             + _row_max(hi - lo)) + 1e-300
+        side = _row_max(hi - lo)
+        if sides is not None:
+            sides[part] = side
+        pad = BOX_PADDING * (2 * _row_max(np.maximum(np.abs(lo), np.abs(hi))) + side) + 1e-300
         planes[:3, part] = lo - pad - grow
         planes[3:, part] = hi + pad + grow
     return planes
@@ -305,7 +308,7 @@ def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF
     stable partitions keep within every node: a cheap split, as good for small nodes).
 
     Each level works on the primitives of its nodes, held in order (grouped by node) as
-    columns of ``data`` (centre, low, high: (9, E)) beside their indices ``prims``
+    columns of ``data`` (low, high: (6, E); centres are made where binned) beside ``prims``
     (``_sah_level``); a level's partition moves the columns of the nodes that split on to
     the next level (``_partition``).  A node split by SAH gets its children's boxes from
     its bins; one split at the median, by reducing its children's columns.  A node of at
@@ -314,7 +317,7 @@ def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF
     are made bottom up at the end (``_parked_boxes``)."""
     count_all = low.shape[1]
     order = np.arange(count_all)
-    data = np.concatenate([(low + high) / 2, low, high])
+    data = np.concatenate([low, high])
     prims = np.arange(count_all)
     # Per level: the nodes' boxes, first child (-1: leaf), first primitive, count, depth,
     # parked.
@@ -368,8 +371,8 @@ def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF
             reduced = ~np.repeat(from_bins, 2) & ~child_parked
             if reduced.any():
                 counts_on = child_counts[~child_parked]
-                columns = data[3:] if reduced[~child_parked].all() else np.compress(
-                    np.repeat(reduced[~child_parked], counts_on), data[3:], axis=1)
+                columns = data if reduced[~child_parked].all() else np.compress(
+                    np.repeat(reduced[~child_parked], counts_on), data, axis=1)
                 first = run_starts(child_counts[reduced])
                 segment = np.repeat(np.arange(len(first)), child_counts[reduced])
                 level_low[:, reduced] = _segment_reduce(np.minimum, columns[:3], first, segment)
@@ -389,7 +392,7 @@ def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF
 def _sah_level(data, counts, runs, level_low, level_high, max_leaf, median_up_to):
     """A level's splits: its nodes (k,) (counts; boxes level_low, level_high (3, k)), of
     which the active ones (``runs``: active (a,), their counts and first columns (a,), each
-    column's node among them and rank within it (E,)) have their columns data (9, E).
+    column's node among them and rank within it (E,)) have their columns data (6, E).
     Returns (splits (k,) whether each node splits, n_left (k,) the primitives of its left
     child, by_sah (k,) split at an SAH plane, sides (4, 3, k) the boxes of those nodes'
     children (left low, high, right low, high), go_left (E,) each column's side; True for
@@ -415,7 +418,8 @@ def _sah_level(data, counts, runs, level_low, level_high, max_leaf, median_up_to
             local_first = run_starts(counts_a[nodes])
         binned = active.take(nodes)
         best_cost[binned], left, n_left[binned], *boxes = _binned_splits(
-            mine[:3], mine[3:6], mine[6:], local, counts_a[nodes], local_first, bins)
+            (mine[:3] + mine[3:]) / 2, mine[:3], mine[3:], local, counts_a[nodes], local_first,
+            bins)
         sides[:, :, binned] = boxes
         if len(nodes) == len(active):
             go_left = left
@@ -586,13 +590,14 @@ class BVH:
         # Each primitive's own box as float32 planes, for the leaves' slots (``leaf_boxes``);
         # the root's box is every primitive's.
         grow = SLAB_PADDING_32 * ORIGIN_REACH * _reach(low.min(axis=1), high.max(axis=1))
-        planes = _box_planes(low, high, grow)
+        size = np.empty(count)
+        planes = _box_planes(low, high, grow, size)
         if count < CLUSTER_FROM:
             tree = build_binary_sah(low, high)
             leaf = tree.left < 0
             slots = _leaf_table(tree.order, tree.start[leaf], tree.count[leaf])
             return cls.collapse(tree, _leaf_ids(ids, slots), _leaf_planes(planes, slots))
-        size = np.maximum(_row_max(high - low), 1e-300)
+        np.maximum(size, 1e-300, out=size)
         # One size class when the largest box is under 2 ** 1.5 times the smallest (every
         # log2 then within 2 of the least: floor 0 below), as for a cloud of equal spheres.
         mixed = np.log2(size.max()) - np.log2(size.min()) >= 1.5
