@@ -2,15 +2,16 @@
 
 Build (``BVH.build``): a binned surface-area-heuristic (SAH) tree (Wald 2007; pbrt 4's
 ``BVHAggregate``), built level by level over every node of a level at once: each node's
-primitives are put into BINS bins along each axis by their box centres, the bins' counts
-and boxes come from ``bincount`` and ``minimum.at`` / ``maximum.at``, and the node is
+primitives are put into BINS bins along the longest axis of their box centres, the bins'
+counts and boxes come from ``bincount`` and ``minimum.at`` / ``maximum.at``, and the node is
 split at the bin boundary of least SAH cost (the children's surface areas times their
-primitive counts), or kept as a leaf of at most MAX_LEAF primitives when that costs less
-than any split (or when all its centres coincide and it is small).  Large primitives (a
-backdrop's triangles) among small ones (a mesh's) thus end in their own subtrees instead of
-inflating the small ones' boxes, which a Morton-order tree cannot avoid.  The binary tree is
-then collapsed into a WIDTH-wide one: a node's children are its binary grandchildren (a
-binary child that is a leaf stays one child).
+primitive counts; the children's boxes come from the bins too), or kept as a leaf of at
+most MAX_LEAF primitives when that costs less than any split (or when all its centres
+coincide and it is small).  Large primitives (a backdrop's triangles) among small ones (a
+mesh's) thus end in their own subtrees instead of inflating the small ones' boxes, which a
+Morton-order tree cannot avoid.  The binary tree is then collapsed into a WIDTH-wide one: a
+node's children are its binary grandchildren (a binary child that is a leaf stays one
+child).
 
 Layout: ``blocks`` (6, M, WIDTH) each wide node's child boxes as planes (low xyz, high
 xyz; a plane of a node's children is contiguous), padded with NaN boxes no ray enters; ``children`` (M, WIDTH) each slot's child: a wide
