@@ -335,12 +335,11 @@ def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF
             out.append(part)
         active = np.flatnonzero(~parked)
         if len(active):
-            # The active nodes' columns: their node (among the active) and rank within it.
+            # The active nodes' columns: their node (among the active).
             counts_a = counts.take(active)
             local_starts = run_starts(counts_a)
             segment = np.repeat(np.arange(len(active)), counts_a)
-            rank = np.arange(len(prims)) - np.repeat(local_starts, counts_a)
-            runs = (active, counts_a, local_starts, segment, rank)
+            runs = (active, counts_a, local_starts, segment)
             splits, n_left, by_sah, sides, go_left = _sah_level(
                 data, counts, runs, level_low, level_high, max_leaf, median_up_to)
         else:       # (parked nodes only: halves)
@@ -393,12 +392,12 @@ def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF
 def _sah_level(data, counts, runs, level_low, level_high, max_leaf, median_up_to):
     """A level's splits: its nodes (k,) (counts; boxes level_low, level_high (3, k)), of
     which the active ones (``runs``: active (a,), their counts and first columns (a,), each
-    column's node among them and rank within it (E,)) have their columns data (6, E).
+    column's node among them (E,)) have their columns data (6, E).
     Returns (splits (k,) whether each node splits, n_left (k,) the primitives of its left
     child, by_sah (k,) split at an SAH plane, sides (4, 3, k) the boxes of those nodes'
     children (left low, high, right low, high), go_left (E,) each column's side; True for
     every column of a node that stays a leaf, so that its order stays)."""
-    active, counts_a, local_starts, segment, rank = runs
+    active, counts_a, local_starts, segment = runs
     k = len(counts)
     # SAH costs per size class (bins per axis: BINS, or SMALL_BINS for small nodes, so
     # the bins' work stays within the primitives'); nodes of one primitive are leaves.
@@ -438,6 +437,7 @@ def _sah_level(data, counts, runs, level_low, level_high, max_leaf, median_up_to
     n_left = np.where(median, counts // 2, n_left)
     median_a, splits_a = median.take(active), splits.take(active)
     if median_a.any():
+        rank = np.arange(len(go_left)) - np.repeat(local_starts, counts_a)
         go_left = np.where(np.repeat(median_a, counts_a),
                            rank < np.repeat(n_left.take(active), counts_a), go_left)
     if not splits_a.all():
@@ -450,17 +450,20 @@ def _partition(order, prims, go_left, starts, runs, splits, n_left, parents, chi
     primitives, its lefts first, written into ``order`` at its starts (k,); returns the
     columns (E',) that go on to the next level, in its order: those of the children
     (2 * len(parents),) that are not parked (``child_parked``)."""
-    active, counts_a, local_starts, segment, rank = runs
+    active, counts_a, local_starts, segment = runs
     splits_a = splits.take(active)
     n_left_a = np.where(splits_a, n_left.take(active), counts_a)    # a leaf: all left
+    # Where each column goes with every node's lefts, then rights, packed: a left one to
+    # its node's first column + the lefts before it in the node; a right one to its own
+    # column + its node's lefts not before it (b: the lefts before each column, b0 before
+    # each node's first).
+    column = np.arange(len(go_left))
     before = np.cumsum(go_left) - go_left
-    left_rank = before - np.repeat(before.take(local_starts), counts_a)
-    right_rank = rank - left_rank
-    within = np.where(go_left, left_rank, np.repeat(n_left_a, counts_a) + right_rank)
-    order[np.repeat(starts.take(active), counts_a) + within] = prims
-    # Where each column goes with every node's lefts, then rights, packed; then without
-    # the parts that do not go on (leaves, parked children).
-    dest = np.repeat(local_starts, counts_a) + within
+    b0 = before.take(local_starts)
+    dest = np.where(go_left, before + np.repeat(local_starts - b0, counts_a),
+                    column - before + np.repeat(n_left_a + b0, counts_a))
+    order[dest + np.repeat(starts.take(active) - local_starts, counts_a)] = prims
+    # Then without the parts that do not go on (leaves, parked children).
     parent_rank = np.zeros(len(splits), np.intp)
     parent_rank[parents] = np.arange(len(parents))
     child = 2 * parent_rank.take(active)
@@ -468,7 +471,7 @@ def _partition(order, prims, go_left, starts, runs, splits, n_left, parents, chi
                             splits_a & ~child_parked.take(child + 1)]).ravel()
     if keep.all():
         source = np.empty_like(dest)
-        source[dest] = np.arange(len(dest))
+        source[dest] = column
         return source
     dropped = np.where(keep, 0, np.column_stack([n_left_a, counts_a - n_left_a]).ravel())
     shift = np.cumsum(dropped) - dropped
