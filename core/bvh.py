@@ -228,7 +228,7 @@ def _box_planes(low, high, grow, sides=None):
 
 
 def _reach(root_low, root_high) -> float:
-    """The largest coordinate of a root box root_low, root_high (3,): R in the module docstring."""
+    """The largest coordinate of a root box root_low, root_high (3,) (R, module docstring)."""
     return max(float(np.abs(root_low).max()), float(np.abs(root_high).max()))
 
 
@@ -373,10 +373,11 @@ def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF
                 counts_on = child_counts[~child_parked]
                 columns = data if reduced[~child_parked].all() else np.compress(
                     np.repeat(reduced[~child_parked], counts_on), data, axis=1)
-                first = run_starts(child_counts[reduced])
-                segment = np.repeat(np.arange(len(first)), child_counts[reduced])
-                level_low[:, reduced] = _segment_reduce(np.minimum, columns[:3], first, segment)
-                level_high[:, reduced] = _segment_reduce(np.maximum, columns[3:], first,
+                child_first = run_starts(child_counts[reduced])
+                segment = np.repeat(np.arange(len(child_first)), child_counts[reduced])
+                level_low[:, reduced] = _segment_reduce(np.minimum, columns[:3], child_first,
+                                                        segment)
+                level_high[:, reduced] = _segment_reduce(np.maximum, columns[3:], child_first,
                                                          segment)
         starts, counts, parked = child_starts, child_counts, child_parked
         total += 2 * m
@@ -676,8 +677,9 @@ class BVH:
         # padding slot's box is NaN.
         reach = _reach(tree.low[:, 0], tree.high[:, 0])
         grow = SLAB_PADDING_32 * ORIGIN_REACH * reach
-        blocks = _box_planes(tree.low.take(safe.ravel(), axis=1),
-                             tree.high.take(safe.ravel(), axis=1), grow).reshape((6,) + slots.shape)
+        every = safe.ravel()
+        blocks = _box_planes(tree.low.take(every, axis=1), tree.high.take(every, axis=1),
+                             grow).reshape((6,) + slots.shape)
         blocks[:, ~real] = np.nan
         low, high = tree.low[:, 0], tree.high[:, 0]
         pad = BOX_PADDING * (2 * max(np.abs(low).max(), np.abs(high).max())
