@@ -444,6 +444,7 @@ def _fallback_line(reason: str) -> str:
     return f"worker processes unavailable ({reason}): rendered on threads"
 
 
+@allocator.small_pages()   # (the tiles' and the tree's large arrays: see core.allocator)
 def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
            progress: Optional[Callable[[float], None]] = None,
            should_cancel: Optional[Callable[[], bool]] = None,
