@@ -519,6 +519,15 @@ class BVH:
         them, as ``visit`` would say.
         Returns (n,) bool: whether a hit (any_hit: a blocker) was found for each ray.
         """
+        # (The slab tests' 0 * inf, a ray in a box's plane, is NaN and ignored there
+        # (``_slabs``): one error state for the whole traversal, not one per box test
+        # call, which cost about 3 % of the trails' time.)
+        with np.errstate(invalid="ignore"):
+            return self._traverse_rays(origins, inverse, t_min, t_max, visit, accept,
+                                       any_hit, sources, leaf_blocks, stats)
+
+    def _traverse_rays(self, origins, inverse, t_min, t_max, visit, accept, any_hit, sources,
+                       leaf_blocks, stats):
         n = inverse.shape[1]
         found = np.zeros(n, bool)
         near_origin = np.abs(origins).max(initial=0) <= self.origin_reach
@@ -735,15 +744,21 @@ class BVH:
         t_max, which prunes the levels below)."""
         while len(rays):
             leaf = refs < 0
-            if leaf.any():
+            at = np.flatnonzero(leaf)
+            if len(at):
+                leaf_rays, leaves = rays.take(at), -2 - refs.take(at)
                 if any_hit and self.leaf_boxes is not None and MAX_LEAF == WIDTH:
-                    self._visit_slots(rays[leaf], -2 - refs[leaf], rows, t_min, t_max, visit,
-                                      found, stats, leaf_blocks)
+                    self._visit_slots(leaf_rays, leaves, rows, t_min, t_max, visit, found,
+                                      stats, leaf_blocks)
                 else:
-                    self._visit_leaves(rays[leaf], -2 - refs[leaf], t_max, visit, accept,
-                                       found, any_hit)
-                going_on = ~leaf & ~found.take(rays) if any_hit else ~leaf
-                rays, refs = rays[going_on], refs[going_on]
+                    self._visit_leaves(leaf_rays, leaves, t_max, visit, accept, found,
+                                       any_hit)
+                going_on = np.logical_not(leaf, out=leaf)
+                if any_hit:
+                    going_on &= ~found.take(rays)
+                # (One index for both arrays: cheaper than two boolean masks.)
+                keep = np.flatnonzero(going_on)
+                rays, refs = rays.take(keep), refs.take(keep)
                 if len(rays) == 0:
                     return
             rays, refs, _ = self._expand(rays, refs, *rows, t_min, t_max, stats,
@@ -875,25 +890,25 @@ class BVH:
             t -= o                # a gathered copy: worked on in place
         else:
             t = t.astype(dtype) - o
-        with np.errstate(invalid="ignore"):
-            if t.shape[2] == m * k:
-                t *= per_pair(inverse)
-            else:       # one box against rays sharing their origin
-                t = t * per_pair(inverse)
-            # fmin / fmax: a 0 * inf (a ray in a box's plane) is NaN and is ignored.
-            # (A reduce over the axes: one call, and no temporary, for the three.)
-            near = np.fmax.reduce(np.fmin(t[0], t[1]), axis=0)
-            far = np.fmin.reduce(np.fmax(t[0], t[1]), axis=0)
-            # maximum / minimum propagate an empty slot's NaN, which then fails near <= far.
-            # (Rounding the bounds to the slabs' precision first gives the same results:
-            # rounding is monotonic and leaves the slabs' own values as they are.)
-            if getattr(t_min, "ndim", 0):
-                np.maximum(near, _spread(t_min.take(rays), dtype, k).ravel(), out=near)
-            else:
-                np.maximum(near, t_min, out=near)
-            if t_max is not None:
-                np.minimum(far, _spread(t_max.take(rays), dtype, k).ravel(), out=far)
-            return near.reshape(m, k), (near <= far).reshape(m, k)
+        # (0 * inf is NaN: ``traverse`` runs every slab test with invalid values ignored.)
+        if t.shape[2] == m * k:
+            t *= per_pair(inverse)
+        else:       # one box against rays sharing their origin
+            t = t * per_pair(inverse)
+        # fmin / fmax: a 0 * inf (a ray in a box's plane) is NaN and is ignored.
+        # (A reduce over the axes: one call, and no temporary, for the three.)
+        near = np.fmax.reduce(np.fmin(t[0], t[1]), axis=0)
+        far = np.fmin.reduce(np.fmax(t[0], t[1]), axis=0)
+        # maximum / minimum propagate an empty slot's NaN, which then fails near <= far.
+        # (Rounding the bounds to the slabs' precision first gives the same results:
+        # rounding is monotonic and leaves the slabs' own values as they are.)
+        if getattr(t_min, "ndim", 0):
+            np.maximum(near, _spread(t_min.take(rays), dtype, k).ravel(), out=near)
+        else:
+            np.maximum(near, t_min, out=near)
+        if t_max is not None:
+            np.minimum(far, _spread(t_max.take(rays), dtype, k).ravel(), out=far)
+        return near.reshape(m, k), (near <= far).reshape(m, k)
 
     def _expand(self, rays, nodes, origins, inverse, t_min, t_max, stats, entries=True,
                 table=None):
