@@ -353,8 +353,7 @@ def _save_side_by_side(path: str, glint: np.ndarray, cycles: np.ndarray) -> None
 
 
 def _drawn(scene) -> dict:
-    return {"spheres": len(scene.spheres) + sum(len(s) for s in scene.sphere_sets),
-            "triangles": sum(len(m.triangles) * len(m.transforms) for m in scene.meshes),
+    return {"spheres": scene.sphere_count, "triangles": scene.triangle_count,
             "mesh_instances": sum(len(m.transforms) for m in scene.meshes)}
 
 
@@ -387,6 +386,7 @@ class GlintSplit:
             stats = result.stats
             self.last = {"drawn": _drawn(render_job.scene), "warnings": render_job.warnings,
                          "precision": result.precision,
+                         "parallelism": result.parallelism,
                          "phases": dict(stats.phases(), tiles=stats.seconds_tiles),
                          "rays": {"camera": stats.camera_rays, "shadow": stats.shadow_rays,
                                   "reflection": stats.reflection_rays,

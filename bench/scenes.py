@@ -14,8 +14,7 @@ import numpy as np
 from core import Material, PointLight, Scene, ScreenCamera, Sphere, SphereSet, article_scene
 from core.article import ARTICLE_EYE, ARTICLE_LIGHT, article_spheres
 
-__all__ = ["article_scene", "random_spheres_scene", "random_sphere_set_scene", "sphere_count",
-           "SEED"]
+__all__ = ["article_scene", "random_spheres_scene", "random_sphere_set_scene", "SEED"]
 
 SEED = 20240601
 RADIUS_RANGE = (0.02, 0.08)
@@ -96,7 +95,3 @@ def random_sphere_set_scene(count: int, width: int, height: int, *, floor: bool 
                  spheres=(floor_sphere,) if floor else (), sphere_sets=(spheres,),
                  lights=(PointLight(ARTICLE_LIGHT, name="light"),))
 
-
-def sphere_count(scene: Scene) -> int:
-    """Spheres in a scene, listed one by one or in sets."""
-    return len(scene.spheres) + sum(len(s) for s in scene.sphere_sets)

@@ -63,7 +63,7 @@ from core import RenderSettings, Scene, render
 
 from . import baseline, per_pixel
 from .measure import Timing, cpu_seconds, measure, rgb_error, silhouette_mismatches
-from .scenes import article_scene, random_sphere_set_scene, random_spheres_scene, sphere_count
+from .scenes import article_scene, random_sphere_set_scene, random_spheres_scene
 
 REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 #: The article's own image: shared/ beside the checkout, else the tests' copy of it.
@@ -681,7 +681,7 @@ class Bench:
             label = contender.label
             _, timing, image_bytes = self.measure_glint(scene_key, scene, contender)
         self.curve_points.append(CurvePoint(
-            curve, label, scene.camera.width, scene.camera.height, sphere_count(scene),
+            curve, label, scene.camera.width, scene.camera.height, scene.sphere_count,
             timing.median, len(timing.runs), timing.peak_bytes, image_bytes))
 
     def pixel_curve(self) -> None:

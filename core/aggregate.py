@@ -793,6 +793,11 @@ def _subset(rays: RayBatch, keep) -> RayBatch:
                     None if rays.source is None else rays.source[keep])
 
 
+def builds_tree(spheres: int, triangles: int) -> bool:
+    """Whether a scene of this many spheres and triangles gets a tree (``Aggregate``)."""
+    return spheres > BVH_MIN_SPHERES or triangles > BVH_MIN_TRIANGLES
+
+
 def _partition(sizes: np.ndarray, flat_limit: int):
     """(flat (f,), tree (k,)) primitive indices: all flat while there are at most
     ``flat_limit``; otherwise the huge ones (bounding size above HUGE_RATIO times the

@@ -848,13 +848,35 @@ class BVH:
                 grouped = np.argsort((r - first).astype(np.uint16), kind="stable")
                 r, ref = r[grouped], ref[grouped]
             if len(r):
-                self._visit_leaves(r, -2 - ref, t_max, visit, accept, found, any_hit)
+                if self.leaf_boxes is not None and MAX_LEAF == WIDTH:
+                    self._visit_boxed_leaves(r, -2 - ref, rows, t_min, t_max, visit, accept,
+                                             found, any_hit, stats)
+                else:
+                    self._visit_leaves(r, -2 - ref, t_max, visit, accept, found, any_hit)
             if held and sum(len(part[0]) for part in held):
                 self._rounds(first, *(np.concatenate(parts) for parts in zip(*held)),
                              levels[1:], rows, t_min, t_max, visit, accept, found, any_hit,
                              stats)
             done_rank += size
             size *= 2
+
+    def _visit_boxed_leaves(self, r, leaf, rows, t_min, t_max, visit, accept, found, any_hit,
+                            stats):
+        """``_visit_leaves`` of pairs (ray, leaf) (m,), grouped by ray, for only the
+        primitives whose own boxes (``leaf_boxes``) the rays' segments reach, up to their
+        nearest hits so far: a leaf's slots cost a box test each, a fraction of a primitive
+        test (a 10^6-sphere set at 960x540: 69 sphere tests a camera ray, most of them
+        against spheres of a leaf whose box the ray crosses but whose own boxes it misses).
+        The boxes hold their primitives, so the hits (and ties) are the same."""
+        _, hit = self._slabs(self.leaf_boxes.take(leaf, axis=1), r, *rows, t_min, t_max)
+        if stats is not None:
+            stats.node_tests += int(self._leaf_fill.take(leaf).sum())
+        pair_slot = hit.ravel().nonzero()[0]
+        if len(pair_slot) == 0:
+            return
+        rays = r.take(pair_slot // MAX_LEAF)
+        prims = self.leaves.take(leaf, axis=0).ravel().take(pair_slot)
+        keep_nearest(rays, prims, visit(rays, prims), t_max, found, accept, any_hit)
 
     def _visit_leaves(self, r, leaf, t_max, visit, accept, found, any_hit):
         prims = self.leaves.take(leaf, axis=0).ravel()

@@ -78,8 +78,7 @@ def plan(scene: Scene, settings: RenderSettings, image_dtype, threads: int,
     bundle = max(settings.tile_size ** 2, samples)
     in_flight = 2 * threads * settings.tile_size ** 2 * 4 * 8
     tracing = threads * bundle * BYTES_PER_BUNDLE_RAY + in_flight
-    spheres = len(scene.spheres) + sum(len(s) for s in scene.sphere_sets)
-    triangles = sum(len(mesh) for mesh in scene.meshes)  # per instance
+    spheres, triangles = scene.sphere_count, scene.triangle_count   # (per instance)
     light_samples = sum(settings.light_samples if light.radius > 0 else 1
                         for light in scene.lights)
     scene_bytes = (spheres * (BYTES_PER_SPHERE + (1 + light_samples) * BYTES_PER_SPHERE_TERMS)

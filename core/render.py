@@ -26,6 +26,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
+from .aggregate import builds_tree
 from .camera import camera_rays, has_aperture
 from .colour import linear_to_srgb
 from .context import RayStats, TraceContext, make_context
@@ -418,21 +419,25 @@ def missed_colour(scene: Scene, settings: RenderSettings) -> np.ndarray:
     return np.asarray(scene.background, np.float64)
 
 
-def _in_processes(settings: RenderSettings, pixels: int, tiles: int, threads: int) -> bool:
+def _in_processes(settings: RenderSettings, pixels: int, tiles: int, threads: int,
+                  tree: bool = False) -> bool:
     """Whether this render's tiles go to worker processes (``RenderSettings.parallelism``).
     A single tile or a small render stays in this process (starting a worker costs more
-    than it gains there).  'auto' asks for more than one worker (one only moves the work
-    out of this process), and in a process that renders once (``workers.one_render``) for
-    warm workers or a render heavy enough to pay for their start-up."""
-    if tiles < 2 or pixels < workers.MIN_PIXELS:
+    than it gains there): its work is its camera samples, weighted for a scene with a tree
+    (``workers.TREE_SAMPLE_WEIGHT``).  'auto' asks for more than one worker (one only moves
+    the work out of this process), and in a process that renders once
+    (``workers.one_render``) for warm workers or a render heavy enough to pay for their
+    start-up."""
+    per_pixel = settings.samples if settings.anti_aliasing == "fixed" else 1
+    work = pixels * per_pixel * (workers.TREE_SAMPLE_WEIGHT if tree else 1)
+    if tiles < 2 or work < workers.MIN_PIXELS:
         return False
     if settings.parallelism != "auto":
         return settings.parallelism == "processes"
     if threads < 2:
         return False
-    per_pixel = settings.samples if settings.anti_aliasing == "fixed" else 1
     return (not workers.one_render or workers.warm(threads)
-            or pixels * per_pixel >= workers.COLD_MIN_SAMPLES)
+            or work >= workers.COLD_MIN_SAMPLES)
 
 
 def _fallback_line(reason: str) -> str:
@@ -479,8 +484,9 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
         reserve_bytes += per_pixel * width * height
     tiles = _tiles(width, height, settings.tile_size)
     # Passes are filled beside each tile in this process (``work``), so they keep tiles here.
+    tree = builds_tree(scene.sphere_count, scene.triangle_count)
     in_processes = not passes and _in_processes(settings, width * height, len(tiles),
-                                                    threads)
+                                                    threads, tree)
     memory_plan = memory.plan(scene, settings, image_dtype, threads, reserve_bytes)
     if in_processes:  # plus each worker's interpreter and scene (the image is shared)
         memory_plan = dataclasses.replace(memory_plan, other=memory_plan.other + workers.

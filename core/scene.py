@@ -919,6 +919,16 @@ class Scene:
         _set(self, "background", _colour("scene.background", self.background))
         _set(self, "ambient", _colour("scene.ambient", self.ambient))
 
+    @property
+    def sphere_count(self) -> int:
+        """Spheres, listed one by one or in sets."""
+        return len(self.spheres) + sum(len(s) for s in self.sphere_sets)
+
+    @property
+    def triangle_count(self) -> int:
+        """Triangles drawn (each mesh's triangles times its instances)."""
+        return sum(len(mesh) for mesh in self.meshes)
+
 
 @dataclass(frozen=True)
 class RenderSettings:

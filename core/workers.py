@@ -19,8 +19,12 @@ tile), so large renders run their tiles in ``count`` worker processes instead:
   process is Glint's own, even inside Blender).  Workers stay alive between renders (an
   animation, the benchmark's repeats, F12 after F12 pay their start-up, a Python and NumPy
   import, once); ``shutdown()`` ends them, as does the parent's exit.  Each render sends
-  every worker it uses the prepared ``TraceContext`` and camera once (pickled: a few kB for
-  the article's scene, the arrays themselves for big ones), dropped when the render ends.
+  every worker it uses the prepared ``TraceContext`` and camera once, dropped when the render
+  ends: pickled (a few kB for the article's scene), except that arrays of SHARED_ARRAY_BYTES
+  or more (a big scene's spheres, triangles and tree) go out of band (pickle protocol 5)
+  into one anonymous file that every worker maps copy-on-write (``_SharedPayload``), so a
+  million-sphere scene is written once, not serialized into every worker's socket, and its
+  pages exist once in memory however many workers read them.
 * the parent sends tile rectangles, at most two in flight per worker; a worker renders a
   tile with the same ``core.render.render_tile`` as a thread would and writes its pixels
   straight into the render's image, then answers with the tile's RayStats and whether its
@@ -83,9 +87,24 @@ START_TIMEOUT_SECONDS = 60.0
 END_TIMEOUT_SECONDS = 5.0
 #: Tiles in flight per worker: one rendering, one queued, so no worker waits for the parent.
 TILES_IN_FLIGHT = 2
-#: Renders below this many pixels stay in the calling process: starting a worker (a Python
-#: and NumPy import, 0.1-0.3 s, once per process) costs more than a small render gains.
+#: Renders of less work than this many of the article scene's camera samples (pixels x
+#: samples per pixel x TREE_SAMPLE_WEIGHT for scenes with a tree) stay in the calling
+#: process: starting a worker (a Python and NumPy import, 0.1-0.3 s, once per process) costs
+#: more than a small render gains.
 MIN_PIXELS = 300_000
+#: A camera sample of a scene that needs a tree (``aggregate.builds_tree``) counts as this
+#: many of the article scene's: at 640 x 360 (230,400 pixels, under MIN_PIXELS) 1,000 spheres
+#: took 14x the article scene's time (2 threads, same run), a million point-cloud spheres and
+#: 100,000 instanced ones about 100x and 70x, and there processes took 0.71x and 0.57x of
+#: threads' wall time (5.2 vs 7.3 s, 2.9 vs 5.1 s, two free cores): two threads in one
+#: process gain little over one (the GIL).
+TREE_SAMPLE_WEIGHT = 10
+#: A context's arrays of at least this many bytes reach the workers through shared memory
+#: (``_SharedPayload``); smaller ones travel inside the pickle (a page per array and a slice
+#: of the file would cost more than copying them).
+SHARED_ARRAY_BYTES = 64 * 2 ** 10
+#: Each shared array starts at a multiple of this within the file (a cache line).
+SHARED_ALIGNMENT = 64
 #: Frame memory is kept for later renders up to this size each (a 1920 x 1080 float64 image
 #: is 63 MiB); a larger frame's memory lives only as long as its image.
 KEEP_SHARED_BYTES = 256 * 2 ** 20
@@ -147,13 +166,14 @@ class _StopFlag:
         return self._buffer[0] != 0
 
 
-def _anonymous_file(size: int) -> int:
+def _anonymous_file(size: int, label: str = "glint-frame") -> int:
     """A descriptor of ``size`` zero bytes that no name refers to, so nothing can leak when a
-    process dies: a memfd on Linux, an unlinked temporary file elsewhere."""
+    process dies: a memfd on Linux, an unlinked temporary file elsewhere (label: what
+    /proc shows of it)."""
     if hasattr(os, "memfd_create"):
-        descriptor = os.memfd_create("glint-frame", os.MFD_CLOEXEC)
+        descriptor = os.memfd_create(label, os.MFD_CLOEXEC)
     else:
-        descriptor, path = tempfile.mkstemp(prefix="glint-frame-")
+        descriptor, path = tempfile.mkstemp(prefix=label + "-")
         os.unlink(path)
     try:
         os.ftruncate(descriptor, size)
@@ -168,6 +188,57 @@ def _map(descriptor: int, size: int, populate: bool = False) -> mmap.mmap:
     call instead of a page fault per 4 KiB page)."""
     flags = mmap.MAP_SHARED | (getattr(mmap, "MAP_POPULATE", 0) if populate else 0)
     return mmap.mmap(descriptor, size, flags=flags)
+
+
+class _SharedPayload:
+    """A pickled object whose large arrays live outside the pickle, in one anonymous file:
+    ``payload`` the pickle (protocol 5), ``layout`` ((offset, bytes) of each out-of-band
+    buffer in pickling order), ``size`` the file's, ``descriptor`` the file (None when
+    nothing went out of band).  ``close()`` lets the parent's descriptor go (the workers'
+    mappings keep the memory)."""
+
+    def __init__(self, obj):
+        buffers = []
+
+        def in_band(buffer: pickle.PickleBuffer) -> bool:
+            if buffer.raw().nbytes < SHARED_ARRAY_BYTES:
+                return True
+            buffers.append(buffer)
+            return False
+
+        self.payload = pickle.dumps(obj, protocol=5, buffer_callback=in_band)
+        self.layout, offset = [], 0
+        for buffer in buffers:
+            self.layout.append((offset, buffer.raw().nbytes))
+            offset += -(-buffer.raw().nbytes // SHARED_ALIGNMENT) * SHARED_ALIGNMENT
+        self.size = offset
+        self.descriptor = None
+        if buffers:
+            self.descriptor = _anonymous_file(self.size, "glint-scene")
+            try:
+                for (start, _), buffer in zip(self.layout, buffers):
+                    _write_all(self.descriptor, buffer.raw(), start)
+            except OSError:
+                self.close()
+                raise
+
+    def close(self) -> None:
+        if self.descriptor is not None:
+            os.close(self.descriptor)
+            self.descriptor = None
+
+
+def _write_all(descriptor: int, data: memoryview, offset: int) -> None:
+    while len(data):
+        written = os.pwrite(descriptor, data, offset)
+        data, offset = data[written:], offset + written
+
+
+def _shared_loads(payload: bytes, mapping, layout) -> object:
+    """The object a ``_SharedPayload`` pickled, its large arrays over ``mapping`` (the
+    payload's file mapped copy-on-write: the worker may write to them, privately)."""
+    view = memoryview(mapping) if mapping is not None else None
+    return pickle.loads(payload, buffers=[view[start:start + size] for start, size in layout])
 
 
 def _frame_image(mapping, shape, dtype) -> np.ndarray:
@@ -191,20 +262,29 @@ def _python_executable() -> str | None:
 class _Job:
     """One render as a worker sees it: its context, camera and the frame's image."""
 
-    def __init__(self, mapping, shape, dtype_name: str, payload: bytes):
+    def __init__(self, mapping, shape, dtype_name: str, payload: bytes, shared, layout):
         self.image = _frame_image(mapping, tuple(shape), dtype_name)
-        self.ctx, self.camera = pickle.loads(payload)
+        self.shared = shared          # the context's large arrays (or None)
+        self.ctx, self.camera = _shared_loads(payload, shared, layout)
 
     def close(self) -> None:
         self.image = self.ctx = self.camera = None
+        if self.shared is not None:
+            try:
+                self.shared.close()
+            except BufferError:       # an array still refers to it: freed with the array
+                pass
+            self.shared = None
 
 
 def worker_loop(connection, setup: dict) -> None:
     """Run in a worker: serve renders until the parent sends None or goes away.
 
     First the control page's descriptor (its byte 0 is the stop byte).  Messages in:
-    ('render', frame id, frame bytes, shape, dtype, whether the frame's descriptor follows),
-    [the descriptor,] then the pickled (context, camera) as bytes; a tile (y0, y1, x0, x1);
+    ('render', frame id, frame bytes, shape, dtype, whether the frame's descriptor follows,
+    shared bytes, shared layout), [the frame's descriptor,] [the shared arrays' descriptor
+    (when shared bytes > 0),] then the pickled (context, camera) as bytes
+    (``_SharedPayload``); a tile (y0, y1, x0, x1);
     ('end', ids of the frames to keep mapped); None.  Answers: ('ready',), ('done', tile,
     stats, whether every value is finite), ('cancelled', tile), ('error', tile, exception,
     traceback text), ('ended',)."""
@@ -228,14 +308,16 @@ def worker_loop(connection, setup: dict) -> None:
             if message is None:
                 return
             if message[0] == "render":
-                _, frame, size, shape, dtype_name, sent = message
+                _, frame, size, shape, dtype_name, sent, shared_size, layout = message
                 try:
                     if sent:
                         frames[frame] = _received_mapping(connection, size)
+                    shared = _received_mapping(connection, shared_size, private=True) \
+                        if shared_size else None
                     payload = connection.recv_bytes()
                     if job is not None:       # a render whose end never came
                         job.close()
-                    job = _Job(frames[frame], shape, dtype_name, payload)
+                    job = _Job(frames[frame], shape, dtype_name, payload, shared, layout)
                 except Exception as error:
                     job = None
                     _send_error(connection, None, error)
@@ -268,11 +350,14 @@ def worker_loop(connection, setup: dict) -> None:
             mapping.close()
 
 
-def _received_mapping(connection, size: int) -> mmap.mmap:
+def _received_mapping(connection, size: int, private: bool = False) -> mmap.mmap:
     """The descriptor the parent sends next over ``connection``, mapped (and closed: the
-    mapping keeps the memory)."""
+    mapping keeps the memory); private: copy-on-write (writes stay in this process)."""
     descriptor = recv_handle(connection)
     try:
+        if private:
+            return mmap.mmap(descriptor, size, flags=mmap.MAP_PRIVATE,
+                             prot=mmap.PROT_READ | mmap.PROT_WRITE)
         return _map(descriptor, size)
     finally:
         os.close(descriptor)
@@ -494,7 +579,7 @@ class _Render:
         self.image = self.frame.image(self.shape, self.dtype)
         self.stop = _pool.control
         self.stop[0] = 0
-        self.payload = pickle.dumps((ctx, camera), protocol=5)
+        self.payload = _SharedPayload((ctx, camera))
         self.workers = _pool.workers[:count]
         self.pending = None          # tiles not yet sent (a deque, from ``run``)
         self.starting = set()        # connections of the workers not yet ready
@@ -512,16 +597,22 @@ class _Render:
                     _pool._failed_to_start(worker)
                 worker.served = True
             sent = frame.id not in worker.frames
+            shared = self.payload
             try:
                 worker.connection.send(("render", frame.id, frame.size, self.shape,
-                                        self.dtype.name, sent))
+                                        self.dtype.name, sent, shared.size, shared.layout))
                 if sent:
                     send_handle(worker.connection, frame.descriptor, worker.process.pid)
                     worker.frames.add(frame.id)
-                worker.connection.send_bytes(self.payload)
+                if shared.size:
+                    send_handle(worker.connection, shared.descriptor, worker.process.pid)
+                worker.connection.send_bytes(shared.payload)
             except OSError:
                 self.workers.remove(worker)
                 _pool._failed_to_start(worker)
+        # (Each worker holds the shared file from its message on: this process's descriptor
+        # is no longer needed.)
+        self.payload.close()
 
     def run(self, tiles, finish, should_cancel) -> None:
         """Render ``tiles``; finish(tile, pixels, stats, done, finite) is called in this
@@ -626,6 +717,7 @@ class _Render:
         """Stop running tiles at their next bundle, let every worker drop this render and
         the frames the pool let go (a worker that does not answer is replaced next time)."""
         self.stop[0] = 1
+        self.payload.close()
         kept = _pool.kept_frames()
         self.workers = [w for w in self.workers if w in _pool.workers]   # not dropped
         for worker in list(self.workers):
@@ -685,9 +777,11 @@ def prestart(count: int) -> None:
 
 def planned_bytes(count: int, scene_bytes: int) -> int:
     """What rendering in ``count`` workers holds beyond a threaded render (``core.memory``):
-    per worker its interpreter and its own copy of the scene.  The tracing memory only moves
-    into the workers, and the image is the frame they share (no second copy)."""
-    return count * (WORKER_PROCESS_BYTES + scene_bytes)
+    per worker its interpreter, and one more copy of the scene's arrays, the shared file all
+    workers map (``_SharedPayload``; the tables a worker builds lazily are small beside the
+    plan's scene bound: 44 MB a worker for a million spheres whose plan counts 2.2 GB).  The
+    tracing memory only moves into the workers, and the image is the frame they share."""
+    return count * WORKER_PROCESS_BYTES + scene_bytes
 
 
 def render_tiles(ctx, camera, tiles, shape, dtype, count: int, finish,

@@ -117,6 +117,27 @@ def test_small_scenes_build_no_tree():
     assert stats.node_tests == 0
 
 
+@pytest.mark.parametrize("spheres, triangles", [(500, 0), (501, 0), (0, 16), (0, 17),
+                                                (400, 10)])
+def test_builds_tree_says_what_the_aggregate_builds(spheres, triangles):
+    """The worker-process rule weighs scenes by ``builds_tree``: it must be the truth."""
+    from core.aggregate import builds_tree
+    rng = np.random.default_rng(2)
+    sets = (core.SphereSet(rng.uniform(-3, 3, (spheres, 3)), rng.uniform(0.01, 0.05, spheres),
+                           np.zeros(spheres, np.intp), (core.Material(),)),) if spheres else ()
+    meshes = (core.TriangleMesh(rng.uniform(-3, 3, (3 * triangles, 3)),
+                                np.arange(3 * triangles).reshape(-1, 3), None,
+                                np.zeros(triangles, np.intp), (core.Material(),)),) \
+        if triangles else ()
+    scene = core.Scene(camera=core.ScreenCamera(16, 16, eye=(0, 0, 12)), sphere_sets=sets,
+                       meshes=meshes, lights=(core.PointLight((3, 20, 8)),))
+    ctx = make_context(scene, core.RenderSettings(), np.float64)
+    assert (ctx.geometry._tree is not None) == builds_tree(scene.sphere_count,
+                                                            scene.triangle_count)
+    assert builds_tree(scene.sphere_count, scene.triangle_count) == (spheres > 500
+                                                                     or triangles > 16)
+
+
 def _mixed_boxes(rng, small, large):
     """Boxes (P, 3) of ``small`` tiny primitives in a unit ball among ``large`` big ones."""
     centre = np.concatenate([rng.normal(scale=0.5, size=(small, 3)),

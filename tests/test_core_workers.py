@@ -294,6 +294,77 @@ def test_a_tree_scene_of_meshes_and_sphere_sets_renders_the_same_in_workers(
     assert result.stats == reference.stats
 
 
+def _open_files():
+    """What this process's descriptors refer to (the listing's own one is gone once read)."""
+    files = []
+    for name in os.listdir("/proc/self/fd"):
+        try:
+            files.append(os.readlink(f"/proc/self/fd/{name}"))
+        except FileNotFoundError:
+            pass
+    return sorted(files)
+
+
+def test_large_arrays_reach_the_workers_through_shared_memory(small_renders_in_processes):
+    """A big sphere set's arrays (and its tree's) leave the pickle for the shared file; the
+    workers' image is the threads' bit for bit, and no descriptor is left open."""
+    rng = np.random.default_rng(5)
+    count = 20_000
+    cloud = core.SphereSet(rng.uniform(-5, 5, (count, 3)), rng.uniform(0.01, 0.05, count),
+                           rng.integers(0, 2, count),
+                           (core.Material(), core.Material(diffuse=(0.2, 0.8, 0.1))),
+                           name="cloud")
+    scene = core.Scene(camera=core.ScreenCamera(96, 64, eye=(0, 0, 12)), sphere_sets=(cloud,),
+                       lights=(core.PointLight((3, 20, 8)),))
+    settings = _settings(threads=2, parallelism="processes")
+    core.render(scene, settings)     # the workers warm: each has ended a render (below)
+    result = core.render(scene, settings)
+    reference = core.render(scene, _settings(threads=1))
+    assert result.parallelism == "processes"
+    assert np.array_equal(result.image, reference.image)
+    # The shared file is gone everywhere once the render has ended: this process closed
+    # its descriptor, and each worker dropped its mapping with the render's context.
+    assert not [name for name in _open_files() if "glint-scene" in name]
+    for pid in workers.worker_pids():
+        with open(f"/proc/{pid}/maps") as maps:
+            assert "glint-scene" not in maps.read()
+
+    from core.render import canonical_scene, choose_precision, make_context
+    canonical = canonical_scene(scene, settings)
+    ctx = make_context(canonical, settings, choose_precision(canonical, settings.precision))
+    shared = workers._SharedPayload((ctx, canonical.camera))
+    try:
+        assert shared.size >= count * 3 * 8           # at least the centres went out of band
+        assert all(size >= workers.SHARED_ARRAY_BYTES for _, size in shared.layout)
+        assert len(shared.payload) < shared.size / 10
+    finally:
+        shared.close()
+    assert shared.descriptor is None
+
+
+def test_shared_arrays_load_writable_and_copy_on_write():
+    """What a worker loads is the parent's arrays, writable, and a write stays private."""
+    import mmap
+
+    big = np.arange(workers.SHARED_ARRAY_BYTES // 8 * 3, dtype=np.float64).reshape(3, -1)
+    small = np.arange(10)
+    shared = workers._SharedPayload({"big": big, "small": small, "view": big[1]})
+    try:
+        assert len(shared.layout) == 2                # big and its row; small stays in band
+        loads = []
+        for _ in range(2):
+            mapping = mmap.mmap(shared.descriptor, shared.size, flags=mmap.MAP_PRIVATE,
+                                prot=mmap.PROT_READ | mmap.PROT_WRITE)
+            loads.append(workers._shared_loads(shared.payload, mapping, shared.layout))
+    finally:
+        shared.close()
+    first, second = loads
+    assert np.array_equal(first["big"], big) and np.array_equal(first["small"], small)
+    assert np.array_equal(first["view"], big[1])
+    first["big"][0, 0] = -1.0                         # writable, and private to this load
+    assert second["big"][0, 0] == 0.0 and big[0, 0] == 0.0
+
+
 def test_the_memory_plan_counts_the_workers(small_renders_in_processes, monkeypatch):
     """Memory that fits a threaded render but not the shared image and the workers: the
     render with processes is refused before anything starts, naming what it needs."""
@@ -488,20 +559,24 @@ def test_auto_takes_processes_where_their_start_up_pays(monkeypatch):
 
     render_module = importlib.import_module("core.render")
 
-    def in_processes(width, height, threads=2, **settings):
+    def in_processes(width, height, threads=2, tree=False, **settings):
         tiles = len(render_module._tiles(width, height, 128))
         return render_module._in_processes(core.RenderSettings(parallelism="auto", **settings),
-                                           width * height, tiles, threads)
+                                           width * height, tiles, threads, tree)
 
     monkeypatch.setattr(workers, "one_render", False)   # a session: workers live on
     assert in_processes(1920, 1080)
     assert not in_processes(1920, 1080, threads=1)      # one worker only moves the work
     assert not in_processes(500, 500)                    # under MIN_PIXELS
+    assert in_processes(500, 500, anti_aliasing="fixed", samples=4)   # 1 M samples
+    assert in_processes(640, 360, tree=True)             # a tree's samples weigh more
+    assert not in_processes(128, 128, tree=True)         # 164 k weighted samples
     monkeypatch.setattr(workers, "one_render", True)    # render once, then exit
     monkeypatch.setattr(workers, "warm", lambda count: False)
     assert not in_processes(1920, 1080)                  # 2 M samples: start-up does not pay
     assert in_processes(1920, 1080, anti_aliasing="fixed", samples=4)     # 8.3 M samples
     assert in_processes(3840, 2160)                      # 8.3 M
+    assert in_processes(1920, 1080, tree=True)           # 20.7 M weighted samples
     monkeypatch.setattr(workers, "warm", lambda count: True)
     assert in_processes(1920, 1080)                      # already paid
     for parallelism in ("threads", "processes"):         # explicit choices are kept
