@@ -704,13 +704,11 @@ class BVH:
         primitive) pairs: the rays blocked are exactly those the root-down traversal finds."""
         parent = self._trail_tables[1]
         home = starts.astype(np.intp)
-        # Per ray of the batch (indexed by the rays themselves): the node the ray meets next,
-        # and the child of it already done.
-        node = np.empty(len(found), np.intp)
-        done = np.empty(len(found), np.intp)
-        node[rays] = parent.take(home)
-        done[rays] = home
-        live = rays[node.take(rays) >= 0]
+        # The rays still climbing, each with the node it meets next and the child of that
+        # node already done (three aligned arrays, filtered together).
+        node = parent.take(home).astype(np.intp)
+        keep = np.flatnonzero(node >= 0)
+        live, done, node = rays.take(keep), home.take(keep), node.take(keep)
         climbed, home_met = 0, False
         while True:
             if not home_met and (climbed == HOME_AFTER or len(live) == 0):
@@ -721,18 +719,17 @@ class BVH:
                     self._descend_all(r_pairs, refs, rows, t_min, t_max, visit, found, stats,
                                       leaf_blocks=leaf_blocks)
                 home_met = True
-                live = live[~found.take(live)]
+                keep = np.flatnonzero(~found.take(live))
+                live, done, node = live.take(keep), done.take(keep), node.take(keep)
             if len(live) == 0:
                 return
-            r_pairs, refs, _ = self._expand(live, done.take(live), *climb_rows, t_min, t_max,
-                                            stats, entries=False, table=self._sibling_tables)
+            r_pairs, refs, _ = self._expand(live, done, *climb_rows, t_min, t_max, stats,
+                                            entries=False, table=self._sibling_tables)
             self._descend_all(r_pairs, refs, rows, t_min, t_max, visit, found, stats,
                               leaf_blocks=leaf_blocks)
-            up = node.take(live)
-            done[live] = up
-            up = parent.take(up)
-            node[live] = up
-            live = live[(up >= 0) & ~found.take(live)]
+            done, node = node, parent.take(node).astype(np.intp)
+            keep = np.flatnonzero((node >= 0) & ~found.take(live))
+            live, done, node = live.take(keep), done.take(keep), node.take(keep)
             climbed += 1
 
     def _descend_all(self, rays, refs, rows, t_min, t_max, visit, found, stats, accept=None,
@@ -775,10 +772,11 @@ class BVH:
         pair_slot = hit.ravel().nonzero()[0]
         if len(pair_slot) == 0:
             return
-        r = rays.take(pair_slot // MAX_LEAF)
+        pair = pair_slot // MAX_LEAF
+        r = rays.take(pair)
         if leaf_blocks is not None:
-            found[leaf_blocks(r, leaves.take(pair_slot // MAX_LEAF) * MAX_LEAF
-                              + pair_slot % MAX_LEAF)] = True
+            # (Slot pair_slot % MAX_LEAF of leaf leaves[pair], as an index of leaves.ravel().)
+            found[leaf_blocks(r, pair_slot + (leaves.take(pair) - pair) * MAX_LEAF)] = True
             return
         prims = self.leaves.take(leaves, axis=0).ravel().take(pair_slot)
         found[r[visit(r, prims) < np.inf]] = True
