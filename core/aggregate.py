@@ -30,6 +30,7 @@ import numpy as np
 
 from .arrays import SphereArrays, TriangleArrays
 from .bins import OriginBins
+from .allocator import small_pages
 from .bvh import BVH, MAX_LEAF
 from .cull import (DENSE_CANDIDATES, REFLECTION_CELLS, SHADOW_CELLS, bundle_candidates,
                    candidate_roots, cones,
@@ -152,30 +153,39 @@ class Aggregate:
         self._tree_spheres = len(tree_spheres)
         self._tree_triangles = len(tree_triangles)
         if len(tree_spheres) or len(tree_triangles):
-            lows, highs = [], []
-            if len(tree_spheres):
-                c, r = spheres.centers[tree_spheres], spheres.radii[tree_spheres, None]
-                lows.append(c - r)
-                highs.append(c + r)
-            if len(tree_triangles):
-                v0, v1, v2 = (take(v, tree_triangles) for v in (triangles.v0, triangles.v1,
-                                                                 triangles.v2))
-                lows.append(np.minimum(np.minimum(v0, v1), v2).T)
-                highs.append(np.maximum(np.maximum(v0, v1), v2).T)
-                del v0, v1, v2
-            ids = np.concatenate([tree_spheres, tree_triangles + self.sphere_count])
-            # (One kind only: its boxes as they are, no concatenated copy held beside them.)
-            low = lows[0] if len(lows) == 1 else np.concatenate(lows)
-            high = highs[0] if len(highs) == 1 else np.concatenate(highs)
-            del lows, highs
-            self._tree = BVH.build(ids, low, high)
-            # The boxes again for direction bins (``_origin_bins``), while they may pay.
-            self._tree_boxes = (ids, low, high) if len(ids) <= BINS_MAX_PRIMITIVES else None
-            del low, high
+            with small_pages():     # (the boxes: large temporaries, as the build's)
+                self._build_tree(spheres, triangles, tree_spheres, tree_triangles)
         self._bins = {}     # origin (bytes) -> OriginBins, or None: the tree answers there
         self._bins_bytes = 0
         self._bins_lock = threading.Lock()
         self._leaf_rows = None      # the tree's spheres in leaf order (``_leaf_spheres``)
+
+    def _build_tree(self, spheres, triangles, tree_spheres, tree_triangles):
+        """The tree over spheres tree_spheres (k,) and triangles tree_triangles (t,) (indices),
+        under global ids (triangles after every sphere)."""
+        # The boxes as columns (3, P), which the build works on (passed as their (P, 3) views).
+        lows, highs = [], []
+        if len(tree_spheres):
+            every = len(tree_spheres) == len(spheres)       # (then tree_spheres is 0 .. N-1)
+            c = spheres.centers.T if every else spheres.centers[tree_spheres].T
+            r = spheres.radii if every else spheres.radii[tree_spheres]
+            lows.append(np.subtract(c, r, out=np.empty(c.shape)))
+            highs.append(np.add(c, r, out=np.empty(c.shape)))
+            del c, r
+        if len(tree_triangles):
+            v0, v1, v2 = (take(v, tree_triangles) for v in (triangles.v0, triangles.v1,
+                                                             triangles.v2))
+            lows.append(np.minimum(np.minimum(v0, v1), v2))
+            highs.append(np.maximum(np.maximum(v0, v1), v2))
+            del v0, v1, v2
+        ids = np.concatenate([tree_spheres, tree_triangles + self.sphere_count])
+        # (One kind only: its boxes as they are, no concatenated copy held beside them.)
+        low = (lows[0] if len(lows) == 1 else np.concatenate(lows, axis=1)).T
+        high = (highs[0] if len(highs) == 1 else np.concatenate(highs, axis=1)).T
+        del lows, highs
+        self._tree = BVH.build(ids, low, high)
+        # The boxes again for direction bins (``_origin_bins``), while they may pay.
+        self._tree_boxes = (ids, low, high) if len(ids) <= BINS_MAX_PRIMITIVES else None
 
     def __len__(self) -> int:
         return self.sphere_count + self.triangle_count
@@ -806,6 +816,8 @@ def _partition(sizes: np.ndarray, flat_limit: int):
     everything = np.arange(count)
     if count <= flat_limit:
         return everything, np.zeros(0, np.intp)
+    if sizes.max() <= HUGE_RATIO * sizes.min():     # (none above HUGE_RATIO times the least)
+        return np.zeros(0, np.intp), everything
     huge = np.flatnonzero(sizes > HUGE_RATIO * np.median(sizes))
     if len(huge) > MAX_HUGE:
         huge = np.sort(huge[np.argsort(sizes[huge])[-MAX_HUGE:]])

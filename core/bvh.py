@@ -2,15 +2,16 @@
 
 Build (``BVH.build``): a binned surface-area-heuristic (SAH) tree (Wald 2007; pbrt 4's
 ``BVHAggregate``), built level by level over every node of a level at once: each node's
-primitives are put into BINS bins along each axis by their box centres, the bins' counts
-and boxes come from ``bincount`` and ``minimum.at`` / ``maximum.at``, and the node is
+primitives are put into BINS bins along the longest axis of their box centres, the bins'
+counts and boxes come from ``bincount`` and ``minimum.at`` / ``maximum.at``, and the node is
 split at the bin boundary of least SAH cost (the children's surface areas times their
-primitive counts), or kept as a leaf of at most MAX_LEAF primitives when that costs less
-than any split (or when all its centres coincide and it is small).  Large primitives (a
-backdrop's triangles) among small ones (a mesh's) thus end in their own subtrees instead of
-inflating the small ones' boxes, which a Morton-order tree cannot avoid.  The binary tree is
-then collapsed into a WIDTH-wide one: a node's children are its binary grandchildren (a
-binary child that is a leaf stays one child).
+primitive counts; the children's boxes come from the bins too), or kept as a leaf of at
+most MAX_LEAF primitives when that costs less than any split (or when all its centres
+coincide and it is small).  Large primitives (a backdrop's triangles) among small ones (a
+mesh's) thus end in their own subtrees instead of inflating the small ones' boxes, which a
+Morton-order tree cannot avoid.  The binary tree is then collapsed into a WIDTH-wide one: a
+node's children are its binary grandchildren (a binary child that is a leaf stays one
+child).
 
 Layout: ``blocks`` (6, M, WIDTH) each wide node's child boxes as planes (low xyz, high
 xyz; a plane of a node's children is contiguous), padded with NaN boxes no ray enters; ``children`` (M, WIDTH) each slot's child: a wide
@@ -53,6 +54,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .allocator import small_pages
 from .runs import rank_within_runs, run_starts, value_run_starts
 
 #: Most primitives in a leaf, children per inner node, and the least depth (in wide levels
@@ -97,6 +99,9 @@ BOX_PADDING = 1e-7
 #: stays at or before the float64 box's and every exit after it.  Other rays use float64.
 ORIGIN_REACH = 4.0
 SLAB_PADDING_32 = 16 * float(np.finfo(np.float32).eps)
+#: Boxes whose planes (or Morton codes) the build makes at a time: their float64 temporaries
+#: then stay in cache (the planes of 1.3 million boxes in 42 ms instead of 103).
+PLANE_CHUNK = 16384
 #: A slot without a child.
 EMPTY = -1
 #: Nearest-hit traversal sorts front to back in trees of at least this many leaves
@@ -107,52 +112,73 @@ SORTED_FROM = 2048
 DEEP_SORT_CROSSINGS = 32.0
 
 
-def _spread21(values):
-    """Insert two zero bits after each of the low 21 bits (63-bit 3-D Morton codes)."""
-    v = values.astype(np.uint64) & np.uint64(0x1FFFFF)
-    for shift, mask in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF), (8, 0x100F00F00F00F00F),
-                        (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
-        v = (v | (v << np.uint64(shift))) & np.uint64(mask)
-    return v
+def _spread_table():
+    """(2048,) uint64: each 11-bit value with two zero bits inserted after each bit."""
+    v = np.arange(2048, dtype=np.uint64)
+    spread = np.zeros(2048, np.uint64)
+    for bit in range(11):
+        spread |= ((v >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit)
+    return spread
+
+
+#: ``_spread_table()``, shifted for the x, y and z bits of a Morton code.
+_SPREAD = tuple(_spread_table() << np.uint64(axis) for axis in range(3))
 
 
 def morton_codes(points: np.ndarray) -> np.ndarray:
-    """(N,) uint64 63-bit Morton codes of points (N, 3) over their bounding box (a cube of
-    its largest side, so that a code prefix is a cubic cell)."""
-    low = points.min(axis=0)
-    extent = np.ptp(points, axis=0).max()
-    cells = ((points - low) / (extent if extent > 0 else 1) * (2 ** 21 - 1)).astype(np.uint64)
-    return _spread21(cells[:, 0]) | (_spread21(cells[:, 1]) << np.uint64(1)) \
-        | (_spread21(cells[:, 2]) << np.uint64(2))
+    """(N,) uint64 63-bit Morton codes of points (3, N) over their bounding box (a cube of
+    its largest side, so that a code prefix is a cubic cell): each coordinate's 21 bits,
+    spread by table 11 bits at a time."""
+    low = points.min(axis=1)
+    extent = (points.max(axis=1) - low).max()
+    codes = np.zeros(points.shape[1], np.uint64)
+    for first in range(0, points.shape[1], PLANE_CHUNK):    # (temporaries in cache)
+        part = slice(first, first + PLANE_CHUNK)
+        for axis in range(3):
+            cells = ((points[axis, part] - low[axis]) / (extent if extent > 0 else 1)
+                     * (2 ** 21 - 1)).astype(np.intp)
+            codes[part] |= _SPREAD[axis].take(cells & 2047)
+            codes[part] |= _SPREAD[axis].take((cells >> 11) & 1023) << np.uint64(33)
+    return codes
 
 
 def _cells(sorted_codes: np.ndarray, per_cell: int) -> np.ndarray:
     """(N,) bool: where a new cell starts in sorted Morton codes, for the finest cells
-    (code prefixes, 3 bits a level) that hold on average at least per_cell points."""
-    shifts = range(0, 64, 3)
-    for shift in shifts:
-        start = np.r_[True, (sorted_codes[1:] >> np.uint64(shift))
-                      != (sorted_codes[:-1] >> np.uint64(shift))]
-        if start.sum() * per_cell <= len(sorted_codes):
-            return start
-    return start
+    (code prefixes, 3 bits a level) that hold on average at least per_cell points.  (A cell
+    of prefix shift s starts where consecutive codes differ in a bit at s or above; the
+    number of cells falls with s, so the shift is found by bisection.)"""
+    differ = sorted_codes[1:] ^ sorted_codes[:-1]
+
+    def cells(shift):
+        return 1 + np.count_nonzero(differ >= np.uint64(1 << shift))
+
+    shifts = list(range(0, 64, 3))
+    low, high = 0, len(shifts) - 1         # the answer: the first that fits, else the last
+    while low < high:
+        middle = (low + high) // 2
+        if cells(shifts[middle]) * per_cell <= len(sorted_codes):
+            high = middle
+        else:
+            low = middle + 1
+    return np.r_[True, differ >= np.uint64(1 << shifts[low])]
 
 
 def _row_max(a):
-    """(N,) the largest of each row of a (N, 3) (column by column: faster than max(axis=1))."""
-    return np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2])
+    """(N,) the largest of each column of a (3, N)."""
+    return np.maximum(np.maximum(a[0], a[1]), a[2])
 
 
-def _half_area(low, high):
-    """(...) half the surface area of boxes low, high (..., 3); 0 for empty boxes."""
-    d = np.maximum(high - low, 0)
-    return d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0]
+def _half_area(low, high, axis=-1):
+    """(...) half the surface area of boxes low, high (their xyz along ``axis``); 0 for
+    empty boxes."""
+    d = np.moveaxis(np.maximum(high - low, 0), axis, 0)
+    return d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
 
 
 @dataclass(frozen=True)
 class BinaryTree:
     """The SAH build's binary tree, nodes in breadth-first order (children of a node are
-    consecutive: ``left`` and ``left + 1``).  low, high (K, 3) node boxes; left (K,) first
+    consecutive: ``left`` and ``left + 1``).  low, high (3, K) node boxes; left (K,) first
     child or -1 for a leaf; start, count (K,) the node's primitives ``order[start:start +
     count]``; depth (K,); order (P,) primitive indices (into the build's input)."""
 
@@ -174,155 +200,313 @@ def _leaf_table(ordered_ids, firsts, counts):
     return table
 
 
-def _slot_boxes(low, high, slots):
-    """(low, high) (L * MAX_LEAF, 3): the boxes low, high (P, 3) of a leaf table's slots
-    (``slots`` (L, MAX_LEAF) indices into them, -1: padding, whose box is NaN)."""
-    pad = slots.ravel() < 0
-    safe = np.where(pad, 0, slots.ravel())
-    out = low.take(safe, axis=0), high.take(safe, axis=0)
-    for boxes in out:
-        boxes[pad] = np.nan
-    return out
+def _leaf_ids(ids, slots):
+    """(L, MAX_LEAF) the ids (P,) of a leaf table's slots (indices into them; -1 padding)."""
+    table = np.full(slots.shape, -1, np.intp)
+    held = slots >= 0
+    table[held] = ids.take(slots[held])
+    return table
 
 
-def _box_planes(low, high, grow):
-    """(6, K) float32 planes (low xyz, high xyz) of boxes low, high (K, 3): each padded by
+def _box_planes(low, high, grow, sides=None):
+    """(6, K) float32 planes (low xyz, high xyz) of boxes low, high (3, K): each padded by
     BOX_PADDING of its own magnitude and extent, which grow with the box (so a box's padding
     covers its primitives', and parents still hold children), then grown by ``grow`` for
-    the float32 slabs (module docstring)."""
-    pad = BOX_PADDING * (2 * np.maximum(_row_max(np.abs(low)), _row_max(np.abs(high)))
-                         + _row_max(high - low))[:, None] + 1e-300
-    planes = np.empty((6, len(low)), np.float32)
-    planes[:3] = (low - pad - grow).T
-    planes[3:] = (high + pad + grow).T
+    the float32 slabs (module docstring).  sides (K,), if given, is filled with each box's
+    largest side."""
+    planes = np.empty((6, low.shape[1]), np.float32)
+    for first in range(0, low.shape[1], PLANE_CHUNK):
+        part = slice(first, first + PLANE_CHUNK)
+        lo, hi = low[:, part], high[:, part]
+        side = _row_max(hi - lo)
+        if sides is not None:
+            sides[part] = side
+        pad = BOX_PADDING * (2 * _row_max(np.maximum(np.abs(lo), np.abs(hi))) + side) + 1e-300
+        planes[:3, part] = lo - pad - grow
+        planes[3:, part] = hi + pad + grow
     return planes
 
 
-def _segment_boxes(low, high, starts):
-    return np.minimum.reduceat(low, starts, axis=0), np.maximum.reduceat(high, starts, axis=0)
+def _reach(root_low, root_high) -> float:
+    """The largest coordinate of a root box root_low, root_high (3,) (R, module docstring)."""
+    return max(float(np.abs(root_low).max()), float(np.abs(root_high).max()))
 
 
-def _binned_splits(c, lo, hi, segment, counts, bins):
-    """(cost (k,), go_left (E,)): the best split of each of k nodes whose primitives (E,)
-    (centres c, boxes lo, hi (E, 3), grouped by node: ``segment`` (E,) their node, counts
-    (k,)) are put into ``bins`` bins along the longest axis of the node's centres (pbrt's
-    choice): the least sum of the two sides' box areas times their counts (inf where no
-    plane separates two primitives), and which side each primitive goes to."""
+def _leaf_planes(planes, slots):
+    """(6, L, MAX_LEAF) the planes (6, P) of a leaf table's slots (L, MAX_LEAF) (indices into
+    them; -1: padding, whose planes are NaN: no ray enters)."""
+    pad = slots < 0
+    out = planes.take(np.where(pad, 0, slots), axis=1)
+    out[:, pad] = np.nan
+    return out
+
+
+#: Segments at least this long on average are reduced by ``reduceat``, shorter ones by
+#: ``ufunc.at`` (reduceat costs about 12 ns a segment and row, ``at`` 2 ns an element).
+REDUCEAT_FROM = 16
+
+
+def _segment_reduce(ufunc, values, starts, segment):
+    """(3, k) ``ufunc`` (minimum or maximum) of each of k segments of values (3, E), laid
+    end to end (``starts`` (k,) the first of each, ``segment`` (E,) each element's; every
+    segment non-empty)."""
+    if values.shape[1] >= REDUCEAT_FROM * len(starts):
+        return ufunc.reduceat(values, starts, axis=1)
+    out = np.full((3, len(starts)), np.inf if ufunc is np.minimum else -np.inf)
+    for axis in range(3):
+        ufunc.at(out[axis], segment, values[axis])
+    return out
+
+
+def _binned_splits(c, lo, hi, segment, counts, starts, bins):
+    """The best split of each of k nodes whose primitives (E,) (centres c, boxes lo, hi
+    (3, E), grouped by node: ``segment`` (E,) their node, counts, starts (k,)) are put into
+    ``bins`` bins along the longest axis of the node's centres (pbrt's choice): the least
+    sum of the two sides' box areas times their counts.  Returns (cost (k,), inf where no
+    plane separates two primitives; go_left (E,) which side each primitive goes to;
+    n_left (k,) the primitives going left; the sides' boxes: left low, high, right low,
+    high (3, k), from the bins' boxes)."""
     k = len(counts)
-    starts = run_starts(counts)
-    c_low = np.minimum.reduceat(c, starts, axis=0)
-    extent = np.maximum.reduceat(c, starts, axis=0) - c_low
-    axis = np.argmax(extent, axis=1)
+    c_low = _segment_reduce(np.minimum, c, starts, segment)
+    extent = _segment_reduce(np.maximum, c, starts, segment) - c_low
+    axis = np.argmax(extent, axis=0)
     rows = np.arange(k)
-    length = extent[rows, axis]
+    length = extent[axis, rows]
     scale = np.where(length > 0, bins / np.where(length > 0, length, 1), 0)
-    along = c[np.arange(len(c)), axis[segment]] - c_low[rows, axis][segment]
-    index = np.minimum((along * scale[segment]).astype(np.intp), bins - 1)
+    e = c.shape[1]
+    along = c.ravel().take(axis.take(segment) * e + np.arange(e)) \
+        - c_low[axis, rows].take(segment)
+    index = np.minimum((along * scale.take(segment)).astype(np.intp), bins - 1)
     key = segment * bins + index
     n_bin = np.bincount(key, minlength=k * bins).reshape(k, bins)
     b_low = np.full((3, k * bins), np.inf)
     b_high = np.full((3, k * bins), -np.inf)
     for j in range(3):
-        np.minimum.at(b_low[j], key, lo[:, j])
-        np.maximum.at(b_high[j], key, hi[:, j])
-    b_low = b_low.T.reshape(k, bins, 3)
-    b_high = b_high.T.reshape(k, bins, 3)
+        np.minimum.at(b_low[j], key, lo[j])
+        np.maximum.at(b_high[j], key, hi[j])
+    b_low = b_low.reshape(3, k, bins)
+    b_high = b_high.reshape(3, k, bins)
     n_left = np.cumsum(n_bin, axis=1)[:, :-1]
     n_right = counts[:, None] - n_left
-    a_left = _half_area(np.minimum.accumulate(b_low, axis=1),
-                        np.maximum.accumulate(b_high, axis=1))[:, :-1]
-    a_right = _half_area(np.minimum.accumulate(b_low[:, ::-1], axis=1),
-                         np.maximum.accumulate(b_high[:, ::-1], axis=1))[:, ::-1][:, 1:]
+    left_low = np.minimum.accumulate(b_low, axis=2)
+    left_high = np.maximum.accumulate(b_high, axis=2)
+    right_low = np.minimum.accumulate(b_low[..., ::-1], axis=2)[..., ::-1]
+    right_high = np.maximum.accumulate(b_high[..., ::-1], axis=2)[..., ::-1]
+    a_left = _half_area(left_low, left_high, axis=0)[:, :-1]
+    a_right = _half_area(right_low, right_high, axis=0)[:, 1:]
     cost = np.where((n_left > 0) & (n_right > 0), a_left * n_left + a_right * n_right, np.inf)
     best = np.argmin(cost, axis=1)
-    return cost[rows, best], index <= best[segment]
+    return (cost[rows, best], index <= best.take(segment), n_left[rows, best],
+            left_low[:, rows, best], left_high[:, rows, best],
+            right_low[:, rows, best + 1], right_high[:, rows, best + 1])
 
 
 def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF,
                      median_up_to: int = 1) -> BinaryTree:
-    """A binned SAH tree over boxes low, high (P, 3), P >= 1, built a level at a time, with
+    """A binned SAH tree over boxes low, high (3, P), P >= 1, built a level at a time, with
     leaves of at most ``max_leaf`` of them.  Nodes of at most ``median_up_to`` boxes split
     at the median of their order instead (for boxes given in Morton order, which the
     stable partitions keep within every node: a cheap split, as good for small nodes).
 
-    Each level works on the primitives of the nodes it splits, held in order (grouped by
-    node) as rows of ``data`` (centre, low, high) beside their indices ``prims``; a level's
-    partition moves the rows of the nodes that split on to the next level."""
-    count_all = len(low)
+    Each level works on the primitives of its nodes, held in order (grouped by node) as
+    columns of ``data`` (low, high: (6, E); centres are made where binned) beside ``prims``
+    (``_sah_level``); a level's partition moves the columns of the nodes that split on to
+    the next level (``_partition``).  A node split by SAH gets its children's boxes from
+    its bins; one split at the median, by reducing its children's columns.  A node of at
+    most ``median_up_to`` boxes is *parked*: its subtree (halves of its order, down to
+    leaves) follows from its count alone, so its columns drop out, and its subtree's boxes
+    are made bottom up at the end (``_parked_boxes``)."""
+    count_all = low.shape[1]
     order = np.arange(count_all)
-    data = np.concatenate([(low + high) / 2, low, high], axis=1)
+    data = np.concatenate([low, high])
     prims = np.arange(count_all)
-    # Per level: the nodes' boxes, first child (-1: leaf), first primitive, count, depth.
-    out_low, out_high, out_left, out_start, out_count, out_depth = [], [], [], [], [], []
-    level_low, level_high = low.min(axis=0)[None], high.max(axis=0)[None]
+    # Per level: the nodes' boxes, first child (-1: leaf), first primitive, count, depth,
+    # parked.
+    outs = tuple([] for _ in range(7))
+    level_low, level_high = low.min(axis=1)[:, None], high.max(axis=1)[:, None]
     starts, counts = np.zeros(1, np.intp), np.array([count_all])
+    parked = counts <= median_up_to
     total, depth = 1, 0
     while True:
         k = len(counts)
         lefts = np.full(k, -1, np.intp)
-        out_low.append(level_low)
-        out_high.append(level_high)
-        out_left.append(lefts)
-        out_start.append(starts)
-        out_count.append(counts)
-        out_depth.append(np.full(k, depth, np.intp))
-        local_starts = run_starts(counts)
-        segment = np.repeat(np.arange(k), counts)
-        rank = rank_within_runs(counts)
-        # SAH costs per size class (bins per axis: BINS, or SMALL_BINS for small nodes, so
-        # the bins' work stays within the primitives'); nodes of one primitive are leaves.
-        best_cost = np.full(k, np.inf)
-        go_left = np.zeros(len(prims), bool)
-        for bins, members in ((BINS, counts > max(BINS, median_up_to)),
-                              (SMALL_BINS, (counts > median_up_to) & (counts <= BINS))):
-            nodes = np.flatnonzero(members)
-            if len(nodes) == 0:
-                continue
-            mine = data if len(nodes) == k else data[members[segment]]
-            local = np.repeat(np.arange(len(nodes)), counts[nodes])
-            best_cost[nodes], left = _binned_splits(mine[:, :3], mine[:, 3:6], mine[:, 6:],
-                                                    local, counts[nodes], bins)
-            if len(nodes) == k:
-                go_left = left
-            else:
-                go_left[members[segment]] = left
-        area = _half_area(level_low, level_high)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            split_cost = TRAVERSAL_COST + best_cost / area
-        # A split is taken when it costs less than a leaf of N primitives (cost N), and
-        # always for a node too big for a leaf: at the median of its order when no plane
-        # separates its primitives (all centres in one bin: coincident primitives).
-        median = ~np.isfinite(split_cost)
-        splits = (counts > max_leaf) | (~median & (split_cost < counts))
+        for out, part in zip(outs, (level_low, level_high, lefts, starts, counts,
+                                    np.full(k, depth, np.intp), parked)):
+            out.append(part)
+        active = np.flatnonzero(~parked)
+        if len(active):
+            # The active nodes' columns: their node (among the active).
+            counts_a = counts.take(active)
+            local_starts = run_starts(counts_a)
+            segment = np.repeat(np.arange(len(active)), counts_a)
+            runs = (active, counts_a, local_starts, segment)
+            splits, n_left, by_sah, sides, go_left = _sah_level(
+                data, counts, runs, level_low, level_high, max_leaf, median_up_to)
+        else:       # (parked nodes only: halves)
+            splits, n_left = counts > max_leaf, counts // 2
         parents = np.flatnonzero(splits)
         if len(parents) == 0:
             break
-        go_left = np.where(median[segment], rank < (counts // 2)[segment], go_left)
-        # Stable partition of each splitting node's rows, its lefts first, packed for the
-        # next level (rows of nodes that stay leaves drop out).
-        before = np.cumsum(go_left) - go_left
-        left_rank = before - before[local_starts][segment]
-        n_left = np.add.reduceat(go_left.astype(np.intp), local_starts)
-        within = np.where(go_left, left_rank, n_left[segment] + rank - left_rank)
-        splitting = splits[segment]
-        packed_starts = np.zeros(k, np.intp)
-        packed_starts[parents] = run_starts(counts[parents])
-        rows = np.flatnonzero(splitting)
-        moved = prims.take(rows)
-        order[(starts[segment] + within).take(rows)] = moved
-        source = np.empty_like(rows)
-        source[(packed_starts[segment] + within).take(rows)] = rows
-        prims = prims.take(source)
-        data = np.take(data, source, axis=0)
+        # The children, in order (those of parked nodes too), and which of them are parked.
         m = len(parents)
         lefts[parents] = total + 2 * np.arange(m)
-        starts = np.column_stack([starts[parents], starts[parents] + n_left[parents]]).ravel()
-        counts = np.column_stack([n_left[parents], counts[parents] - n_left[parents]]).ravel()
-        level_low, level_high = _segment_boxes(data[:, 3:6], data[:, 6:], run_starts(counts))
+        first = starts.take(parents)
+        n = n_left.take(parents)
+        child_starts = np.column_stack([first, first + n]).ravel()
+        child_counts = np.column_stack([n, counts.take(parents) - n]).ravel()
+        child_parked = child_counts <= median_up_to
+        level_low, level_high = np.full((3, 2 * m), np.nan), np.full((3, 2 * m), np.nan)
+        if len(active):
+            source = _partition(order, prims, go_left, starts, runs, splits, n_left, parents,
+                                child_parked)
+            prims = prims.take(source)
+            data = data.take(source, axis=1)
+            # The children's boxes: from the bins of nodes split by SAH; from their columns
+            # for nodes split at the median; those of parked children are made at the end.
+            from_bins = by_sah.take(parents)
+            binned = parents[from_bins]
+            for side in range(2):
+                level_low[:, side::2][:, from_bins] = sides[2 * side][:, binned]
+                level_high[:, side::2][:, from_bins] = sides[2 * side + 1][:, binned]
+            reduced = ~np.repeat(from_bins, 2) & ~child_parked
+            if reduced.any():
+                counts_on = child_counts[~child_parked]
+                columns = data if reduced[~child_parked].all() else np.compress(
+                    np.repeat(reduced[~child_parked], counts_on), data, axis=1)
+                child_first = run_starts(child_counts[reduced])
+                segment = np.repeat(np.arange(len(child_first)), child_counts[reduced])
+                level_low[:, reduced] = _segment_reduce(np.minimum, columns[:3], child_first,
+                                                        segment)
+                level_high[:, reduced] = _segment_reduce(np.maximum, columns[3:], child_first,
+                                                         segment)
+        starts, counts, parked = child_starts, child_counts, child_parked
         total += 2 * m
         depth += 1
-    return BinaryTree(*(np.concatenate(parts) for parts in (
-        out_low, out_high, out_left, out_start, out_count, out_depth)), order)
+    tree_low, tree_high, left, start, count, depths, parked = (
+        np.concatenate(parts, axis=-1) for parts in outs)
+    if parked.any():
+        _parked_boxes(tree_low, tree_high, left, start, count, parked,
+                      np.cumsum([0] + [len(part) for part in outs[2]]), low, high, order)
+    return BinaryTree(tree_low, tree_high, left, start, count, depths, order)
+
+
+def _sah_level(data, counts, runs, level_low, level_high, max_leaf, median_up_to):
+    """A level's splits: its nodes (k,) (counts; boxes level_low, level_high (3, k)), of
+    which the active ones (``runs``: active (a,), their counts and first columns (a,), each
+    column's node among them (E,)) have their columns data (6, E).
+    Returns (splits (k,) whether each node splits, n_left (k,) the primitives of its left
+    child, by_sah (k,) split at an SAH plane, sides (4, 3, k) the boxes of those nodes'
+    children (left low, high, right low, high), go_left (E,) each column's side; True for
+    every column of a node that stays a leaf, so that its order stays)."""
+    active, counts_a, local_starts, segment = runs
+    k = len(counts)
+    # SAH costs per size class (bins per axis: BINS, or SMALL_BINS for small nodes, so
+    # the bins' work stays within the primitives'); nodes of one primitive are leaves.
+    best_cost = np.full(k, np.inf)
+    go_left = np.zeros(data.shape[1], bool)
+    n_left = counts // 2
+    sides = np.full((4, 3, k), np.nan)
+    for bins, members in ((BINS, counts_a > max(BINS, median_up_to)),
+                          (SMALL_BINS, (counts_a > median_up_to) & (counts_a <= BINS))):
+        nodes = np.flatnonzero(members)
+        if len(nodes) == 0:
+            continue
+        if len(nodes) == len(active):
+            mine, local, local_first = data, segment, local_starts
+        else:
+            mine = np.compress(np.repeat(members, counts_a), data, axis=1)
+            local = np.repeat(np.arange(len(nodes)), counts_a[nodes])
+            local_first = run_starts(counts_a[nodes])
+        binned = active.take(nodes)
+        best_cost[binned], left, n_left[binned], *boxes = _binned_splits(
+            (mine[:3] + mine[3:]) / 2, mine[:3], mine[3:], local, counts_a[nodes], local_first,
+            bins)
+        sides[:, :, binned] = boxes
+        if len(nodes) == len(active):
+            go_left = left
+        else:
+            go_left[np.repeat(members, counts_a)] = left
+    area = _half_area(level_low, level_high, axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        split_cost = TRAVERSAL_COST + best_cost / area
+    # A split is taken when it costs less than a leaf of N primitives (cost N), and always
+    # for a node too big for a leaf: at the median of its order when no plane separates its
+    # primitives (all centres in one bin: coincident primitives), or when it is small (the
+    # parked nodes, whose boxes are not known yet, among them: their cost is inf).
+    median = ~np.isfinite(split_cost)
+    splits = (counts > max_leaf) | (~median & (split_cost < counts))
+    n_left = np.where(median, counts // 2, n_left)
+    median_a, splits_a = median.take(active), splits.take(active)
+    if median_a.any():
+        rank = np.arange(len(go_left)) - np.repeat(local_starts, counts_a)
+        go_left = np.where(np.repeat(median_a, counts_a),
+                           rank < np.repeat(n_left.take(active), counts_a), go_left)
+    if not splits_a.all():
+        go_left |= np.repeat(~splits_a, counts_a)
+    return splits, n_left, splits & ~median, sides, go_left
+
+
+def _partition(order, prims, go_left, starts, runs, splits, n_left, parents, child_parked):
+    """The stable partition of a level's columns (``_sah_level``): each splitting node's
+    primitives, its lefts first, written into ``order`` at its starts (k,); returns the
+    columns (E',) that go on to the next level, in its order: those of the children
+    (2 * len(parents),) that are not parked (``child_parked``)."""
+    active, counts_a, local_starts, segment = runs
+    splits_a = splits.take(active)
+    n_left_a = np.where(splits_a, n_left.take(active), counts_a)    # a leaf: all left
+    # Where each column goes with every node's lefts, then rights, packed: a left one to
+    # its node's first column + the lefts before it in the node; a right one to its own
+    # column + its node's lefts not before it (b: the lefts before each column, b0 before
+    # each node's first).
+    column = np.arange(len(go_left))
+    before = np.cumsum(go_left) - go_left
+    b0 = before.take(local_starts)
+    dest = np.where(go_left, before + np.repeat(local_starts - b0, counts_a),
+                    column - before + np.repeat(n_left_a + b0, counts_a))
+    order[dest + np.repeat(starts.take(active) - local_starts, counts_a)] = prims
+    # Then without the parts that do not go on (leaves, parked children).
+    parent_rank = np.zeros(len(splits), np.intp)
+    parent_rank[parents] = np.arange(len(parents))
+    child = 2 * parent_rank.take(active)
+    keep = np.column_stack([splits_a & ~child_parked.take(child),
+                            splits_a & ~child_parked.take(child + 1)]).ravel()
+    if keep.all():
+        source = np.empty_like(dest)
+        source[dest] = column
+        return source
+    dropped = np.where(keep, 0, np.column_stack([n_left_a, counts_a - n_left_a]).ravel())
+    shift = np.cumsum(dropped) - dropped
+    part = 2 * segment + ~go_left
+    rows = np.flatnonzero(keep.take(part))
+    source = np.empty_like(rows)
+    source[dest.take(rows) - shift.take(part.take(rows))] = rows
+    return source
+
+
+def _parked_boxes(tree_low, tree_high, left, start, count, parked, level_starts, low, high,
+                  order):
+    """Fill in the boxes (3, K) of the parked nodes of a binary tree (``build_binary_sah``;
+    level_starts: the first node of each level, and the node count): a leaf's from its
+    primitives' boxes low, high (3, P) (``order[start:start + count]``), an inner node's
+    from its children's, the deepest level first (children of a parked node are parked)."""
+    leaf = np.flatnonzero(parked & (left < 0))
+    n = count.take(leaf)
+    members = order.take(np.repeat(start.take(leaf), n) + rank_within_runs(n))
+    if (n == 1).all():
+        tree_low[:, leaf], tree_high[:, leaf] = low.take(members, axis=1), high.take(members,
+                                                                                     axis=1)
+    else:
+        first, segment = run_starts(n), np.repeat(np.arange(len(leaf)), n)
+        for boxes, ufunc, source in ((tree_low, np.minimum, low), (tree_high, np.maximum, high)):
+            boxes[:, leaf] = _segment_reduce(ufunc, source.take(members, axis=1), first, segment)
+    for level in range(len(level_starts) - 2, -1, -1):
+        span = slice(level_starts[level], level_starts[level + 1])
+        inner = span.start + np.flatnonzero(parked[span] & (left[span] >= 0))
+        if len(inner) == 0:
+            continue
+        pair = left.take(inner)
+        for boxes, ufunc in ((tree_low, np.minimum), (tree_high, np.maximum)):
+            boxes[:, inner] = ufunc(boxes.take(pair, axis=1), boxes.take(pair + 1, axis=1))
 
 
 def _spread(values, dtype, k=WIDTH):
@@ -398,46 +582,69 @@ class BVH:
         Up to CLUSTER_FROM primitives the SAH build sees every primitive; above, it sees
         clusters of CLUSTER_SIZE primitives consecutive in Morton order (of one size class:
         their boxes' largest side within a factor of 4), which become the leaves: the build
-        then costs a CLUSTER_SIZE-th, and the clusters are as tight as Morton leaves."""
-        ids = np.asarray(ids)
-        if len(ids) < CLUSTER_FROM:
+        then costs a CLUSTER_SIZE-th, and the clusters are as tight as Morton leaves.
+        (Built without transparent huge pages: ``allocator.small_pages``.)"""
+        with small_pages():
+            return cls._build(np.asarray(ids), low, high)
+
+    @classmethod
+    def _build(cls, ids, low, high) -> "BVH":
+        # The boxes as columns (3, P): every pass below then runs over contiguous rows.
+        low, high = np.ascontiguousarray(low.T), np.ascontiguousarray(high.T)
+        count = low.shape[1]
+        # Each primitive's own box as float32 planes, for the leaves' slots (``leaf_boxes``);
+        # the root's box is every primitive's.
+        grow = SLAB_PADDING_32 * ORIGIN_REACH * _reach(low.min(axis=1), high.max(axis=1))
+        size = np.empty(count)
+        planes = _box_planes(low, high, grow, size)
+        if count < CLUSTER_FROM:
             tree = build_binary_sah(low, high)
-            counts = tree.count[tree.left < 0]
-            firsts = tree.start[tree.left < 0]
-            slots = _leaf_table(tree.order, firsts, counts)
-            return cls.collapse(tree, _leaf_table(ids[tree.order], firsts, counts),
-                                _slot_boxes(low, high, slots))
-        size = np.log2(np.maximum(_row_max(high - low), 1e-300))
-        size_class = np.floor((size - size.min()) / 2).astype(np.intp)
+            leaf = tree.left < 0
+            slots = _leaf_table(tree.order, tree.start[leaf], tree.count[leaf])
+            return cls.collapse(tree, _leaf_ids(ids, slots), _leaf_planes(planes, slots))
+        np.maximum(size, 1e-300, out=size)
+        # One size class when the largest box is under 2 ** 1.5 times the smallest (every
+        # log2 then within 2 of the least: floor 0 below), as for a cloud of equal spheres.
+        mixed = np.log2(size.max()) - np.log2(size.min()) >= 1.5
         codes = morton_codes((low + high) / 2)
         order = np.argsort(codes)
-        classes = np.minimum(size_class.take(order), np.iinfo(np.uint16).max)
-        order = order.take(np.argsort(classes.astype(np.uint16), kind="stable"))
-        lows, highs = np.take(low, order, axis=0), np.take(high, order, axis=0)
-        size_class = size_class.take(order)
+        if mixed:       # (a stable sort of one class would keep the order)
+            size = np.log2(size)
+            size_class = np.floor((size - size.min()) / 2).astype(np.intp).take(order)
+            by_class = np.argsort(np.minimum(size_class, np.iinfo(np.uint16).max)
+                                  .astype(np.uint16), kind="stable")
+            order, size_class = order.take(by_class), size_class.take(by_class)
+            mixed = size_class.min() < size_class.max()
         # Cluster boundaries: every CLUSTER_SIZE primitives within a run of one size class
         # in one Morton cell (cells of about CLUSTER_SIZE primitives: a cluster never
         # spans a jump of the curve).
-        run = np.flatnonzero(_cells(codes.take(order), CLUSTER_SIZE)
-                             | np.r_[True, size_class[1:] != size_class[:-1]])
-        lengths = np.diff(np.r_[run, len(order)])
-        cut = (rank_within_runs(lengths) % CLUSTER_SIZE) == 0
-        firsts = np.flatnonzero(cut)
-        counts = np.diff(np.r_[firsts, len(order)])
-        c_low, c_high = _segment_boxes(lows, highs, firsts)
-        del codes, size, classes, run, lengths, cut, low, high
+        run_start = _cells(codes.take(order), CLUSTER_SIZE)
+        if mixed:
+            run_start[1:] |= size_class[1:] != size_class[:-1]
+        run = np.flatnonzero(run_start)
+        per_run = -(-np.diff(np.r_[run, count]) // CLUSTER_SIZE)
+        firsts = np.repeat(run, per_run) + CLUSTER_SIZE * rank_within_runs(per_run)
+        counts = np.diff(np.r_[firsts, count])
+        # The clusters' boxes, reduced from the primitives where they are (cheaper than
+        # gathering them in Morton order first).
+        cluster = np.empty(count, np.intp)
+        cluster[order] = np.repeat(np.arange(len(firsts)), counts)
+        c_low, c_high = np.full((3, len(firsts)), np.inf), np.full((3, len(firsts)), -np.inf)
+        for axis in range(3):
+            np.minimum.at(c_low[axis], cluster, low[axis])
+            np.maximum.at(c_high[axis], cluster, high[axis])
+        del codes, size, run_start, run, per_run, cluster, low, high
         tree = build_binary_sah(c_low, c_high, max_leaf=1, median_up_to=CLUSTER_MEDIAN_UP_TO)
         # Each binary leaf holds one cluster: the one at its position in the build's order.
         chosen = tree.order[tree.start[tree.left < 0]]
-        leaves = _leaf_table(ids[order], firsts[chosen], counts[chosen])
-        slots = _leaf_table(np.arange(len(order)), firsts[chosen], counts[chosen])
-        return cls.collapse(tree, leaves, _slot_boxes(lows, highs, slots))
+        slots = _leaf_table(order, firsts[chosen], counts[chosen])
+        return cls.collapse(tree, _leaf_ids(ids, slots), _leaf_planes(planes, slots))
 
     @classmethod
-    def collapse(cls, tree: BinaryTree, leaves: np.ndarray, slot_boxes=None) -> "BVH":
+    def collapse(cls, tree: BinaryTree, leaves: np.ndarray, leaf_boxes=None) -> "BVH":
         """The WIDTH-wide tree of a binary one; leaves (L, MAX_LEAF): the primitives of its
-        leaves (in node order), padded with -1; slot_boxes (low, high (L * MAX_LEAF, 3), NaN
-        in padding slots): their own boxes (``leaf_boxes``), or None."""
+        leaves (in node order), padded with -1; leaf_boxes (6, L, MAX_LEAF): their own boxes'
+        planes (``_leaf_planes``; grown as the tree's), or None."""
         inner = tree.left >= 0
         leaf_nodes = np.flatnonzero(~inner)
         leaf_index = np.full(len(tree.left), -1, np.intp)
@@ -463,18 +670,18 @@ class BVH:
         wide_index[wide] = np.arange(len(wide))
         real = slots >= 0
         safe = np.where(real, slots, 0)
-        children = np.where(~real, EMPTY,
-                            np.where(inner[safe], wide_index[safe],
-                                     -2 - leaf_index[safe]))
-        # float32 boxes, grown by SLAB_PADDING_32 of the tree's reach (module docstring).
-        reach = max(float(np.abs(tree.low[0]).max()), float(np.abs(tree.high[0]).max()))
+        # Each binary node's reference: a wide node, or a leaf.
+        reference = np.where(inner, wide_index, -2 - leaf_index)
+        children = np.where(real, reference.take(safe), EMPTY)
+        # float32 boxes, grown by SLAB_PADDING_32 of the tree's reach (module docstring); a
+        # padding slot's box is NaN.
+        reach = _reach(tree.low[:, 0], tree.high[:, 0])
         grow = SLAB_PADDING_32 * ORIGIN_REACH * reach
-        blocks = np.full((6,) + slots.shape, np.nan, np.float32)
-        blocks[:, real] = _box_planes(tree.low[slots[real]], tree.high[slots[real]], grow)
-        # (A padding slot's NaN box stays NaN.)
-        leaf_boxes = None if slot_boxes is None else \
-            _box_planes(*slot_boxes, grow).reshape((6,) + leaves.shape)
-        low, high = tree.low[0], tree.high[0]
+        every = safe.ravel()
+        blocks = _box_planes(tree.low.take(every, axis=1), tree.high.take(every, axis=1),
+                             grow).reshape((6,) + slots.shape)
+        blocks[:, ~real] = np.nan
+        low, high = tree.low[:, 0], tree.high[:, 0]
         pad = BOX_PADDING * (2 * max(np.abs(low).max(), np.abs(high).max())
                              + (high - low).max()) + 1e-300
         root_box = np.concatenate([low - pad - grow, high + pad + grow]).astype(np.float32)

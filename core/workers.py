@@ -192,10 +192,10 @@ def _map(descriptor: int, size: int, populate: bool = False) -> mmap.mmap:
 
 class _SharedPayload:
     """A pickled object whose large arrays live outside the pickle, in one anonymous file:
-    ``payload`` the pickle (protocol 5), ``layout`` ((offset, bytes) of each out-of-band
-    buffer in pickling order), ``size`` the file's, ``descriptor`` the file (None when
-    nothing went out of band).  ``close()`` lets the parent's descriptor go (the workers'
-    mappings keep the memory)."""
+    ``payload`` the pickle (protocol 5), ``layout`` ((offset, bytes, read-only) of each
+    out-of-band buffer in pickling order), ``size`` the file's, ``descriptor`` the file (None
+    when nothing went out of band).  ``close()`` lets the parent's descriptor go (the
+    workers' mappings keep the memory)."""
 
     def __init__(self, obj):
         buffers = []
@@ -209,14 +209,14 @@ class _SharedPayload:
         self.payload = pickle.dumps(obj, protocol=5, buffer_callback=in_band)
         self.layout, offset = [], 0
         for buffer in buffers:
-            self.layout.append((offset, buffer.raw().nbytes))
+            self.layout.append((offset, buffer.raw().nbytes, buffer.raw().readonly))
             offset += -(-buffer.raw().nbytes // SHARED_ALIGNMENT) * SHARED_ALIGNMENT
         self.size = offset
         self.descriptor = None
         if buffers:
             self.descriptor = _anonymous_file(self.size, "glint-scene")
             try:
-                for (start, _), buffer in zip(self.layout, buffers):
+                for (start, _, _), buffer in zip(self.layout, buffers):
                     _write_all(self.descriptor, buffer.raw(), start)
             except OSError:
                 self.close()
@@ -236,9 +236,12 @@ def _write_all(descriptor: int, data: memoryview, offset: int) -> None:
 
 def _shared_loads(payload: bytes, mapping, layout) -> object:
     """The object a ``_SharedPayload`` pickled, its large arrays over ``mapping`` (the
-    payload's file mapped copy-on-write: the worker may write to them, privately)."""
+    payload's file mapped copy-on-write: the worker may write to them, privately), read-only
+    where the parent's were (a scene's frozen arrays stay frozen)."""
     view = memoryview(mapping) if mapping is not None else None
-    return pickle.loads(payload, buffers=[view[start:start + size] for start, size in layout])
+    return pickle.loads(payload, buffers=[
+        view[start:start + size].toreadonly() if readonly else view[start:start + size]
+        for start, size, readonly in layout])
 
 
 def _frame_image(mapping, shape, dtype) -> np.ndarray:

@@ -77,3 +77,23 @@ def test_opt_in_values():
     assert allocator.opted_in({"GLINT_MALLOC_TUNING": " Yes "})
     assert not allocator.opted_in({"GLINT_MALLOC_TUNING": "0"})
     assert not allocator.opted_in({})
+
+
+def test_small_pages_turns_numpy_huge_pages_off_while_held_and_restores_them():
+    # NumPy 1.26 and 2.x both have the switch (returning the previous setting).
+    switch = allocator._switch
+    assert switch is not None
+    before = switch(True)
+    try:
+        with allocator.small_pages():
+            assert switch(False) is False        # off inside (and left so)
+            with allocator.small_pages():
+                assert switch(False) is False
+            assert switch(False) is False        # an inner holder leaving keeps it off
+        assert switch(True) is True              # the setting before is back
+        with pytest.raises(RuntimeError):
+            with allocator.small_pages():
+                raise RuntimeError("a failed build")
+        assert switch(True) is True              # restored after an error too
+    finally:
+        switch(before)

@@ -651,3 +651,54 @@ def test_trails_find_every_blocker_a_brute_force_finds(count):
     assert np.array_equal(trailed, expected) and np.array_equal(root_down, expected)
     if count > 1:
         assert expected.any() and not expected.all()
+
+
+@pytest.mark.parametrize("median_up_to, max_leaf", [(1, 4), (16, 1), (6, 2)])
+def test_binary_tree_boxes_are_exactly_their_primitives_bounds(median_up_to, max_leaf):
+    """Every node of the binary build holds exactly the boxes order[start:start + count]:
+    its box is their exact minimum and maximum (nodes split by SAH take their children's
+    boxes from their bins; parked ones, of at most median_up_to primitives, are made
+    bottom up), its children split its range (small nodes at count // 2), and its leaves
+    hold at most max_leaf; mixed sizes and a few coincident boxes (no plane splits them)."""
+    rng = np.random.default_rng(5)
+    low, high = _mixed_boxes(rng, 3000, 80)
+    low[:40], high[:40] = low[40], high[40]
+    low, high = np.ascontiguousarray(low.T), np.ascontiguousarray(high.T)
+    tree = bvh.build_binary_sah(low, high, max_leaf=max_leaf, median_up_to=median_up_to)
+    assert sorted(tree.order.tolist()) == list(range(low.shape[1]))
+    for node in range(len(tree.left)):
+        members = tree.order[tree.start[node]:tree.start[node] + tree.count[node]]
+        assert np.array_equal(tree.low[:, node], low[:, members].min(axis=1))
+        assert np.array_equal(tree.high[:, node], high[:, members].max(axis=1))
+        left = tree.left[node]
+        if left < 0:
+            assert tree.count[node] <= max_leaf
+            continue
+        assert tree.start[left] == tree.start[node]
+        assert tree.start[left + 1] == tree.start[node] + tree.count[left]
+        assert tree.count[left] + tree.count[left + 1] == tree.count[node]
+        assert tree.depth[left] == tree.depth[left + 1] == tree.depth[node] + 1
+        if tree.count[node] <= median_up_to:
+            assert tree.count[left] == tree.count[node] // 2
+
+
+def test_morton_codes_interleave_each_coordinates_21_bits_and_cells_cut_at_prefixes():
+    """``morton_codes`` (spread by table) against bit-by-bit interleaving of the cells,
+    and ``_cells`` (by bisection) against trying every 3-bit prefix in turn."""
+    rng = np.random.default_rng(2)
+    points = rng.uniform(-3, 7, (3, 500))
+    points[:, :5] = points[:, 5:6]
+    codes = bvh.morton_codes(points)
+    low, extent = points.min(axis=1), np.ptp(points, axis=1).max()
+    cells = ((points - low[:, None]) / extent * (2 ** 21 - 1)).astype(np.int64)
+    expected = [sum(((int(cells[axis, i]) >> bit) & 1) << (3 * bit + axis)
+                    for bit in range(21) for axis in range(3)) for i in range(500)]
+    assert codes.tolist() == expected
+    ordered = np.sort(codes)
+    for per_cell in (1, 2, 4, 30, 499, 10 ** 6):
+        for shift in range(0, 64, 3):
+            start = np.r_[True, (ordered[1:] >> np.uint64(shift))
+                          != (ordered[:-1] >> np.uint64(shift))]
+            if start.sum() * per_cell <= len(ordered):
+                break
+        assert np.array_equal(bvh._cells(ordered, per_cell), start)

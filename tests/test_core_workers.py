@@ -335,7 +335,7 @@ def test_large_arrays_reach_the_workers_through_shared_memory(small_renders_in_p
     shared = workers._SharedPayload((ctx, canonical.camera))
     try:
         assert shared.size >= count * 3 * 8           # at least the centres went out of band
-        assert all(size >= workers.SHARED_ARRAY_BYTES for _, size in shared.layout)
+        assert all(size >= workers.SHARED_ARRAY_BYTES for _, size, _ in shared.layout)
         assert len(shared.payload) < shared.size / 10
     finally:
         shared.close()
@@ -343,14 +343,18 @@ def test_large_arrays_reach_the_workers_through_shared_memory(small_renders_in_p
 
 
 def test_shared_arrays_load_writable_and_copy_on_write():
-    """What a worker loads is the parent's arrays, writable, and a write stays private."""
+    """What a worker loads is the parent's arrays, writable where the parent's were (a write
+    stays private), read-only where they were frozen."""
     import mmap
 
     big = np.arange(workers.SHARED_ARRAY_BYTES // 8 * 3, dtype=np.float64).reshape(3, -1)
     small = np.arange(10)
-    shared = workers._SharedPayload({"big": big, "small": small, "view": big[1]})
+    frozen = np.ones(workers.SHARED_ARRAY_BYTES)
+    frozen.flags.writeable = False
+    shared = workers._SharedPayload({"big": big, "small": small, "view": big[1],
+                                     "frozen": frozen})
     try:
-        assert len(shared.layout) == 2                # big and its row; small stays in band
+        assert len(shared.layout) == 3     # big, its row and frozen; small stays in band
         loads = []
         for _ in range(2):
             mapping = mmap.mmap(shared.descriptor, shared.size, flags=mmap.MAP_PRIVATE,
@@ -363,6 +367,7 @@ def test_shared_arrays_load_writable_and_copy_on_write():
     assert np.array_equal(first["view"], big[1])
     first["big"][0, 0] = -1.0                         # writable, and private to this load
     assert second["big"][0, 0] == 0.0 and big[0, 0] == 0.0
+    assert np.array_equal(first["frozen"], frozen) and not first["frozen"].flags.writeable
 
 
 def test_the_memory_plan_counts_the_workers(small_renders_in_processes, monkeypatch):
