@@ -444,6 +444,7 @@ def _fallback_line(reason: str) -> str:
     return f"worker processes unavailable ({reason}): rendered on threads"
 
 
+@allocator.small_pages()   # (the tiles' and the tree's large arrays: see core.allocator)
 def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
            progress: Optional[Callable[[float], None]] = None,
            should_cancel: Optional[Callable[[], bool]] = None,
@@ -488,7 +489,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     in_processes = not passes and _in_processes(settings, width * height, len(tiles),
                                                     threads, tree)
     memory_plan = memory.plan(scene, settings, image_dtype, threads, reserve_bytes)
-    if in_processes:  # plus each worker's interpreter and scene (the image is shared)
+    if in_processes:  # plus the workers' interpreters and the scene's shared copy
         memory_plan = dataclasses.replace(memory_plan, other=memory_plan.other + workers.
                                           planned_bytes(threads, memory_plan.scene))
     memory.check(memory_plan, width, height)

@@ -292,9 +292,16 @@ def worker_loop(connection, setup: dict) -> None:
     stats, whether every value is finite), ('cancelled', tile), ('error', tile, exception,
     traceback text), ('ended',)."""
     from . import allocator
-    from .render import RenderCancelled, render_tile
 
     allocator.configure()
+    with allocator.small_pages():     # for good: the process is Glint's (core.allocator)
+        _serve(connection)
+
+
+def _serve(connection) -> None:
+    """``worker_loop``'s renders, one after the other."""
+    from .render import RenderCancelled, render_tile
+
     try:
         control = _received_mapping(connection, mmap.PAGESIZE)
     except (EOFError, OSError):

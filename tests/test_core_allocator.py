@@ -7,6 +7,7 @@ import textwrap
 
 import pytest
 
+import core
 from core import allocator
 
 REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -95,5 +96,27 @@ def test_small_pages_turns_numpy_huge_pages_off_while_held_and_restores_them():
             with allocator.small_pages():
                 raise RuntimeError("a failed build")
         assert switch(True) is True              # restored after an error too
+    finally:
+        switch(before)
+
+
+@pytest.mark.parametrize("parallelism", ["threads", "processes"])
+def test_renders_run_on_small_pages_and_leave_the_setting_as_it_was(monkeypatch, parallelism):
+    """A render allocates without huge-page advice in this process (tiles, tree, image; the
+    workers keep it off for good), and the caller's setting is back afterwards."""
+    from core import workers
+
+    monkeypatch.setattr(workers, "MIN_PIXELS", 0)
+    switch = allocator._switch
+    before = switch(True)
+    seen = []
+    try:
+        result = core.render(core.article_scene(64, 48),
+                             core.RenderSettings(threads=2, tile_size=16,
+                                                 parallelism=parallelism),
+                             on_tile=lambda tile, pixels: seen.append(switch(False)))
+        assert result.parallelism == parallelism
+        assert seen and not any(seen)     # off while the tiles landed here
+        assert switch(True) is True       # the caller's setting is back
     finally:
         switch(before)
