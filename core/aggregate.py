@@ -525,8 +525,13 @@ class Aggregate:
         """The rays (k,) of pairs (ray r, leaf slot) (E,) whose sphere blocks them under the
         default rules with the stable roots and no shared terms: ``_sphere_blocks`` on the
         leaf-ordered spheres (the same operations on the same values, so the same flags),
-        with the exclusion (``exclude``) applied to the spheres met."""
+        less the pairs of the sphere each ray excludes (``exclude``)."""
         x, y, z, radii, ids = self._leaf_spheres()
+        if rays.exclude is not None:
+            # The sphere a ray leaves is excluded: dropped before its roots (its own slot's
+            # box holds the ray's origin: 22 % of the pairs in issue 9's fields).
+            other = np.flatnonzero(ids.take(slots) != rays.exclude.take(r))
+            r, slots = r.take(other), slots.take(other)
         if stats is not None:
             stats.sphere_tests += len(slots)
         origins = rays.origins if rays.origins.shape[1] == 1 else take(rays.origins, r)
@@ -540,8 +545,6 @@ class Aggregate:
                                            disc.take(meet))
         met = r.take(meet)
         blocked = _roots_block(t_near, t_far, low.take(met), high.take(met), article=False)
-        if rays.exclude is not None:
-            blocked &= ids.take(slots.take(meet)) != rays.exclude.take(met)
         return met[blocked]
 
     def _triangle_pairs(self, rays: RayBatch, shear, r, triangle, t_min, t_max):

@@ -732,6 +732,15 @@ class BVH:
         them, as ``visit`` would say.
         Returns (n,) bool: whether a hit (any_hit: a blocker) was found for each ray.
         """
+        # (The slab tests' 0 * inf, a ray in a box's plane, is NaN and ignored there
+        # (``_slabs``): one error state for the whole traversal, not one per box test
+        # call, which cost about 3 % of the trails' time.)
+        with np.errstate(invalid="ignore"):
+            return self._traverse_rays(origins, inverse, t_min, t_max, visit, accept,
+                                       any_hit, sources, leaf_blocks, stats)
+
+    def _traverse_rays(self, origins, inverse, t_min, t_max, visit, accept, any_hit, sources,
+                       leaf_blocks, stats):
         n = inverse.shape[1]
         found = np.zeros(n, bool)
         near_origin = np.abs(origins).max(initial=0) <= self.origin_reach
@@ -911,13 +920,11 @@ class BVH:
         primitive) pairs: the rays blocked are exactly those the root-down traversal finds."""
         parent = self._trail_tables[1]
         home = starts.astype(np.intp)
-        # Per ray of the batch (indexed by the rays themselves): the node the ray meets next,
-        # and the child of it already done.
-        node = np.empty(len(found), np.intp)
-        done = np.empty(len(found), np.intp)
-        node[rays] = parent.take(home)
-        done[rays] = home
-        live = rays[node.take(rays) >= 0]
+        # The rays still climbing, each with the node it meets next and the child of that
+        # node already done (three aligned arrays, filtered together).
+        node = parent.take(home).astype(np.intp)
+        keep = np.flatnonzero(node >= 0)
+        live, done, node = rays.take(keep), home.take(keep), node.take(keep)
         climbed, home_met = 0, False
         while True:
             if not home_met and (climbed == HOME_AFTER or len(live) == 0):
@@ -928,18 +935,17 @@ class BVH:
                     self._descend_all(r_pairs, refs, rows, t_min, t_max, visit, found, stats,
                                       leaf_blocks=leaf_blocks)
                 home_met = True
-                live = live[~found.take(live)]
+                keep = np.flatnonzero(~found.take(live))
+                live, done, node = live.take(keep), done.take(keep), node.take(keep)
             if len(live) == 0:
                 return
-            r_pairs, refs, _ = self._expand(live, done.take(live), *climb_rows, t_min, t_max,
-                                            stats, entries=False, table=self._sibling_tables)
+            r_pairs, refs, _ = self._expand(live, done, *climb_rows, t_min, t_max, stats,
+                                            entries=False, table=self._sibling_tables)
             self._descend_all(r_pairs, refs, rows, t_min, t_max, visit, found, stats,
                               leaf_blocks=leaf_blocks)
-            up = node.take(live)
-            done[live] = up
-            up = parent.take(up)
-            node[live] = up
-            live = live[(up >= 0) & ~found.take(live)]
+            done, node = node, parent.take(node).astype(np.intp)
+            keep = np.flatnonzero((node >= 0) & ~found.take(live))
+            live, done, node = live.take(keep), done.take(keep), node.take(keep)
             climbed += 1
 
     def _descend_all(self, rays, refs, rows, t_min, t_max, visit, found, stats, accept=None,
@@ -951,15 +957,21 @@ class BVH:
         t_max, which prunes the levels below)."""
         while len(rays):
             leaf = refs < 0
-            if leaf.any():
+            at = np.flatnonzero(leaf)
+            if len(at):
+                leaf_rays, leaves = rays.take(at), -2 - refs.take(at)
                 if any_hit and self.leaf_boxes is not None and MAX_LEAF == WIDTH:
-                    self._visit_slots(rays[leaf], -2 - refs[leaf], rows, t_min, t_max, visit,
-                                      found, stats, leaf_blocks)
+                    self._visit_slots(leaf_rays, leaves, rows, t_min, t_max, visit, found,
+                                      stats, leaf_blocks)
                 else:
-                    self._visit_leaves(rays[leaf], -2 - refs[leaf], t_max, visit, accept,
-                                       found, any_hit)
-                going_on = ~leaf & ~found.take(rays) if any_hit else ~leaf
-                rays, refs = rays[going_on], refs[going_on]
+                    self._visit_leaves(leaf_rays, leaves, t_max, visit, accept, found,
+                                       any_hit)
+                going_on = np.logical_not(leaf, out=leaf)
+                if any_hit:
+                    going_on &= ~found.take(rays)
+                # (One index for both arrays: cheaper than two boolean masks.)
+                keep = np.flatnonzero(going_on)
+                rays, refs = rays.take(keep), refs.take(keep)
                 if len(rays) == 0:
                     return
             rays, refs, _ = self._expand(rays, refs, *rows, t_min, t_max, stats,
@@ -976,10 +988,11 @@ class BVH:
         pair_slot = hit.ravel().nonzero()[0]
         if len(pair_slot) == 0:
             return
-        r = rays.take(pair_slot // MAX_LEAF)
+        pair = pair_slot // MAX_LEAF
+        r = rays.take(pair)
         if leaf_blocks is not None:
-            found[leaf_blocks(r, leaves.take(pair_slot // MAX_LEAF) * MAX_LEAF
-                              + pair_slot % MAX_LEAF)] = True
+            # (Slot pair_slot % MAX_LEAF of leaf leaves[pair], as an index of leaves.ravel().)
+            found[leaf_blocks(r, pair_slot + (leaves.take(pair) - pair) * MAX_LEAF)] = True
             return
         prims = self.leaves.take(leaves, axis=0).ravel().take(pair_slot)
         found[r[visit(r, prims) < np.inf]] = True
@@ -1113,25 +1126,25 @@ class BVH:
             t -= o                # a gathered copy: worked on in place
         else:
             t = t.astype(dtype) - o
-        with np.errstate(invalid="ignore"):
-            if t.shape[2] == m * k:
-                t *= per_pair(inverse)
-            else:       # one box against rays sharing their origin
-                t = t * per_pair(inverse)
-            # fmin / fmax: a 0 * inf (a ray in a box's plane) is NaN and is ignored.
-            # (A reduce over the axes: one call, and no temporary, for the three.)
-            near = np.fmax.reduce(np.fmin(t[0], t[1]), axis=0)
-            far = np.fmin.reduce(np.fmax(t[0], t[1]), axis=0)
-            # maximum / minimum propagate an empty slot's NaN, which then fails near <= far.
-            # (Rounding the bounds to the slabs' precision first gives the same results:
-            # rounding is monotonic and leaves the slabs' own values as they are.)
-            if getattr(t_min, "ndim", 0):
-                np.maximum(near, _spread(t_min.take(rays), dtype, k).ravel(), out=near)
-            else:
-                np.maximum(near, t_min, out=near)
-            if t_max is not None:
-                np.minimum(far, _spread(t_max.take(rays), dtype, k).ravel(), out=far)
-            return near.reshape(m, k), (near <= far).reshape(m, k)
+        # (0 * inf is NaN: ``traverse`` runs every slab test with invalid values ignored.)
+        if t.shape[2] == m * k:
+            t *= per_pair(inverse)
+        else:       # one box against rays sharing their origin
+            t = t * per_pair(inverse)
+        # fmin / fmax: a 0 * inf (a ray in a box's plane) is NaN and is ignored.
+        # (A reduce over the axes: one call, and no temporary, for the three.)
+        near = np.fmax.reduce(np.fmin(t[0], t[1]), axis=0)
+        far = np.fmin.reduce(np.fmax(t[0], t[1]), axis=0)
+        # maximum / minimum propagate an empty slot's NaN, which then fails near <= far.
+        # (Rounding the bounds to the slabs' precision first gives the same results:
+        # rounding is monotonic and leaves the slabs' own values as they are.)
+        if getattr(t_min, "ndim", 0):
+            np.maximum(near, _spread(t_min.take(rays), dtype, k).ravel(), out=near)
+        else:
+            np.maximum(near, t_min, out=near)
+        if t_max is not None:
+            np.minimum(far, _spread(t_max.take(rays), dtype, k).ravel(), out=far)
+        return near.reshape(m, k), (near <= far).reshape(m, k)
 
     def _expand(self, rays, nodes, origins, inverse, t_min, t_max, stats, entries=True,
                 table=None):
