@@ -982,10 +982,7 @@ class BVH:
         """Any-hit visit of pairs (ray, leaf) (m,), grouped by ray: only the primitives whose
         own boxes (``leaf_boxes``) the rays' segments reach (rows: the slab terms, spread for
         MAX_LEAF slots), through ``visit``, or ``leaf_blocks`` (``traverse``) by slot."""
-        _, hit = self._slabs(self.leaf_boxes.take(leaves, axis=1), rays, *rows, t_min, t_max)
-        if stats is not None:
-            stats.node_tests += int(self._leaf_fill.take(leaves).sum())
-        pair_slot = hit.ravel().nonzero()[0]
+        pair_slot = self._slots_reached(rays, leaves, rows, t_min, t_max, stats)
         if len(pair_slot) == 0:
             return
         pair = pair_slot // MAX_LEAF
@@ -996,6 +993,14 @@ class BVH:
             return
         prims = self.leaves.take(leaves, axis=0).ravel().take(pair_slot)
         found[r[visit(r, prims) < np.inf]] = True
+
+    def _slots_reached(self, rays, leaves, rows, t_min, t_max, stats) -> np.ndarray:
+        """(k,) the slots (flat indices into (m, MAX_LEAF)) of pairs (ray, leaf) (m,) whose
+        primitive's own box (``leaf_boxes``) the ray's segment reaches."""
+        _, hit = self._slabs(self.leaf_boxes.take(leaves, axis=1), rays, *rows, t_min, t_max)
+        if stats is not None:
+            stats.node_tests += int(self._leaf_fill.take(leaves).sum())
+        return hit.ravel().nonzero()[0]
 
     @functools.cached_property
     def _leaf_fill(self):
@@ -1082,10 +1087,7 @@ class BVH:
         test (a 10^6-sphere set at 960x540: 69 sphere tests a camera ray, most of them
         against spheres of a leaf whose box the ray crosses but whose own boxes it misses).
         The boxes hold their primitives, so the hits (and ties) are the same."""
-        _, hit = self._slabs(self.leaf_boxes.take(leaf, axis=1), r, *rows, t_min, t_max)
-        if stats is not None:
-            stats.node_tests += int(self._leaf_fill.take(leaf).sum())
-        pair_slot = hit.ravel().nonzero()[0]
+        pair_slot = self._slots_reached(r, leaf, rows, t_min, t_max, stats)
         if len(pair_slot) == 0:
             return
         rays = r.take(pair_slot // MAX_LEAF)
