@@ -31,7 +31,6 @@ import numpy as np
 
 from .arrays import SphereArrays, TriangleArrays
 from .bins import OriginBins
-from .allocator import small_pages
 from .bvh import BVH, MAX_LEAF
 from .cull import (DENSE_CANDIDATES, REFLECTION_CELLS, SHADOW_CELLS, bundle_candidates,
                    candidate_roots, cones,
@@ -159,8 +158,7 @@ class Aggregate:
         self._tree_spheres = len(tree_spheres)
         self._tree_triangles = len(tree_triangles)
         if len(tree_spheres) or len(tree_triangles):
-            with small_pages():     # (the boxes: large temporaries, as the build's)
-                self._build_tree(spheres, triangles, tree_spheres, tree_triangles)
+            self._build_tree(spheres, triangles, tree_spheres, tree_triangles)
         self._bins = {}     # origin (bytes) -> OriginBins, or None: the tree answers there
         self._bins_bytes = 0
         self._bins_lock = threading.Lock()

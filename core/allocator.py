@@ -23,8 +23,8 @@ NumPy does not ask the kernel for transparent huge pages for its large arrays (N
 ``madvise(MADV_HUGEPAGE)`` on every array of 4 MiB or more; with the common
 ``defrag=madvise`` kernel setting each fault in such an array may then compact memory
 synchronously).  A render holds it for all of its work (``core.render``; the worker
-processes for good), and the BVH build, whose temporaries are a few hundred large arrays made
-and dropped at once, also on its own: the 10^6-point cloud's ``make_context`` took 1.3 s of user and
+processes for good), the BVH build included, whose temporaries are a few hundred large
+arrays made and dropped at once: the 10^6-point cloud's ``make_context`` took 1.3 s of user and
 0.1-2.3 s of system time per call with huge pages (1.9 s on a process's first call even
 with ``configure()``), 0.15 s of system time without.
 """

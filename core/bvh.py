@@ -54,7 +54,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .allocator import small_pages
 from .runs import rank_within_runs, run_starts, value_run_starts
 
 #: Most primitives in a leaf, children per inner node, and the least depth (in wide levels
@@ -589,12 +588,8 @@ class BVH:
         clusters of CLUSTER_SIZE primitives consecutive in Morton order (of one size class:
         their boxes' largest side within a factor of 4), which become the leaves: the build
         then costs a CLUSTER_SIZE-th, and the clusters are as tight as Morton leaves.
-        (Built without transparent huge pages: ``allocator.small_pages``.)"""
-        with small_pages():
-            return cls._build(np.asarray(ids), low, high)
-
-    @classmethod
-    def _build(cls, ids, low, high) -> "BVH":
+        (A render builds it without transparent huge pages: ``allocator.small_pages``.)"""
+        ids = np.asarray(ids)
         # The boxes as columns (3, P): every pass below then runs over contiguous rows.
         low, high = np.ascontiguousarray(low.T), np.ascontiguousarray(high.T)
         count = low.shape[1]
