@@ -161,7 +161,9 @@ class Aggregate:
             self._build_tree(spheres, triangles, tree_spheres, tree_triangles)
         self._bins = {}     # origin (bytes) -> OriginBins, or None: the tree answers there
         self._bins_bytes = 0
-        self._bins_lock = threading.Lock()
+        # (Guards what tiles running in threads build on first use: bins, leaf-ordered
+        # spheres.)
+        self._lazy_lock = threading.Lock()
         self._leaf_rows = None      # the tree's spheres in leaf order (``_leaf_spheres``)
 
     def _build_tree(self, spheres, triangles, tree_spheres, tree_triangles):
@@ -203,12 +205,12 @@ class Aggregate:
         leaf-ordered spheres: each process builds its own (``_origin_bins``,
         ``_leaf_spheres``)."""
         state = dict(self.__dict__, _bins={}, _bins_bytes=0, _leaf_rows=None)
-        del state["_bins_lock"]
+        del state["_lazy_lock"]
         return state
 
     def __setstate__(self, state):
         self.__dict__.update(state)
-        self._bins_lock = threading.Lock()
+        self._lazy_lock = threading.Lock()
 
     def surface_keys(self, primitive_per_ray: np.ndarray) -> np.ndarray:
         """(n,) uint64 key of the surface each ray hit (0: none), for adaptive anti-aliasing's
@@ -506,7 +508,7 @@ class Aggregate:
         first occlusion trail (about 40 bytes a sphere in float64, 24 in float32)."""
         rows = self._leaf_rows
         if rows is None:
-            with self._bins_lock:
+            with self._lazy_lock:
                 rows = self._leaf_rows
                 if rows is None:
                     ids = self._tree.leaves.ravel()
@@ -718,7 +720,7 @@ class Aggregate:
         key = (position.tobytes(), mirror)
         bins = self._bins.get(key, False)
         if bins is False:
-            with self._bins_lock:
+            with self._lazy_lock:
                 bins = self._bins.get(key, False)
                 if bins is False:
                     bins = None

@@ -955,7 +955,7 @@ class BVH:
             at = np.flatnonzero(leaf)
             if len(at):
                 leaf_rays, leaves = rays.take(at), -2 - refs.take(at)
-                if any_hit and self.leaf_boxes is not None and MAX_LEAF == WIDTH:
+                if any_hit and self._tests_slots:
                     self._visit_slots(leaf_rays, leaves, rows, t_min, t_max, visit, found,
                                       stats, leaf_blocks)
                 else:
@@ -996,6 +996,13 @@ class BVH:
         if stats is not None:
             stats.node_tests += int(self._leaf_fill.take(leaves).sum())
         return hit.ravel().nonzero()[0]
+
+    @property
+    def _tests_slots(self) -> bool:
+        """Whether leaf visits test each slot's own box first (``_slots_reached``): the tree
+        has ``leaf_boxes``, laid out as a node's slots (MAX_LEAF == WIDTH, the slab terms'
+        spread)."""
+        return self.leaf_boxes is not None and MAX_LEAF == WIDTH
 
     @functools.cached_property
     def _leaf_fill(self):
@@ -1062,7 +1069,7 @@ class BVH:
                 grouped = np.argsort((r - first).astype(np.uint16), kind="stable")
                 r, ref = r[grouped], ref[grouped]
             if len(r):
-                if self.leaf_boxes is not None and MAX_LEAF == WIDTH:
+                if self._tests_slots:
                     self._visit_boxed_leaves(r, -2 - ref, rows, t_min, t_max, visit, accept,
                                              found, any_hit, stats)
                 else:
