@@ -75,6 +75,14 @@ BINS_MAX_BYTES = 64 * 1024 ** 2
 #: one such batch more (and a frame has a batch per tile).  The rule depends on the batch
 #: alone, so which batches use bins does not depend on the order tiles run in.
 BINS_PRIMITIVES_PER_RAY = 1
+#: Where id-ordered bins would not pay (dense fields, or more than BINS_MAX_PRIMITIVES),
+#: an origin gets depth-ordered bins (``OriginBins.walk``) when a frame traces at least this
+#: many rays from one origin (``rays_per_origin``) per tree primitive: listing a million
+#: boxes costs about a second, a camera ray through a dense field's tree about 4 us.
+DEPTH_RAYS_PER_PRIMITIVE = 1.0
+#: Bytes of bins an aggregate holds beside BINS_MAX_BYTES, per tree primitive (depth-ordered
+#: bins: a few entries per primitive for the eye and a light).
+BINS_BYTES_PER_PRIMITIVE = 64
 #: Rays leaving one primitive whose lines pass this close to one point (a fraction of the
 #: tree's median box half side; ``Aggregate._mirror_groups``) are answered by direction bins
 #: around that point, with the boxes grown by as much.
@@ -161,6 +169,10 @@ class Aggregate:
             self._build_tree(spheres, triangles, tree_spheres, tree_triangles)
         self._bins = {}     # origin (bytes) -> OriginBins, or None: the tree answers there
         self._bins_bytes = 0
+        #: How many rays a frame traces from one shared origin (the eye, a light sample), as
+        #: far as its context knows (``make_context``: the pixels); 0: unknown.  Decides
+        #: whether depth-ordered bins pay (DEPTH_RAYS_PER_PRIMITIVE).
+        self.rays_per_origin = 0
         # (Guards what tiles running in threads build on first use: bins, leaf-ordered
         # spheres.)
         self._lazy_lock = threading.Lock()
@@ -623,11 +635,24 @@ class Aggregate:
                 store[owner[~won]] = 0
 
         bins, plan = self._origin_bins(rays)
-        if plan is not None:
+        if plan is not None and not bins.by_depth:
             bins.traverse(plan, reach, visit, accept, exclude=exclude)
             return
         rest = None     # the rays the tree answers (None: all of them)
-        for members, bins, plan, shift in self._mirror_groups(rays):
+        if plan is not None:
+            # Front to back through the cells; the rays still walking after the last round
+            # are the tree's, from what they had before (``OriginBins.walk``).
+            before = (reach.copy(), best_t.copy(), best.copy(),
+                      None if barycentrics is None else tuple(b.copy() for b in barycentrics))
+            _, walking = bins.walk(plan, reach, visit, accept, exclude=exclude)
+            if len(walking) == 0:
+                return
+            for store, kept in zip((reach, best_t, best) + (barycentrics or ()),
+                                   before[:3] + (before[3] or ())):
+                store[walking] = kept.take(walking)
+            rest = np.zeros(n, bool)
+            rest[walking] = True
+        for members, bins, plan, shift in (self._mirror_groups(rays) if rest is None else ()):
             # (Numbered within the group: the kernels' rays mapped back to the batch's.)
             local = reach.take(members)
             bins.traverse(plan, local,
@@ -680,7 +705,7 @@ class Aggregate:
                 blocked &= prims != exclude[r]
             return np.where(blocked, 0.0, np.inf)
 
-        bins, plan = self._origin_bins(segments)
+        bins, plan = self._origin_bins(segments, depth=False)
         if plan is not None:
             return bins.traverse(plan, reach, visit, any_hit=True, exclude=exclude)
         box_t_min = max(_box_start(segments.t_min), 0.0)
@@ -696,42 +721,101 @@ class Aggregate:
                                    any_hit=True, sources=segments.source,
                                    leaf_blocks=leaf_blocks, stats=stats)
 
-    def _origin_bins(self, rays: RayBatch):
+    def _origin_bins(self, rays: RayBatch, depth: bool = True):
         """(bins, plan): the direction bins of the batch's shared origin and the batch's
         plan over them (``core.bins``), or (None, None) where the tree answers instead (no
         shared origin, too few rays to pay for bins, bins that would not pay there, or too
         many candidates for this batch).  Bins are built on first use, once per origin,
         under a lock (tiles run in threads)."""
-        if (rays.shared is None or self._tree_boxes is None
-                or len(rays) * BINS_PRIMITIVES_PER_RAY < len(self._tree_boxes[0])):
+        if rays.shared is None or self._tree is None:
             return None, None
-        bins = self._bins_at(rays.shared.position)
-        if bins is None:
+        depth = depth and self._depth_bins_pay()
+        few = (self._tree_boxes is None
+               or len(rays) * BINS_PRIMITIVES_PER_RAY < len(self._tree_boxes[0]))
+        if few and not depth:
+            return None, None
+        bins = self._bins_at(rays.shared.position, depth=depth)
+        if bins is None or (few and not bins.by_depth):
             return None, None
         plan = bins.plan(rays.directions)
         return (bins, plan) if plan is not None else (None, None)
 
-    def _bins_at(self, position, mirror: bool = False):
+    def _bins_at(self, position, mirror: bool = False, depth: bool = False):
         """The direction bins around ``position`` (3,) of the tree's boxes (mirror: grown by
         ``mirror_slack``, ``_mirror_groups``), or None where they do not pay or the bins
-        held are at their bound.  Built on first use, once per origin, under a lock (tiles
-        run in threads)."""
+        held are at their bound; with ``depth``, depth-ordered bins (``OriginBins.walk``)
+        where id-ordered ones do not pay.  Built on first use, once per origin, under a
+        lock (tiles run in threads)."""
         position = np.asarray(position, np.float64)
-        key = (position.tobytes(), mirror)
+        key = (position.tobytes(), mirror, depth)
         bins = self._bins.get(key, False)
         if bins is False:
             with self._lazy_lock:
                 bins = self._bins.get(key, False)
                 if bins is False:
                     bins = None
-                    if self._bins_bytes < BINS_MAX_BYTES:
+                    if self._bins_bytes < BINS_MAX_BYTES and self._tree_boxes is not None:
                         ids, low, high = self._tree_boxes
                         if mirror:
                             low, high = low - self.mirror_slack, high + self.mirror_slack
                         bins = OriginBins.build(position, ids, low, high)
+                    if (bins is None and depth
+                            and self._bins_bytes < self._bins_max_bytes()):
+                        ids, low, high = self._bins_boxes()
+                        bins = OriginBins.build(position, ids, low, high, by_depth=True,
+                                                bounds=self._bounding_spheres(ids),
+                                                rounding=float(np.finfo(self.dtype).eps))
                     self._bins[key] = bins
                     self._bins_bytes += 0 if bins is None else bins.nbytes
         return bins
+
+    def _tree_size(self) -> int:
+        return self._tree_spheres + self._tree_triangles
+
+    def _depth_bins_pay(self) -> bool:
+        """Whether an origin whose id-ordered bins do not pay gets depth-ordered ones
+        (DEPTH_RAYS_PER_PRIMITIVE)."""
+        return (self._tree is not None
+                and self.rays_per_origin >= DEPTH_RAYS_PER_PRIMITIVE * self._tree_size())
+
+    def _bins_max_bytes(self) -> int:
+        return BINS_MAX_BYTES + BINS_BYTES_PER_PRIMITIVE * self._tree_size()
+
+    def _bins_boxes(self):
+        """(ids (P,), low, high (P, 3) float64) of the tree's primitives, for bins: the ones
+        kept (``_tree_boxes``), or made again from the scene's arrays (trees of more than
+        BINS_MAX_PRIMITIVES keep none)."""
+        if self._tree_boxes is not None:
+            return self._tree_boxes
+        lows, highs, ids = [], [], []
+        if self._tree_spheres:
+            spheres = np.ones(self.sphere_count, bool)
+            if self._flat_ids is not None:
+                spheres[self._flat_ids] = False
+            spheres = np.flatnonzero(spheres)
+            c, r = self.spheres.centers[spheres], self.spheres.radii[spheres, None]
+            lows.append(c - r)
+            highs.append(c + r)
+            ids.append(spheres)
+        if self._tree_triangles:
+            t = self.triangles
+            lows.append(np.minimum(np.minimum(t.v0, t.v1), t.v2).T)
+            highs.append(np.maximum(np.maximum(t.v0, t.v1), t.v2).T)
+            ids.append(np.arange(self.triangle_count) + self.sphere_count)
+        return np.concatenate(ids), np.concatenate(lows), np.concatenate(highs)
+
+    def _bounding_spheres(self, ids):
+        """(centres (k, 3), radii (k,)) float64 bounding spheres of primitives ``ids`` (k,)
+        ascending, spheres before triangles (``_bins_boxes``' order): the spheres
+        themselves, the triangles' (``_tri_centers``, ``_tri_radii``)."""
+        spheres = ids[:np.searchsorted(ids, self.sphere_count)]
+        triangles = ids[len(spheres):] - self.sphere_count
+        centres = np.concatenate([self.spheres.centers[spheres],
+                                  self._tri_centers.T[triangles] if len(triangles)
+                                  else np.zeros((0, 3))])
+        radii = np.concatenate([self.spheres.radii[spheres],
+                                self._tri_radii[triangles] if len(triangles) else []])
+        return centres, radii
 
     def _mirror_groups(self, rays: RayBatch):
         """[(members (k,), bins, plan, reach shift (k,))]: groups of the batch's rays whose

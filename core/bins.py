@@ -36,12 +36,13 @@ batches large enough, trees small enough, a bound on the bytes held.)
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from .bvh import keep_nearest
-from .runs import rank_within_runs
+from .runs import rank_within_runs, value_run_starts
 
 #: Cells per cube-face side: 512 makes cells of about 3.75 pixels at 1920 pixels across a
 #: 90-degree view (one face).
@@ -54,6 +55,14 @@ MARGIN = 4e-6
 NEAR_SLACK = 1 - 1e-6
 #: Upper bound on (cell, primitive) entries of one origin's bins (12 bytes each).
 MAX_ENTRIES = 1 << 21
+#: Upper bound on the entries of one origin's depth-ordered bins (``walk``; 12 bytes each),
+#: and on their entries per primitive: listing costs about half a microsecond an entry,
+#: and cells of about a primitive's size already stop most rays within a few entries.
+MAX_DEPTH_ENTRIES = 1 << 23
+MAX_DEPTH_ENTRIES_PER_PRIMITIVE = 8
+#: How many of its cell's entries a ray of depth-ordered bins meets in each round of
+#: ``walk``; a ray still walking after them goes to the tree.
+WALK_ROUNDS = (1, 1, 2, 2, 4, 4, 8, 8)
 #: Bins whose occupied cells hold more primitives than this on average are not built: the
 #: tree, which stops at a ray's first hit front to back, is cheaper there.
 MAX_MEAN_CANDIDATES = 16.0
@@ -152,6 +161,69 @@ def _cell_counts(faces, cells: int) -> np.ndarray:
     return counts.ravel()
 
 
+def _rounding_slack(distance, radii, rounding: float, scale: float):
+    """(K,) how much larger than spheres of ``radii`` (K,) at ``distance`` (K,) from the
+    origin the kernels may find them, with machine epsilon ``rounding`` and coordinates up
+    to ``scale``: the offset roots' lateral distance |f - (f.d) d| is off by a few
+    epsilon of |f| (and of the coordinates f is made from), the textbook roots'
+    discriminant b^2 - c by epsilon b^2, a lateral error of epsilon D^2 / 2r.  Generous:
+    a little more culling lost, never a hit the tree would find."""
+    if rounding == 0:
+        return 0.0
+    return rounding * (4 * radii + 4 * scale + 8 * distance
+                       + 4 * distance * distance / np.maximum(radii, 1e-300))
+
+
+@functools.lru_cache(maxsize=4)
+def _cell_cones(cells: int):
+    """(axis (3, cells, cells) unit vectors in face coordinates (along, u, v), cos and sin
+    of the half angle (cells, cells)) of the cones around each cell of a face, the cells
+    widened by MARGIN (the same for every face)."""
+    centre = (np.arange(cells) + 0.5) * (2 / cells) - 1
+    u, v = np.meshgrid(centre, centre, indexing="ij")
+    axis = np.stack([np.ones_like(u), u, v])
+    axis /= np.sqrt((axis * axis).sum(axis=0))
+    half = 1 / cells + MARGIN
+    cos = np.ones_like(u)
+    for du in (-half, half):
+        for dv in (-half, half):
+            corner = np.stack([np.ones_like(u), u + du, v + dv])
+            cos = np.minimum(cos, (axis * corner).sum(axis=0)
+                             / np.sqrt((corner * corner).sum(axis=0)))
+    # (A hair wider for the rounding of the cosines.)
+    angle = np.arccos(np.clip(cos, -1, 1)) + 1e-9
+    return axis, np.cos(angle), np.sin(angle)
+
+
+def _cone_near(face: int, u, v, cells: int, towards, radii):
+    """(near (E,), seen (E,) bool) of entries of cells (face, u, v) (E,) each for spheres
+    at ``towards`` (3, E) from the origin, radii (E,): the least distance at which a ray
+    within the cell's cone (``_cell_cones``) can meet its sphere, and whether any can.  A
+    ray at angle psi from the centre's direction enters at D cos psi - sqrt(r^2 - D^2
+    sin^2 psi), growing with psi, and the cone holds none nearer to the centre than the
+    angle to its axis less its half angle."""
+    axis, cos_half, sin_half = _cell_cones(cells)
+    along, negative = face // 2, face % 2
+    rows = (along, (along + 1) % 3, (along + 2) % 3)
+    cell = u * cells + v
+    a = axis.reshape(3, -1)
+    dot = (towards[rows[0]] * (-a[0] if negative else a[0]).take(cell)
+           + towards[rows[1]] * a[1].take(cell) + towards[rows[2]] * a[2].take(cell))
+    distance = np.sqrt((towards * towards).sum(axis=0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos_t = np.clip(dot / distance, -1, 1)
+    sin_t = np.sqrt(1 - cos_t * cos_t)
+    ch, sh = cos_half.ravel().take(cell), sin_half.ravel().take(cell)
+    inside = cos_t >= ch                      # the centre's direction within the cone
+    cos_p = np.where(inside, 1.0, cos_t * ch + sin_t * sh)
+    sin_p = np.where(inside, 0.0, sin_t * ch - cos_t * sh)
+    lateral = distance * sin_p
+    seen = (distance <= radii) | ((cos_p > 0) & (lateral < radii))
+    near = distance * cos_p - np.sqrt(np.maximum(radii * radii - lateral * lateral, 0))
+    near = np.where(distance <= radii, 0.0, np.maximum(near, 0.0))
+    return near, seen
+
+
 def _place(slots, face, u, v, blocks: int, empty: int) -> np.ndarray:
     """Where cells (face, u, v) (n,) each are stored (``OriginBins``): their block's slot
     times BLOCK^2 plus their place in the block; cells of empty blocks get ``empty``, the
@@ -185,35 +257,70 @@ class OriginBins:
     starts: np.ndarray
     primitives: np.ndarray
     near: np.ndarray
+    #: Cells list their primitives by ``near`` (ties by id), to be walked front to back
+    #: (``walk``), instead of by id.
+    by_depth: bool = False
 
     @classmethod
     def build(cls, position, ids, low, high, cells: int = None, max_entries: int = None,
-              max_mean: float = None) -> "OriginBins | None":
+              max_mean: float = None, by_depth: bool = False, bounds=None,
+              rounding: float = 0.0) -> "OriginBins | None":
         """Bins around ``position`` (3,) of primitives ``ids`` (K,) ascending, with bounding
         boxes low, high (K, 3), with ``cells`` cells per face side, or half or a quarter as
         many when boxes near the origin would make more than ``max_entries`` entries; None
         where they do not pay (module docstring): still too many entries, or more than
         ``max_mean`` per occupied cell.  (Defaults: CELLS, MAX_ENTRIES and
-        MAX_MEAN_CANDIDATES.)"""
+        MAX_MEAN_CANDIDATES.)  by_depth: each cell's entries by distance from the origin
+        (``walk``), with down to 1/16 of ``cells`` a side to fit ``max_entries`` (default
+        MAX_DEPTH_ENTRIES, and MAX_DEPTH_ENTRIES_PER_PRIMITIVE a primitive) and no bound on
+        the mean.  bounds: (centres (K, 3), radii (K,))
+        float64 bounding spheres of the primitives (needed by_depth), or None: a
+        primitive's ``near`` is the larger of its box's and its sphere's distance, and a
+        depth-ordered entry's its cell's (``_cone_near``).  rounding: the machine epsilon
+        of the kernels that will intersect the pairs: the spheres are grown by what their
+        roots' rounding may add (``_rounding_slack``)."""
         cells = CELLS if cells is None else cells
-        max_entries = MAX_ENTRIES if max_entries is None else max_entries
+        if max_entries is None:
+            max_entries = MAX_DEPTH_ENTRIES if by_depth else MAX_ENTRIES
+        # (Depth-ordered: the finest cells within MAX_DEPTH_ENTRIES_PER_PRIMITIVE, else the
+        # coarsest, within max_entries.)
+        enough = min(max_entries, MAX_DEPTH_ENTRIES_PER_PRIMITIVE * len(ids)) if by_depth \
+            else max_entries
         max_mean = MAX_MEAN_CANDIDATES if max_mean is None else max_mean
         position = np.asarray(position, np.float64)
         relative_low = (np.asarray(low, np.float64) - position).T
         relative_high = (np.asarray(high, np.float64) - position).T
+        ids = np.asarray(ids)
+        # Distance from the origin to each box (0 inside it).
+        gap = np.maximum(np.maximum(relative_low, -relative_high), 0.0)
+        distance = np.sqrt((gap * gap).sum(axis=0))
+        del gap
+        if bounds is not None:
+            centres, radii = bounds
+            towards_all = (np.asarray(centres, np.float64) - position).T
+            reach = np.sqrt((towards_all * towards_all).sum(axis=0))
+            radii = np.asarray(radii, np.float64)
+            radii = radii + _rounding_slack(reach, radii, rounding,
+                                            np.abs(position).max() + np.abs(centres).max())
+            np.maximum(distance, reach - radii, out=distance)
+            del reach
+        distance *= NEAR_SLACK
+        if by_depth and bounds is None:
+            raise ValueError("depth-ordered bins need the primitives' bounding spheres")
         ranges = [(face, *_face_ranges(relative_low, relative_high, face // 2,
                                        bool(face % 2))) for face in range(6)]
-        for size in (cells, cells // 2, cells // 4):
+        sizes = [cells >> k for k in range(5 if by_depth else 3) if cells >> k >= BLOCK]
+        for size in sizes:
             faces = [(face, shown, _face_cells(r, size)) for face, shown, r in ranges]
             total = sum(int(((lu - fu + 1) * (lv - fv + 1)).sum())
                         for _, _, (fu, lu, fv, lv) in faces)
-            if total <= max_entries:
+            if total <= enough or (size == sizes[-1] and total <= max_entries):
                 break
         else:
             return None
         cells = size
         counts = _cell_counts(faces, cells)
-        if total > max_mean * np.count_nonzero(counts):
+        if not by_depth and total > max_mean * np.count_nonzero(counts):
             return None
         # Blocks of cells: (6, blocks, BLOCK, blocks, BLOCK) -> (6, blocks, blocks, BLOCK^2).
         blocks = cells // BLOCK
@@ -224,10 +331,7 @@ class OriginBins:
         starts = np.zeros(int(stored.sum()) * BLOCK * BLOCK + 2, np.int32)
         np.cumsum(by_block[stored].ravel(), out=starts[1:-1])
         starts[-1] = starts[-2]
-        # Distance from the origin to each box (0 inside it).
-        gap = np.maximum(np.maximum(relative_low, -relative_high), 0.0)
-        distance = np.sqrt((gap * gap).sum(axis=0)) * NEAR_SLACK
-        places, owners = [], []
+        places, owners, nears = [], [], []
         for face, shown, (first_u, last_u, first_v, last_v) in faces:
             tall = last_v - first_v + 1
             area = (last_u - first_u + 1) * tall
@@ -235,12 +339,31 @@ class OriginBins:
             tall = np.repeat(tall, area)
             u = np.repeat(first_u, area) + rank // tall
             v = np.repeat(first_v, area) + rank % tall
+            owner = np.repeat(shown, area)
+            if by_depth:
+                near, seen = _cone_near(face, u, v, cells, towards_all.take(owner, axis=1),
+                                        radii.take(owner))
+                u, v, owner, near = u[seen], v[seen], owner[seen], near[seen]
+                nears.append(near)
             places.append(_place(slots, face, u, v, blocks, len(starts) - 2))
-            owners.append(np.repeat(shown, area))
+            owners.append(owner)
         place = np.concatenate(places)
+        if by_depth:
+            # Each entry's near is its own cell's (``_cone_near``): sorted by (cell, near),
+            # near rounded down to 2^-31 of the farthest, and the offsets counted again
+            # (entries whose cell's cone misses the sphere are gone).
+            near = np.concatenate(nears)
+            step = max(float(near.max(initial=0.0)), 1e-300) / 2 ** 31
+            level = np.floor(near / step).astype(np.int64)
+            order = np.argsort(place.astype(np.int64) << 31 | level)
+            counts = np.bincount(place, minlength=len(starts) - 1)
+            np.cumsum(counts, out=starts[1:])
+            return cls(cells, slots, starts, ids.astype(np.int32)[np.concatenate(owners)[order]],
+                       level[order] * (step * NEAR_SLACK), by_depth)
         # Stable: within a cell, entries keep their (ascending) primitive order.
         owner = np.concatenate(owners)[np.argsort(place, kind="stable")]
-        return cls(cells, slots, starts, np.asarray(ids, np.int32)[owner], distance[owner])
+        return cls(cells, slots, starts, ids.astype(np.int32)[owner], distance[owner],
+                   by_depth)
 
     @property
     def entries(self) -> int:
@@ -266,7 +389,7 @@ class OriginBins:
                        len(self.starts) - 2)
         start = self.starts.take(place)
         count = self.starts.take(place + 1) - start
-        if count.sum() > MAX_PAIRS_PER_RAY * len(count):
+        if not self.by_depth and count.sum() > MAX_PAIRS_PER_RAY * len(count):
             return None
         return start, count
 
@@ -312,3 +435,93 @@ class OriginBins:
             # (Cells list their primitives once each: unique per ray.)
             keep_nearest(ray, prims, visit(ray, prims), t_max, found, accept, any_hit)
         return found
+
+    def walk(self, plan, t_max, visit, accept=None, *, any_hit=False, exclude=None):
+        """Depth-ordered bins' (``by_depth``) answer to ``traverse``'s question, walking each
+        ray's cell front to back: round k meets the next WALK_ROUNDS[k] entries of every ray
+        still walking, and a ray stops at its first blocker (any_hit), at the end of its
+        cell, or once its next entry's ``near`` is beyond its nearest hit so far (a hit
+        there could at best tie: walked on while equal, for the lower id) or beyond its
+        t_max.  plan, t_max (lowered in place), accept, exclude: as ``traverse``'s;
+        ``visit(rays, prims, reach)`` as ``traverse``'s visit with each pair's reach (E,)
+        float64: hits nearer than it count (inf where a ray has a hit already: its ties are
+        settled here, by id).  Returns (found (n,) bool, rest (k,) ascending): the rays
+        still walking after the last round, cleared in found; their t_max and what accept
+        recorded for them are the caller's to reset: the tree answers them afresh."""
+        start, count = plan
+        n = len(count)
+        found = np.zeros(n, bool)
+        best = np.full(n, -1, np.int64)     # each ray's nearest primitive so far
+        live = np.flatnonzero(count > 0)
+        position = start.take(live).astype(np.intp)
+        end = position + count.take(live)
+        for size in WALK_ROUNDS:
+            live, position, end = self._walking(live, position, end, t_max, found, any_hit)
+            if len(live) == 0:
+                break
+            step = np.minimum(end - position, size)
+            ray = np.repeat(live, step)
+            entry = np.repeat(position, step) + rank_within_runs(step)
+            position += step
+            # Pairs beyond their ray's reach, or with the primitive it ignores, are skipped.
+            reach, near, settled = t_max.take(ray), self.near.take(entry), found.take(ray)
+            keep = np.where(settled, near <= reach, near < reach)
+            if exclude is not None:
+                keep &= self.primitives.take(entry) != exclude.take(ray)
+            keep = np.flatnonzero(keep)
+            if len(keep) == 0:
+                continue
+            ray, prims = ray.take(keep), self.primitives.take(entry.take(keep)).astype(np.intp)
+            t = visit(ray, prims, np.where(settled.take(keep), np.inf, reach.take(keep)))
+            if any_hit:
+                found[ray[t < np.inf]] = True
+            else:
+                _settle(ray, prims, t, t_max, found, best, accept)
+        live, position, end = self._walking(live, position, end, t_max, found, any_hit)
+        found[live] = False
+        return found, live
+
+    def _walking(self, live, position, end, t_max, found, any_hit):
+        """(live, position, end) of ``walk``'s rays that walk on: entries left, and the next
+        one within reach (nearest hits: up to an equal distance once a hit is found; any
+        hit: short of t_max, and no blocker found)."""
+        go = position < end
+        near = self.near.take(np.minimum(position, len(self.near) - 1))
+        reach, settled = t_max.take(live), found.take(live)
+        if any_hit:
+            go &= ~settled & (near < reach)
+        else:
+            go &= np.where(settled, near <= reach, near < reach)
+        go = np.flatnonzero(go)
+        return live.take(go), position.take(go), end.take(go)
+
+
+def _settle(rays, prims, t, t_max, found, best, accept):
+    """``keep_nearest`` for ``OriginBins.walk``'s rounds, whose pairs (E,) (grouped by ray)
+    may tie with a ray's hit of an earlier round: a ray improves on a nearer hit, or on an
+    equal one (when it has one) of a lower primitive id; t_max, found, best (n,) are
+    updated and ``accept`` told the winners."""
+    group = value_run_starts(rays)
+    nearest = np.minimum.reduceat(t, group)
+    owner = rays.take(group)
+    before = t_max.take(owner)
+    candidate = (nearest < before) | ((nearest == before) & found.take(owner))
+    candidate &= nearest < np.inf
+    if not candidate.any():
+        return
+    lengths = np.diff(group, append=len(t))
+    at_min = np.flatnonzero((t == np.repeat(nearest, lengths)) & np.repeat(candidate, lengths))
+    first = value_run_starts(rays.take(at_min))
+    tied = prims.take(at_min)
+    lowest = np.minimum.reduceat(tied, first)
+    winner = at_min.take(first)
+    if len(first) < len(at_min):
+        winner = at_min[tied == np.repeat(lowest, np.diff(first, append=len(at_min)))]
+    owner, nearest, before = owner[candidate], nearest[candidate], before[candidate]
+    better = (nearest < before) | (lowest < best.take(owner))
+    owner, winner = owner[better], winner[better]
+    t_max[owner] = nearest[better]
+    found[owner] = True
+    best[owner] = lowest[better]
+    if accept is not None and len(owner):
+        accept(owner, winner)

@@ -137,6 +137,9 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
         root_formula = "textbook" if article else "stable"
     geometry = Aggregate(arrays.spheres, arrays.triangles, dtype, article=article,
                          root_formula=root_formula)
+    # (Whether depth-ordered bins pay depends on how many rays leave an origin: about one
+    # a pixel for the eye and each light sample.)
+    geometry.rays_per_origin = scene.camera.width * scene.camera.height
     eye = eye_position(scene.camera)
     perspective = not (isinstance(scene.camera, BlenderCamera) and scene.camera.projection == "ORTHO")
     samples = []
