@@ -495,7 +495,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     memory.check(memory_plan, width, height)
     if in_processes:
         workers.prestart(threads)  # they start while the context is built
-    ctx = make_context(scene, settings, dtype)
+    ctx = make_context(scene, settings, dtype, threads=threads)  # (the tree: on threads)
     shape = (height, width, 4)
     stats = RayStats()
     if isinstance(passes, PrimaryPasses):
