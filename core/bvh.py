@@ -464,28 +464,39 @@ def _joined(box, a: BinaryTree, b: BinaryTree, a_columns, b_columns) -> BinaryTr
     """The binary tree of a root (box: low, high (3,)) whose children's subtrees a and b
     were built apart over its columns a_columns and b_columns, in the order one build makes:
     breadth first, level d + 1 holding a's level d, then b's, children of a node
-    consecutive."""
+    consecutive.  (A subtree's level is one stretch of nodes there: copied a level at a
+    time.)"""
     levels = max(a.depth[-1], b.depth[-1]) + 1
     sizes = np.zeros((2, levels), np.intp)
     for row, part in enumerate((a, b)):
         sizes[row, :part.depth[-1] + 1] = np.bincount(part.depth)
     # Where each subtree's level l starts in the joined tree (its level l + 1), and in the
     # subtree itself.
-    joined_first = 1 + run_starts(sizes.sum(axis=0)) + np.stack([np.zeros(levels, np.intp),
-                                                                  sizes[0]])
-    own_first = np.stack([run_starts(sizes[0]), run_starts(sizes[1])])
+    joined_first = (1 + run_starts(sizes.sum(axis=0)) + np.stack([np.zeros(levels, np.intp),
+                                                                   sizes[0]])).tolist()
+    own_first = np.stack([run_starts(sizes[0]), run_starts(sizes[1])]).tolist()
     total = 1 + len(a.depth) + len(b.depth)
     low, high = np.empty((3, total)), np.empty((3, total))
     left, start, count, depth = (np.empty(total, np.intp) for _ in range(4))
     low[:, 0], high[:, 0] = box
     left[0], start[0], count[0], depth[0] = 1, 0, len(a.order) + len(b.order), 0
     for row, part, offset in ((0, a, 0), (1, b, len(a.order))):
-        place = (joined_first[row] - own_first[row]).take(part.depth) + np.arange(len(part.depth))
-        low[:, place], high[:, place] = part.low, part.high
-        left[place] = np.where(part.left >= 0, place.take(np.maximum(part.left, 0)), -1)
-        start[place] = part.start + offset
-        count[place] = part.count
-        depth[place] = part.depth + 1
+        for level, size in enumerate(sizes[row].tolist()):
+            if size == 0:
+                break
+            own = slice(own_first[row][level], own_first[row][level] + size)
+            there = slice(joined_first[row][level], joined_first[row][level] + size)
+            low[:, there], high[:, there] = part.low[:, own], part.high[:, own]
+            np.add(part.start[own], offset, out=start[there])
+            count[there] = part.count[own]
+            depth[there] = level + 1
+            # (Children are on the next level, which moves by its own shift.)
+            children = part.left[own]
+            if level + 1 < levels:
+                shift = joined_first[row][level + 1] - own_first[row][level + 1]
+                np.copyto(left[there], np.where(children >= 0, children + shift, -1))
+            else:
+                left[there] = children
     order = np.concatenate([a_columns.take(a.order), b_columns.take(b.order)])
     return BinaryTree(low, high, left, start, count, depth, order)
 
