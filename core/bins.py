@@ -195,32 +195,42 @@ def _cell_cones(cells: int):
     return axis, np.cos(angle), np.sin(angle)
 
 
-def _cone_near(face: int, u, v, cells: int, towards, radii):
+def _cone_near(face: int, u, v, cells: int, unit, distance, radii):
     """(near (E,), seen (E,) bool) of entries of cells (face, u, v) (E,) each for spheres
-    at ``towards`` (3, E) from the origin, radii (E,): the least distance at which a ray
-    within the cell's cone (``_cell_cones``) can meet its sphere, and whether any can.  A
-    ray at angle psi from the centre's direction enters at D cos psi - sqrt(r^2 - D^2
-    sin^2 psi), growing with psi, and the cone holds none nearer to the centre than the
-    angle to its axis less its half angle."""
+    whose centres lie along ``unit`` (3, E) at ``distance`` (E,) from the origin, radii
+    (E,): the least distance at which a ray within the cell's cone (``_cell_cones``) can
+    meet its sphere, and whether any can.  A ray at angle psi from the centre's direction
+    enters at D cos psi - sqrt(r^2 - D^2 sin^2 psi), growing with psi, and the cone holds
+    none nearer to the centre than the angle to its axis less its half angle."""
     axis, cos_half, sin_half = _cell_cones(cells)
     along, negative = face // 2, face % 2
     rows = (along, (along + 1) % 3, (along + 2) % 3)
     cell = u * cells + v
     a = axis.reshape(3, -1)
-    dot = (towards[rows[0]] * (-a[0] if negative else a[0]).take(cell)
-           + towards[rows[1]] * a[1].take(cell) + towards[rows[2]] * a[2].take(cell))
-    distance = np.sqrt((towards * towards).sum(axis=0))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cos_t = np.clip(dot / distance, -1, 1)
-    sin_t = np.sqrt(1 - cos_t * cos_t)
+    cos_t = unit[rows[0]] * (-a[0] if negative else a[0]).take(cell)
+    cos_t += unit[rows[1]] * a[1].take(cell)
+    cos_t += unit[rows[2]] * a[2].take(cell)
+    np.clip(cos_t, -1, 1, out=cos_t)
+    sin_t = cos_t * cos_t
+    np.subtract(1, sin_t, out=sin_t)
+    np.sqrt(sin_t, out=sin_t)
     ch, sh = cos_half.ravel().take(cell), sin_half.ravel().take(cell)
-    inside = cos_t >= ch                      # the centre's direction within the cone
-    cos_p = np.where(inside, 1.0, cos_t * ch + sin_t * sh)
-    sin_p = np.where(inside, 0.0, sin_t * ch - cos_t * sh)
-    lateral = distance * sin_p
-    seen = (distance <= radii) | ((cos_p > 0) & (lateral < radii))
-    near = distance * cos_p - np.sqrt(np.maximum(radii * radii - lateral * lateral, 0))
-    near = np.where(distance <= radii, 0.0, np.maximum(near, 0.0))
+    outside = cos_t < ch                      # the centre's direction outside the cone
+    cos_p = np.where(outside, cos_t * ch + sin_t * sh, 1.0)
+    lateral = sin_t * ch
+    lateral -= cos_t * sh
+    lateral *= distance
+    lateral *= outside
+    inside = distance <= radii
+    seen = (cos_p > 0) & (lateral < radii)
+    seen |= inside
+    np.multiply(lateral, lateral, out=lateral)
+    np.subtract(radii * radii, lateral, out=lateral)
+    np.maximum(lateral, 0, out=lateral)
+    near = distance * cos_p
+    near -= np.sqrt(lateral, out=lateral)
+    np.maximum(near, 0.0, out=near)
+    near[inside] = 0.0
     return near, seen
 
 
@@ -303,7 +313,9 @@ class OriginBins:
             radii = radii + _rounding_slack(reach, radii, rounding,
                                             np.abs(position).max() + np.abs(centres).max())
             np.maximum(distance, reach - radii, out=distance)
-            del reach
+            with np.errstate(invalid="ignore", divide="ignore"):
+                unit = towards_all / reach       # (a centre at the origin: NaN, inside)
+            del towards_all
         distance *= NEAR_SLACK
         if by_depth and bounds is None:
             raise ValueError("depth-ordered bins need the primitives' bounding spheres")
@@ -341,8 +353,8 @@ class OriginBins:
             v = np.repeat(first_v, area) + rank % tall
             owner = np.repeat(shown, area)
             if by_depth:
-                near, seen = _cone_near(face, u, v, cells, towards_all.take(owner, axis=1),
-                                        radii.take(owner))
+                near, seen = _cone_near(face, u, v, cells, unit.take(owner, axis=1),
+                                        reach.take(owner), radii.take(owner))
                 u, v, owner, near = u[seen], v[seen], owner[seen], near[seen]
                 nears.append(near)
             places.append(_place(slots, face, u, v, blocks, len(starts) - 2))
