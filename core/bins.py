@@ -32,6 +32,14 @@ along depth, which the tree, front to back, stops short of), is left to the tree
 batch: its rays' candidates are counted from the cell offsets, and a batch with more than
 ``MAX_PAIRS_PER_RAY`` on average goes to the tree.  (``core.aggregate`` adds when to try:
 batches large enough, trees small enough, a bound on the bytes held.)
+
+Depth-ordered bins (``by_depth``, ``walk``) serve the dense fields refused above: each entry
+keeps the least distance at which a ray within its cell's cone can meet the primitive's
+bounding sphere (``_cone_near``; entries whose cone misses the sphere are dropped), cells
+list their entries nearest first, and a ray walks its cell front to back until its next
+entry lies beyond its nearest hit (ties walked on, for the lower id): the same answer, the
+least distance and the lower id, for the rays the walk finishes; the others are handed back
+to be answered by the tree.
 """
 
 from __future__ import annotations
@@ -71,6 +79,8 @@ MAX_PAIRS_PER_RAY = 16.0
 #: Cells are stored in square blocks of BLOCK x BLOCK, only where a block lists something.
 BLOCK_BITS = 4
 BLOCK = 1 << BLOCK_BITS
+#: Boxes whose depth-ordered entries are made at once (``OriginBins._by_depth``).
+DEPTH_CHUNK = 1 << 17
 #: Upper bound on pairs intersected at once; bounds the per-pair temporaries.
 BLOCK_PAIRS = 1 << 18
 
@@ -234,6 +244,18 @@ def _cone_near(face: int, u, v, cells: int, unit, distance, radii):
     return near, seen
 
 
+def _entries(shown, first_u, last_u, first_v, last_v):
+    """(u, v, owner) (E,) each: the cells of boxes ``shown`` (k,) over their cell
+    rectangles (k,) each (``_face_cells``), box by box, u-major."""
+    tall = last_v - first_v + 1
+    area = (last_u - first_u + 1) * tall
+    rank = rank_within_runs(area)
+    tall = np.repeat(tall, area)
+    u = np.repeat(first_u, area) + rank // tall
+    v = np.repeat(first_v, area) + rank % tall
+    return u, v, np.repeat(shown, area)
+
+
 def _place(slots, face, u, v, blocks: int, empty: int) -> np.ndarray:
     """Where cells (face, u, v) (n,) each are stored (``OriginBins``): their block's slot
     times BLOCK^2 plus their place in the block; cells of empty blocks get ``empty``, the
@@ -321,6 +343,7 @@ class OriginBins:
             raise ValueError("depth-ordered bins need the primitives' bounding spheres")
         ranges = [(face, *_face_ranges(relative_low, relative_high, face // 2,
                                        bool(face % 2))) for face in range(6)]
+        del relative_low, relative_high
         sizes = [cells >> k for k in range(5 if by_depth else 3) if cells >> k >= BLOCK]
         for size in sizes:
             faces = [(face, shown, _face_cells(r, size)) for face, shown, r in ranges]
@@ -330,6 +353,7 @@ class OriginBins:
                 break
         else:
             return None
+        del ranges
         cells = size
         counts = _cell_counts(faces, cells)
         if not by_depth and total > max_mean * np.count_nonzero(counts):
@@ -343,39 +367,57 @@ class OriginBins:
         starts = np.zeros(int(stored.sum()) * BLOCK * BLOCK + 2, np.int32)
         np.cumsum(by_block[stored].ravel(), out=starts[1:-1])
         starts[-1] = starts[-2]
-        places, owners, nears = [], [], []
-        for face, shown, (first_u, last_u, first_v, last_v) in faces:
-            tall = last_v - first_v + 1
-            area = (last_u - first_u + 1) * tall
-            rank = rank_within_runs(area)
-            tall = np.repeat(tall, area)
-            u = np.repeat(first_u, area) + rank // tall
-            v = np.repeat(first_v, area) + rank % tall
-            owner = np.repeat(shown, area)
-            if by_depth:
-                near, seen = _cone_near(face, u, v, cells, unit.take(owner, axis=1),
-                                        reach.take(owner), radii.take(owner))
-                u, v, owner, near = u[seen], v[seen], owner[seen], near[seen]
-                nears.append(near)
+        if by_depth:
+            return cls._by_depth(cells, slots, starts, faces, ids, unit, reach, radii)
+        places, owners = [], []
+        for face, shown, cell_ranges in faces:
+            u, v, owner = _entries(shown, *cell_ranges)
             places.append(_place(slots, face, u, v, blocks, len(starts) - 2))
             owners.append(owner)
         place = np.concatenate(places)
-        if by_depth:
-            # Each entry's near is its own cell's (``_cone_near``): sorted by (cell, near),
-            # near rounded down to 2^-31 of the farthest, and the offsets counted again
-            # (entries whose cell's cone misses the sphere are gone).
-            near = np.concatenate(nears)
-            step = max(float(near.max(initial=0.0)), 1e-300) / 2 ** 31
-            level = np.floor(near / step).astype(np.int64)
-            order = np.argsort(place.astype(np.int64) << 31 | level)
-            counts = np.bincount(place, minlength=len(starts) - 1)
-            np.cumsum(counts, out=starts[1:])
-            return cls(cells, slots, starts, ids.astype(np.int32)[np.concatenate(owners)[order]],
-                       level[order] * (step * NEAR_SLACK), by_depth)
         # Stable: within a cell, entries keep their (ascending) primitive order.
         owner = np.concatenate(owners)[np.argsort(place, kind="stable")]
         return cls(cells, slots, starts, ids.astype(np.int32)[owner], distance[owner],
                    by_depth)
+
+    @classmethod
+    def _by_depth(cls, cells, slots, starts, faces, ids, unit, reach, radii):
+        """``build``'s depth-ordered entries: each entry's near is its own cell's
+        (``_cone_near``), rounded down to 2^-30 of the farthest centre, entries whose cone
+        misses the sphere are dropped (the offsets are counted again), and the rest sorted
+        by (cell, near).  Made DEPTH_CHUNK boxes at a time, so that the temporaries stay a
+        few tens of MB while the entries run to millions."""
+        blocks = cells // BLOCK
+        step = max(float(reach.max(initial=0.0)), 1e-300) / 2 ** 30
+        places, owners, levels = [], [], []
+        for face, shown, (first_u, last_u, first_v, last_v) in faces:
+            for at in range(0, len(shown), DEPTH_CHUNK):
+                part = slice(at, at + DEPTH_CHUNK)
+                u, v, owner = _entries(shown[part], first_u[part], last_u[part],
+                                       first_v[part], last_v[part])
+                near, seen = _cone_near(face, u, v, cells, unit.take(owner, axis=1),
+                                        reach.take(owner), radii.take(owner))
+                seen = np.flatnonzero(seen)
+                u, v, owner, near = u.take(seen), v.take(seen), owner.take(seen), near.take(seen)
+                places.append(_place(slots, face, u, v, blocks, len(starts) - 2)
+                              .astype(np.int32))
+                owners.append(owner.astype(np.int32))
+                near /= step
+                levels.append(np.floor(near, out=near).astype(np.int32))
+                del u, v, owner, near, seen
+        place = np.concatenate(places)
+        del places
+        level = np.concatenate(levels)
+        del levels
+        key = place.astype(np.int64) << 31
+        key |= level
+        order = np.argsort(key)
+        del key
+        counts = np.bincount(place, minlength=len(starts) - 1)
+        np.cumsum(counts, out=starts[1:])
+        owner = np.concatenate(owners).take(order)
+        near = level.take(order) * (step * NEAR_SLACK)
+        return cls(cells, slots, starts, ids.astype(np.int32).take(owner), near, True)
 
     @property
     def entries(self) -> int:
