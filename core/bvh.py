@@ -532,6 +532,48 @@ def _ray_terms(origins, inverse, dtype, k=WIDTH):
     return _spread(origins, dtype, k), _spread(inverse, dtype, k)
 
 
+def _split(*masks_and_arrays):
+    """For each (mask (E,), arrays) given in turn: the arrays' elements where the mask holds,
+    in order (None stays None), through one index per mask (cheaper than a boolean
+    mask applied to each array)."""
+    parts = []
+    for mask, arrays in zip(masks_and_arrays[::2], masks_and_arrays[1::2]):
+        at = np.flatnonzero(mask)
+        parts.append(tuple(None if a is None else a.take(at) for a in arrays))
+    return parts
+
+
+#: Bits of a packed sort key (``front_to_back``): a pair's ray within its chunk, its entry
+#: distance (float32 bits, made monotonic), its position.
+_RAY_BITS, _NEAR_BITS, _POSITION_BITS = 12, 32, 20
+assert RAY_CHUNK <= 1 << _RAY_BITS and _RAY_BITS + _NEAR_BITS + _POSITION_BITS == 64
+
+
+def front_to_back(local, near) -> np.ndarray:
+    """(E,) the order of pairs (E,) by ray (``local``: each pair's ray within its chunk, in
+    0 .. RAY_CHUNK - 1) and, within a ray, by entry distance ``near`` (E,), nearest first.
+
+    float32 entries (the slabs' precision near the origin) and fewer than 2 ** 20 pairs:
+    one sort of packed 64-bit keys (ray, the entry's bits made monotonic, the pair's
+    position: all keys distinct, so equal entries keep their order), a value sort, several
+    times cheaper than the argsorts it replaces (a float argsort, then a stable one by ray).
+    Otherwise those argsorts (equal entries in the quicksort's order)."""
+    count = len(near)
+    if near.dtype == np.float32 and count < 1 << _POSITION_BITS:
+        # Floats as unsigned integers in the same order: the sign bit set on positives,
+        # every bit flipped on negatives (-0.0 made 0.0 first: the two are equal).
+        bits = (near + np.float32(0)).view(np.uint32)
+        flip = np.where(bits >= np.uint32(1 << 31), np.uint32(0xFFFFFFFF),
+                        np.uint32(1 << 31))
+        key = local.astype(np.uint64) << np.uint64(_NEAR_BITS + _POSITION_BITS)
+        key |= (bits ^ flip).astype(np.uint64) << np.uint64(_POSITION_BITS)
+        key |= np.arange(count, dtype=np.uint64)
+        key.sort()
+        return (key & np.uint64((1 << _POSITION_BITS) - 1)).astype(np.intp)
+    order = np.argsort(near)
+    return order.take(np.argsort(local.take(order).astype(np.uint16), kind="stable"))
+
+
 def keep_nearest(rays, prims, t, t_max, found, accept, any_hit):
     """Settles a visit's pairs (ray, primitive) (E,), grouped by ray, each primitive at most
     once per ray, with hit distances t (E,) (inf: none): ``found`` (n,) set for each ray with
@@ -1019,11 +1061,9 @@ class BVH:
             return
         # Each ray's items front to back (rank 0 nearest), then all items by rank, so that
         # a round (ranks done .. done + size) is one slice, grouped by ray.
-        # (Sorts: near's quicksort, then radix sorts of 16-bit keys: the rays' index in the
-        # chunk, the ranks.)
-        order = np.argsort(near)
-        order = order.take(np.argsort((rays.take(order) - first).astype(np.uint16),
-                                      kind="stable"))
+        # (Sorts: one of packed (ray, entry) keys, ``front_to_back``, then a radix sort of
+        # the ranks' 16-bit keys.)
+        order = front_to_back(rays - first, near)
         rays, refs, near = rays.take(order), refs.take(order), near.take(order)
         starts = value_run_starts(rays)
         rank = rank_within_runs(np.diff(np.r_[starts, len(rays)]))
@@ -1037,30 +1077,33 @@ class BVH:
             r, ref, entry = rays[pick], refs[pick], near[pick]
             if size > 1:
                 grouped = np.argsort((r - first).astype(np.uint16), kind="stable")
-                r, ref, entry = r[grouped], ref[grouped], entry[grouped]
-            live = entry <= t_max[r]
+                r, ref, entry = r.take(grouped), ref.take(grouped), entry.take(grouped)
+            live = entry <= t_max.take(r)
             if any_hit:
-                live &= ~found[r]
-            r, ref, entry = r[live], ref[live], entry[live]
+                live &= ~found.take(r)
             leaf = ref < 0
-            leaf_rays, leaf_refs = [r[leaf]], [ref[leaf]]
-            r, ref, entry = r[~leaf], ref[~leaf], entry[~leaf]
-            # Nodes at the next level, kept (with their entries) for rounds of their own.
+            (leaf_r, leaf_ref), (r, ref, entry) = _split(live & leaf, (r, ref),
+                                                         live & ~leaf, (r, ref, entry))
+            leaf_rays, leaf_refs = [leaf_r], [leaf_ref]
+            # Nodes at the next level, kept (with their entries) for rounds of their own;
+            # past the last level no entry is needed.
             held = []
             if levels and len(r):
                 deeper = self.depths.take(ref) >= levels[0]
-                held = [(r[deeper], ref[deeper], entry[deeper])]
-                r, ref = r[~deeper], ref[~deeper]
+                held_part, (r, ref) = _split(deeper, (r, ref, entry), ~deeper, (r, ref))
+                held = [held_part]
             while len(r):
-                r, ref, entry = self._expand(r, ref, *rows, t_min, t_max, stats)
+                r, ref, entry = self._expand(r, ref, *rows, t_min, t_max, stats,
+                                             entries=bool(levels))
                 leaf = ref < 0
-                leaf_rays.append(r[leaf])
-                leaf_refs.append(ref[leaf])
-                r, ref, entry = r[~leaf], ref[~leaf], entry[~leaf]
+                (leaf_r, leaf_ref), (r, ref, entry) = _split(leaf, (r, ref),
+                                                             ~leaf, (r, ref, entry))
+                leaf_rays.append(leaf_r)
+                leaf_refs.append(leaf_ref)
                 if levels and len(r):
                     deeper = self.depths.take(ref) >= levels[0]
-                    held.append((r[deeper], ref[deeper], entry[deeper]))
-                    r, ref = r[~deeper], ref[~deeper]
+                    held_part, (r, ref) = _split(deeper, (r, ref, entry), ~deeper, (r, ref))
+                    held.append(held_part)
             reached = [i for i, part in enumerate(leaf_rays) if len(part)]
             r, ref = np.concatenate(leaf_rays), np.concatenate(leaf_refs)
             if len(reached) > 1:

@@ -702,3 +702,25 @@ def test_morton_codes_interleave_each_coordinates_21_bits_and_cells_cut_at_prefi
             if start.sum() * per_cell <= len(ordered):
                 break
         assert np.array_equal(bvh._cells(ordered, per_cell), start)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_front_to_back_orders_pairs_by_ray_then_entry(dtype):
+    """``bvh.front_to_back``: pairs by ray (up to the last of a chunk), then by entry
+    distance, negative, signed zero and huge entries included; in float32 (one sort of
+    packed keys) equal entries keep their order, as a stable sort by (ray, entry) has them."""
+    rng = np.random.default_rng(3)
+    count = 30_000
+    local = rng.integers(0, bvh.RAY_CHUNK, count)
+    local[:3] = bvh.RAY_CHUNK - 1
+    near = rng.choice(np.array([-3.5, -1e-30, -0.0, 0.0, 1e-30, 0.25, 2.0, 7.5, 3e38],
+                               dtype), count)
+    near[::7] = rng.uniform(-10, 10, len(near[::7]))
+    order = bvh.front_to_back(local, near)
+    assert np.array_equal(np.sort(order), np.arange(count))     # a permutation
+    expected = np.lexsort((near, local))                         # stable: ties by position
+    if dtype == np.float32:
+        assert np.array_equal(order, expected)
+    else:
+        assert np.array_equal(local[order], local[expected])
+        assert np.array_equal(near[order], near[expected])
