@@ -751,7 +751,7 @@ class BVH:
     # ---- traversal ----------------------------------------------------------------------
 
     def traverse(self, origins, inverse, t_min, t_max, visit, accept=None, *, any_hit=False,
-                 sources=None, leaf_blocks=None, stats=None):
+                 sources=None, leaf_blocks=None, slot_visit=None, stats=None):
         """Visit, front to back, the primitives whose leaves each ray's segment reaches.
 
         origins (3, n) or (3, 1) and inverse (3, n) (1 / direction) float64; t_min scalar
@@ -767,6 +767,11 @@ class BVH:
         slot instead of by primitive: given (ray, slot) pairs (E,) (a slot indexes
         ``leaves.ravel()``), the rays (k,) (repeats allowed) whose slot's primitive blocks
         them, as ``visit`` would say.
+        ``slot_visit(rays, slots)`` (nearest hits; optional): the sorted traversal's leaf
+        visit by slot (``_visit_boxed_leaves``): given (ray, slot) pairs (E,) grouped by
+        ray, (kept (k,) the pairs it tested, an index into them (the rest cannot hit),
+        their primitives (k,), their hit distances (k,) as ``visit`` gives them); ``accept``
+        is then told pairs as indices into the kept ones.
         Returns (n,) bool: whether a hit (any_hit: a blocker) was found for each ray.
         """
         # (The slab tests' 0 * inf, a ray in a box's plane, is NaN and ignored there
@@ -774,10 +779,10 @@ class BVH:
         # call, which cost about 3 % of the trails' time.)
         with np.errstate(invalid="ignore"):
             return self._traverse_rays(origins, inverse, t_min, t_max, visit, accept,
-                                       any_hit, sources, leaf_blocks, stats)
+                                       any_hit, sources, leaf_blocks, slot_visit, stats)
 
     def _traverse_rays(self, origins, inverse, t_min, t_max, visit, accept, any_hit, sources,
-                       leaf_blocks, stats):
+                       leaf_blocks, slot_visit, stats):
         n = inverse.shape[1]
         found = np.zeros(n, bool)
         near_origin = np.abs(origins).max(initial=0) <= self.origin_reach
@@ -808,7 +813,7 @@ class BVH:
         chunk = RAY_CHUNK if levels is not None else UNSORTED_CHUNK
         for first in range(0, n, chunk):
             self._traverse(first, min(first + chunk, n), levels, rows, t_min, t_max,
-                           visit, accept, found, any_hit, stats)
+                           visit, accept, found, any_hit, stats, slot_visit)
         return found
 
     @functools.cached_property
@@ -867,7 +872,7 @@ class BVH:
         return np.bincount(self.depths)
 
     def _traverse(self, first, stop, levels, rows, t_min, t_max, visit, accept, found,
-                  any_hit, stats):
+                  any_hit, stats, slot_visit=None):
         """Rays first .. stop - 1 from the root: front to back, sorting at ``levels``
         (``_levels``), or (levels None) level by level unsorted (``sorts_nearest``)."""
         rays = np.arange(first, stop)
@@ -876,7 +881,7 @@ class BVH:
             # saves a test a ray where nearly every ray enters the root: issue 9's 1,000
             # spheres' reflection rays replayed 0.92-0.96x.)
             self._descend_all(rays, np.zeros(len(rays), np.intp), rows, t_min, t_max, visit,
-                              found, stats, accept, any_hit)
+                              found, stats, accept, any_hit, slot_visit=slot_visit)
             return
         # (A copy: the slab test works in place on boxes it is given for one ray.)
         near, hit = self._slabs(self.root_box[:, None, None].copy(), rays, *rows, t_min, t_max)
@@ -894,7 +899,7 @@ class BVH:
                 rays, refs, near = (np.concatenate([a[~inner], b])
                                     for a, b in ((rays, r), (refs, c), (near, e)))
         self._rounds(first, rays, refs, near, levels[1:], rows, t_min, t_max, visit, accept,
-                     found, any_hit, stats)
+                     found, any_hit, stats, slot_visit)
 
     # ---- occlusion trails -----------------------------------------------------------------
 
@@ -986,7 +991,7 @@ class BVH:
             climbed += 1
 
     def _descend_all(self, rays, refs, rows, t_min, t_max, visit, found, stats, accept=None,
-                     any_hit=True, leaf_blocks=None):
+                     any_hit=True, leaf_blocks=None, slot_visit=None):
         """Descends pairs (ray, child reference) (E,), grouped by ray, level by level,
         visiting the leaves each level reaches: for any hit (a blocked ray goes no deeper),
         only their primitives whose own boxes the rays reach (``_visit_slots``) when the tree
@@ -1002,7 +1007,7 @@ class BVH:
                                       stats, leaf_blocks)
                 else:
                     self._visit_leaves(leaf_rays, leaves, t_max, visit, accept, found,
-                                       any_hit)
+                                       any_hit, slot_visit)
                 going_on = np.logical_not(leaf, out=leaf)
                 if any_hit:
                     going_on &= ~found.take(rays)
@@ -1052,7 +1057,7 @@ class BVH:
         return (self.leaves >= 0).sum(axis=1)
 
     def _rounds(self, first, rays, refs, near, levels, rows, t_min, t_max, visit, accept,
-                found, any_hit, stats):
+                found, any_hit, stats, slot_visit=None):
         """Visit items (ray, reference, entry distance) front to back in rounds (the first
         item of each ray, then the next one, then two, four, ...); a round descends its
         nodes to the next of ``levels`` (depths), whose nodes are visited front to back in
@@ -1114,34 +1119,49 @@ class BVH:
             if len(r):
                 if self._tests_slots:
                     self._visit_boxed_leaves(r, -2 - ref, rows, t_min, t_max, visit, accept,
-                                             found, any_hit, stats)
+                                             found, any_hit, stats, slot_visit)
                 else:
                     self._visit_leaves(r, -2 - ref, t_max, visit, accept, found, any_hit)
             if held and sum(len(part[0]) for part in held):
                 self._rounds(first, *(np.concatenate(parts) for parts in zip(*held)),
                              levels[1:], rows, t_min, t_max, visit, accept, found, any_hit,
-                             stats)
+                             stats, slot_visit)
             done_rank += size
             size *= 2
 
     def _visit_boxed_leaves(self, r, leaf, rows, t_min, t_max, visit, accept, found, any_hit,
-                            stats):
+                            stats, slot_visit=None):
         """``_visit_leaves`` of pairs (ray, leaf) (m,), grouped by ray, for only the
         primitives whose own boxes (``leaf_boxes``) the rays' segments reach, up to their
         nearest hits so far: a leaf's slots cost a box test each, a fraction of a primitive
         test (a 10^6-sphere set at 960x540: 69 sphere tests a camera ray, most of them
         against spheres of a leaf whose box the ray crosses but whose own boxes it misses).
-        The boxes hold their primitives, so the hits (and ties) are the same."""
+        The boxes hold their primitives, so the hits (and ties) are the same.  With
+        ``slot_visit`` (``traverse``), the pairs go to it by slot."""
         pair_slot = self._slots_reached(r, leaf, rows, t_min, t_max, stats)
         if len(pair_slot) == 0:
             return
-        rays = r.take(pair_slot // MAX_LEAF)
+        pair = pair_slot // MAX_LEAF
+        rays = r.take(pair)
+        if slot_visit is not None:
+            # (Slot pair_slot % MAX_LEAF of leaf leaf[pair], as an index of leaves.ravel().)
+            kept, prims, t = slot_visit(rays, pair_slot + (leaf.take(pair) - pair) * MAX_LEAF)
+            if len(kept):
+                keep_nearest(rays.take(kept), prims, t, t_max, found, accept, any_hit)
+            return
         prims = self.leaves.take(leaf, axis=0).ravel().take(pair_slot)
         keep_nearest(rays, prims, visit(rays, prims), t_max, found, accept, any_hit)
 
-    def _visit_leaves(self, r, leaf, t_max, visit, accept, found, any_hit):
+    def _visit_leaves(self, r, leaf, t_max, visit, accept, found, any_hit, slot_visit=None):
         prims = self.leaves.take(leaf, axis=0).ravel()
         real = np.flatnonzero(prims >= 0)
+        if slot_visit is not None:
+            pair = real // MAX_LEAF
+            leaf_rays = r.take(pair)
+            kept, prims, t = slot_visit(leaf_rays, real + (leaf.take(pair) - pair) * MAX_LEAF)
+            if len(kept):
+                keep_nearest(leaf_rays.take(kept), prims, t, t_max, found, accept, any_hit)
+            return
         leaf_rays, prims = r.take(real // MAX_LEAF), prims.take(real)
         # (A primitive is in one leaf, visited once per ray and round: unique per ray.)
         keep_nearest(leaf_rays, prims, visit(leaf_rays, prims), t_max, found, accept, any_hit)
