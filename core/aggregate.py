@@ -98,11 +98,12 @@ class Aggregate:
     """All of a scene's geometry, in the render precision ``dtype``.
 
     spheres, triangles: the scene's primitives (``core.arrays``); article: the article's hit
-    rules; root_formula: 'textbook' or 'stable' (``ROOT_FORMULAS``).
+    rules; root_formula: 'textbook' or 'stable' (``ROOT_FORMULAS``); threads: how many
+    threads the tree may be built on (``BVH.build``: the same tree for any number).
     """
 
     def __init__(self, spheres: SphereArrays, triangles: TriangleArrays, dtype, *,
-                 article: bool, root_formula: str):
+                 article: bool, root_formula: str, threads: int = 1):
         if root_formula not in ROOT_FORMULAS:
             raise ValueError(f"root_formula must be one of {ROOT_FORMULAS}, got {root_formula!r}")
         self.dtype = np.dtype(dtype)
@@ -158,7 +159,7 @@ class Aggregate:
         self._tree_spheres = len(tree_spheres)
         self._tree_triangles = len(tree_triangles)
         if len(tree_spheres) or len(tree_triangles):
-            self._build_tree(spheres, triangles, tree_spheres, tree_triangles)
+            self._build_tree(spheres, triangles, tree_spheres, tree_triangles, threads)
         self._bins = {}     # origin (bytes) -> OriginBins, or None: the tree answers there
         self._bins_bytes = 0
         # (Guards what tiles running in threads build on first use: bins, leaf-ordered
@@ -166,9 +167,9 @@ class Aggregate:
         self._lazy_lock = threading.Lock()
         self._leaf_rows = None      # the tree's spheres in leaf order (``_leaf_spheres``)
 
-    def _build_tree(self, spheres, triangles, tree_spheres, tree_triangles):
+    def _build_tree(self, spheres, triangles, tree_spheres, tree_triangles, threads):
         """The tree over spheres tree_spheres (k,) and triangles tree_triangles (t,) (indices),
-        under global ids (triangles after every sphere)."""
+        under global ids (triangles after every sphere), built on up to ``threads`` threads."""
         # The boxes as columns (3, P), which the build works on (passed as their (P, 3) views).
         lows, highs = [], []
         if len(tree_spheres):
@@ -189,7 +190,7 @@ class Aggregate:
         low = (lows[0] if len(lows) == 1 else np.concatenate(lows, axis=1)).T
         high = (highs[0] if len(highs) == 1 else np.concatenate(highs, axis=1)).T
         del lows, highs
-        self._tree = BVH.build(ids, low, high)
+        self._tree = BVH.build(ids, low, high, threads)
         # The boxes again for direction bins (``_origin_bins``), while they may pay.
         self._tree_boxes = (ids, low, high) if len(ids) <= BINS_MAX_PRIMITIVES else None
         # How far from a common point mirror images' lines may pass (``_mirror_groups``): a

@@ -49,7 +49,10 @@ run in float32 for rays that start near the origin (``ORIGIN_REACH``), else in f
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,6 +74,15 @@ CLUSTER_FROM = 50_000
 CLUSTER_SIZE = 4
 #: Nodes of at most this many clusters split at their Morton median, not by SAH.
 CLUSTER_MEDIAN_UP_TO = 16
+#: Builds of at least PARALLEL_FROM primitives asked for more than one thread run parts of
+#: the build on a thread pool (``BVH.build``): the binary SAH build of PARALLEL_FROM boxes or
+#: more is cut at its top into parts of at most 1 / threads of the boxes (plus
+#: PARALLEL_SLACK; at most PARALLEL_SPLITS cuts), each built on its own thread and joined
+#: (``build_binary_sah``); NumPy releases the GIL in most of a build's array operations (not
+#: in ``ufunc.at`` nor ``repeat``).
+PARALLEL_FROM = 20_000
+PARALLEL_SLACK = 0.15
+PARALLEL_SPLITS = 8
 #: Bins per axis of the SAH build, and the cost of a box test relative to a primitive test
 #: (pbrt's 1/2: a wide node's box tests cost about one primitive's here too).
 BINS = 16
@@ -304,7 +316,7 @@ def _binned_splits(c, lo, hi, segment, counts, starts, bins):
 
 
 def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF,
-                     median_up_to: int = 1) -> BinaryTree:
+                     median_up_to: int = 1, pool=None, threads: int = 1) -> BinaryTree:
     """A binned SAH tree over boxes low, high (3, P), P >= 1, built a level at a time, with
     leaves of at most ``max_leaf`` of them.  Nodes of at most ``median_up_to`` boxes split
     at the median of their order instead (for boxes given in Morton order, which the
@@ -317,7 +329,12 @@ def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF
     its bins; one split at the median, by reducing its children's columns.  A node of at
     most ``median_up_to`` boxes is *parked*: its subtree (halves of its order, down to
     leaves) follows from its count alone, so its columns drop out, and its subtree's boxes
-    are made bottom up at the end (``_parked_boxes``)."""
+    are made bottom up at the end (``_parked_boxes``).
+
+    pool: a thread pool of ``threads`` threads, or None; with one, a build of PARALLEL_FROM
+    boxes or more is built in parts on it (``_parallel_sah``): the same tree."""
+    if pool is not None and threads > 1 and low.shape[1] >= PARALLEL_FROM:
+        return _parallel_sah(low, high, max_leaf, median_up_to, pool, threads)
     count_all = low.shape[1]
     order = np.arange(count_all)
     data = np.concatenate([low, high])
@@ -390,6 +407,98 @@ def build_binary_sah(low: np.ndarray, high: np.ndarray, max_leaf: int = MAX_LEAF
         _parked_boxes(tree_low, tree_high, left, start, count, parked,
                       np.cumsum([0] + [len(part) for part in outs[2]]), low, high, order)
     return BinaryTree(tree_low, tree_high, left, start, count, depths, order)
+
+
+def _parallel_sah(low, high, max_leaf, median_up_to, pool, threads) -> BinaryTree:
+    """``build_binary_sah``'s tree, built in parts on ``pool``.  The root is split (as the
+    build's first level splits it, ``_root_split``), then the largest part again, until
+    every part holds at most 1 / threads of the boxes (plus PARALLEL_SLACK) or PARALLEL_SPLITS
+    cuts are made; the parts are built apart, the largest first, and joined under the nodes
+    that were cut (``_joined``).  A node's subtree depends on its boxes alone (their order
+    within it is the order the stable partitions leave, and its box is their exact bounds),
+    so the joined tree is the one a single build makes."""
+    # Parts: (columns (into low, high), their low, high); cuts: part -> (its root box, its
+    # children's parts, and their columns within it).
+    parts = {0: (np.arange(low.shape[1]), low, high)}
+    cuts = {}
+    target = low.shape[1] / threads * (1 + PARALLEL_SLACK)
+    while len(cuts) < PARALLEL_SPLITS:
+        largest = max((key for key in parts if key not in cuts), key=lambda k: len(parts[k][0]))
+        columns, lo, hi = parts[largest]
+        if len(columns) <= max(target, max_leaf, median_up_to):
+            break
+        box, halves = _root_split(lo, hi, max_leaf, median_up_to)
+        children = []
+        for half in halves:
+            children.append(len(parts))
+            parts[len(parts)] = (half, lo.take(half, axis=1), hi.take(half, axis=1))
+        cuts[largest] = (box, children, halves)
+    built = {}
+    for key in sorted((k for k in parts if k not in cuts), key=lambda k: -len(parts[k][0])):
+        built[key] = pool.submit(build_binary_sah, parts[key][1], parts[key][2], max_leaf,
+                                 median_up_to)
+
+    def tree(key):
+        if key not in cuts:
+            return built[key].result()
+        box, (left, right), halves = cuts[key]
+        return _joined(box, tree(left), tree(right), *halves)
+
+    return tree(0)
+
+
+def _root_split(low, high, max_leaf, median_up_to):
+    """(root box (low, high (3,)), (left, right)): the columns (increasing) of the two
+    children that ``build_binary_sah``'s first level splits boxes low, high (3, P) into
+    (P > max_leaf and P > median_up_to: the root splits, by SAH or at its median)."""
+    count = low.shape[1]
+    counts, first = np.array([count]), np.zeros(1, np.intp)
+    box = low.min(axis=1), high.max(axis=1)
+    runs = (first, counts, first, np.zeros(count, np.intp))
+    go_left = _sah_level(np.concatenate([low, high]), counts, runs, box[0][:, None],
+                         box[1][:, None], max_leaf, median_up_to)[4]
+    return box, (np.flatnonzero(go_left), np.flatnonzero(~go_left))
+
+
+def _joined(box, a: BinaryTree, b: BinaryTree, a_columns, b_columns) -> BinaryTree:
+    """The binary tree of a root (box: low, high (3,)) whose children's subtrees a and b
+    were built apart over its columns a_columns and b_columns, in the order one build makes:
+    breadth first, level d + 1 holding a's level d, then b's, children of a node
+    consecutive.  (A subtree's level is one stretch of nodes there: copied a level at a
+    time.)"""
+    levels = max(a.depth[-1], b.depth[-1]) + 1
+    sizes = np.zeros((2, levels), np.intp)
+    for row, part in enumerate((a, b)):
+        sizes[row, :part.depth[-1] + 1] = np.bincount(part.depth)
+    # Where each subtree's level l starts in the joined tree (its level l + 1), and in the
+    # subtree itself.
+    joined_first = (1 + run_starts(sizes.sum(axis=0)) + np.stack([np.zeros(levels, np.intp),
+                                                                   sizes[0]])).tolist()
+    own_first = np.stack([run_starts(sizes[0]), run_starts(sizes[1])]).tolist()
+    total = 1 + len(a.depth) + len(b.depth)
+    low, high = np.empty((3, total)), np.empty((3, total))
+    left, start, count, depth = (np.empty(total, np.intp) for _ in range(4))
+    low[:, 0], high[:, 0] = box
+    left[0], start[0], count[0], depth[0] = 1, 0, len(a.order) + len(b.order), 0
+    for row, part, offset in ((0, a, 0), (1, b, len(a.order))):
+        for level, size in enumerate(sizes[row].tolist()):
+            if size == 0:
+                break
+            own = slice(own_first[row][level], own_first[row][level] + size)
+            there = slice(joined_first[row][level], joined_first[row][level] + size)
+            low[:, there], high[:, there] = part.low[:, own], part.high[:, own]
+            np.add(part.start[own], offset, out=start[there])
+            count[there] = part.count[own]
+            depth[there] = level + 1
+            # (Children are on the next level, which moves by its own shift.)
+            children = part.left[own]
+            if level + 1 < levels:
+                shift = joined_first[row][level + 1] - own_first[row][level + 1]
+                np.copyto(left[there], np.where(children >= 0, children + shift, -1))
+            else:
+                left[there] = children
+    order = np.concatenate([a_columns.take(a.order), b_columns.take(b.order)])
+    return BinaryTree(low, high, left, start, count, depth, order)
 
 
 def _sah_level(data, counts, runs, level_low, level_high, max_leaf, median_up_to):
@@ -603,6 +712,25 @@ def keep_nearest(rays, prims, t, t_max, found, accept, any_hit):
         accept(owner[hit], winner)
 
 
+@contextmanager
+def _thread_pool(threads: int):
+    """A pool of ``threads`` threads for the duration of a build, or None for one thread."""
+    if threads <= 1:
+        yield None
+        return
+    with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="glint-build") as pool:
+        yield pool
+
+
+def _run(pool, function, *args) -> Future:
+    """function(*args) on ``pool``, or now where there is none: its Future."""
+    if pool is not None:
+        return pool.submit(function, *args)
+    done = Future()
+    done.set_result(function(*args))
+    return done
+
+
 @dataclass(frozen=True)
 class BVH:
     """A WIDTH-wide tree (module docstring): root_box (6,) low xyz, high xyz; blocks
@@ -623,34 +751,45 @@ class BVH:
     leaf_boxes: np.ndarray | None = None
 
     @classmethod
-    def build(cls, ids: np.ndarray, low: np.ndarray, high: np.ndarray) -> "BVH":
+    def build(cls, ids: np.ndarray, low: np.ndarray, high: np.ndarray,
+              threads: int = 1) -> "BVH":
         """A tree over primitives ``ids`` (P,) (P >= 1) with boxes low, high (P, 3).
 
         Up to CLUSTER_FROM primitives the SAH build sees every primitive; above, it sees
         clusters of CLUSTER_SIZE primitives consecutive in Morton order (of one size class:
         their boxes' largest side within a factor of 4), which become the leaves: the build
         then costs a CLUSTER_SIZE-th, and the clusters are as tight as Morton leaves.
-        (A render builds it without transparent huge pages: ``allocator.small_pages``.)"""
+        threads: how many threads the build may use (from PARALLEL_FROM primitives: the
+        primitives' planes and the leaves' are made beside the rest, the SAH build in parts;
+        the same tree for any number).  (A render builds it without transparent huge pages:
+        ``allocator.small_pages``.)"""
         ids = np.asarray(ids)
         # The boxes as columns (3, P): every pass below then runs over contiguous rows.
         low, high = np.ascontiguousarray(low.T), np.ascontiguousarray(high.T)
+        with _thread_pool(threads if low.shape[1] >= PARALLEL_FROM else 1) as pool:
+            return cls._build(ids, low, high, pool, threads)
+
+    @classmethod
+    def _build(cls, ids, low, high, pool, threads) -> "BVH":
+        """``build`` on boxes low, high (3, P), parts of it on ``pool`` (or None)."""
         count = low.shape[1]
         # Each primitive's own box as float32 planes, for the leaves' slots (``leaf_boxes``);
         # the root's box is every primitive's.
         grow = SLAB_PADDING_32 * ORIGIN_REACH * _reach(low.min(axis=1), high.max(axis=1))
         size = np.empty(count)
-        planes = _box_planes(low, high, grow, size)
+        planes = _run(pool, _box_planes, low, high, grow, size)
         if count < CLUSTER_FROM:
-            tree = build_binary_sah(low, high)
+            tree = build_binary_sah(low, high, pool=pool, threads=threads)
             leaf = tree.left < 0
             slots = _leaf_table(tree.order, tree.start[leaf], tree.count[leaf])
-            return cls.collapse(tree, _leaf_ids(ids, slots), _leaf_planes(planes, slots))
+            return cls._collapsed(tree, ids, slots, planes, pool)
+        codes = morton_codes((low + high) / 2)
+        order = np.argsort(codes)
+        planes.result()     # (which fills size)
         np.maximum(size, 1e-300, out=size)
         # One size class when the largest box is under 2 ** 1.5 times the smallest (every
         # log2 then within 2 of the least: floor 0 below), as for a cloud of equal spheres.
         mixed = np.log2(size.max()) - np.log2(size.min()) >= 1.5
-        codes = morton_codes((low + high) / 2)
-        order = np.argsort(codes)
         if mixed:       # (a stable sort of one class would keep the order)
             size = np.log2(size)
             size_class = np.floor((size - size.min()) / 2).astype(np.intp).take(order)
@@ -677,11 +816,21 @@ class BVH:
             np.minimum.at(c_low[axis], cluster, low[axis])
             np.maximum.at(c_high[axis], cluster, high[axis])
         del codes, size, run_start, run, per_run, cluster, low, high
-        tree = build_binary_sah(c_low, c_high, max_leaf=1, median_up_to=CLUSTER_MEDIAN_UP_TO)
+        tree = build_binary_sah(c_low, c_high, max_leaf=1, median_up_to=CLUSTER_MEDIAN_UP_TO,
+                                pool=pool, threads=threads)
         # Each binary leaf holds one cluster: the one at its position in the build's order.
         chosen = tree.order[tree.start[tree.left < 0]]
         slots = _leaf_table(order, firsts[chosen], counts[chosen])
-        return cls.collapse(tree, _leaf_ids(ids, slots), _leaf_planes(planes, slots))
+        return cls._collapsed(tree, ids, slots, planes, pool)
+
+    @classmethod
+    def _collapsed(cls, tree, ids, slots, planes, pool) -> "BVH":
+        """The wide tree of a binary one whose leaves hold ``slots`` (L, MAX_LEAF) (indices
+        into ids; -1: padding), with their primitives' planes (``planes``: a Future of the
+        (6, P) planes of every primitive), made on ``pool`` beside the collapse."""
+        leaf_boxes = _run(pool, lambda: _leaf_planes(planes.result(), slots))
+        wide = cls.collapse(tree, _leaf_ids(ids, slots))
+        return dataclasses.replace(wide, leaf_boxes=leaf_boxes.result())
 
     @classmethod
     def collapse(cls, tree: BinaryTree, leaves: np.ndarray, leaf_boxes=None) -> "BVH":

@@ -126,17 +126,18 @@ class TraceContext:
 
 
 def make_context(scene: Scene, settings: RenderSettings, dtype, *,
-                 root_formula: str | None = None) -> TraceContext:
+                 root_formula: str | None = None, threads: int = 1) -> TraceContext:
     """The context of a render of ``scene`` in precision ``dtype``.  root_formula:
     'textbook' or 'stable' ray/sphere roots (``core.aggregate.ROOT_FORMULAS``); None picks
-    the article's textbook formula in article semantics and the stable one otherwise."""
+    the article's textbook formula in article semantics and the stable one otherwise.
+    threads: how many threads the geometry's tree may be built on (the same tree for any)."""
     arrays = scene_arrays(scene)
     lights, table = arrays.lights, arrays.materials
     article = settings.semantics == "article"
     if root_formula is None:
         root_formula = "textbook" if article else "stable"
     geometry = Aggregate(arrays.spheres, arrays.triangles, dtype, article=article,
-                         root_formula=root_formula)
+                         root_formula=root_formula, threads=threads)
     eye = eye_position(scene.camera)
     perspective = not (isinstance(scene.camera, BlenderCamera) and scene.camera.projection == "ORTHO")
     samples = []

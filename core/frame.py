@@ -61,13 +61,25 @@ class Frame:
         return float(d) * self.scale
 
 
-def _sphere_arrays(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """(centres (N, 3), radii (N,)) of the hand-made spheres and every sphere set."""
-    centres = [np.array([s.center for s in scene.spheres], np.float64).reshape(-1, 3)]
-    radii = [np.array([s.radius for s in scene.spheres], np.float64)]
-    centres += [s.centers for s in scene.sphere_sets]
-    radii += [s.radii for s in scene.sphere_sets]
-    return np.concatenate(centres), np.concatenate(radii)
+def sphere_groups(scene: Scene) -> list[tuple[np.ndarray, np.ndarray]]:
+    """[(centres (N, 3), radii (N,))]: the hand-made spheres, then each sphere set."""
+    return [(np.array([s.center for s in scene.spheres], np.float64).reshape(-1, 3),
+             np.array([s.radius for s in scene.spheres], np.float64))] + \
+        [(s.centers, s.radii) for s in scene.sphere_sets]
+
+
+def _sphere_bounds(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """(lower (3,), upper (3,)) of every sphere (inf, -inf with none), an axis at a time: a
+    reduction over an (N, 3) array's first axis, and its (N, 3) temporaries, cost 4x as much
+    (a million spheres: 0.09 s)."""
+    lower, upper = np.full(3, np.inf), np.full(3, -np.inf)
+    for centres, radii in sphere_groups(scene):
+        if len(radii):
+            for axis in range(3):
+                column = centres[:, axis]
+                lower[axis] = min(lower[axis], np.subtract(column, radii).min())
+                upper[axis] = max(upper[axis], np.add(column, radii).max())
+    return lower, upper
 
 
 def _mesh_boxes(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
@@ -89,15 +101,15 @@ def _mesh_boxes(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
 
 def scene_bounds(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     """(lower (3,), upper (3,)) of spheres, meshes, lights (with radii) and the camera."""
-    centres, radii = _sphere_arrays(scene)
     placed = [light for light in scene.lights if not isinstance(light, SunLight)]  # no place
     lights = np.array([light.position for light in placed], np.float64).reshape(-1, 3)
     light_radii = np.array([light.radius for light in placed], np.float64)
     eye = eye_position(scene.camera)[None, :]
     mesh_low, mesh_high = _mesh_boxes(scene)
-    lower = np.concatenate([eye, centres - radii[:, None], lights - light_radii[:, None],
+    sphere_low, sphere_high = _sphere_bounds(scene)
+    lower = np.concatenate([eye, sphere_low[None, :], lights - light_radii[:, None],
                             mesh_low]).min(axis=0)
-    upper = np.concatenate([eye, centres + radii[:, None], lights + light_radii[:, None],
+    upper = np.concatenate([eye, sphere_high[None, :], lights + light_radii[:, None],
                             mesh_high]).max(axis=0)
     return lower, upper
 

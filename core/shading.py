@@ -40,6 +40,8 @@ find how much of the world a point sees, leave the points instead.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .bsdf import diffuse_seen, environment, light_response
@@ -250,10 +252,8 @@ def _shade_default(ctx, points, normals, directions, exclude, materials, shares,
             ahead = (lambda a: a) if part is None else (lambda a: a[part])
             ignored, ends = ahead(pick_row(exclude)), ahead(pick_row(offset))
             blocked = _segments_blocked(
-                ctx, lit_lift, lit_points, part, towards, sample, ignored,
-                lambda i: light_blocked(ctx, origin, _cols(towards, i), _rows(reach, i),
-                                        _rows(ignored, i), stats, end=_rows(ends, i)), stats,
-                from_light=True)
+                ctx, lit_lift, lit_points, part,
+                _ShadowRays(towards, ignored, ends, origin=origin, reach=reach), stats)
             if part is None:
                 visibility -= blocked.astype(dtype) / len(samples)
             else:
@@ -354,37 +354,66 @@ def _rows(a, index):
     return a if index is None else a[index]
 
 
-def _segments_blocked(ctx, terminator, points, rows, directions, target, exclude, trace, stats,
-                      *, from_light=False):
-    """(k,) whether the shadow rays of points ``rows`` (k,) of ``points`` (3, m) (None: all
-    m) are blocked, those of points on smooth triangles lifted off their facets
-    (``core.terminator``: ``terminator`` is the m points' TerminatorLift, or None).
+@dataclass(frozen=True)
+class _ShadowRays:
+    """k shadow rays of the default semantics, as a light's visibility traces them: either
+    from one light sample's shared origin towards k points (``origin`` its SharedOrigin,
+    ``directions`` (3, k) unit vectors from the light, ``reach`` (k,) the points' distances,
+    segments ending ``offsets`` short of them), or from k points (``starts`` (3, k)) along
+    unit ``directions`` towards a direction's light (a sun, the world: unbounded), leaving
+    ``offsets`` (k,) off them.  ``exclude`` (k,): the primitive each ray ignores."""
+    directions: np.ndarray
+    exclude: np.ndarray
+    offsets: np.ndarray
+    starts: np.ndarray = None
+    origin: object = None
+    reach: np.ndarray = None
 
-    directions: (3, k) unit directions from the points towards the light, or (from_light)
-    from the light towards the points, as the caller's segments from a light sample run (so
-    that it need not turn them round where nothing is lifted); target: the light sample's
-    position (3,), or None for a direction (a sun, the world: unbounded rays towards the
-    light); exclude (k,) what the rays ignore; trace(index): the caller's own blocked flags
-    for its rays ``index`` (None: all k), as it traces them (from a light sample's shared
-    origin, or from the points)."""
+    @property
+    def to_light(self) -> np.ndarray:
+        """(3, k) unit directions from the points towards the light."""
+        return self.directions if self.origin is None else -self.directions
+
+    @property
+    def target(self):
+        """The light sample's position (3,), or None for a direction's light."""
+        return None if self.origin is None else self.origin.position
+
+    def blocked(self, ctx, stats, index=None) -> np.ndarray:
+        """Whether rays ``index`` (k',) (None: all k) are blocked, traced as they are laid
+        out: from the light sample's shared origin, or from the points."""
+        if self.origin is not None:
+            return light_blocked(ctx, self.origin, _cols(self.directions, index),
+                                 _rows(self.reach, index), _rows(self.exclude, index), stats,
+                                 end=_rows(self.offsets, index))
+        return _rays_blocked(ctx, _cols(self.starts, index), _cols(self.directions, index),
+                             _rows(self.offsets, index), np.inf, _rows(self.exclude, index),
+                             stats)
+
+
+def _segments_blocked(ctx, terminator, points, rows, rays: _ShadowRays, stats):
+    """(k,) whether the shadow rays ``rays`` of points ``rows`` (k,) of ``points`` (3, m)
+    (None: all m) are blocked, those of points on smooth triangles lifted off their facets
+    (``core.terminator``: ``terminator`` is the m points' TerminatorLift, or None) and traced
+    from the lifted points; the others as ``rays`` lays them out."""
     if terminator is None:
-        return trace(None)
-    to_light = -directions if from_light else directions
+        return rays.blocked(ctx, stats)
+    to_light = rays.to_light
     lift = terminator if rows is None else terminator.take(rows)
     starts = points if rows is None else take(points, rows)
-    moved, origins, ignored = lift.origins(starts, to_light, exclude)
+    moved, origins, ignored = lift.origins(starts, to_light, rays.exclude)
     if len(moved) == 0:
-        return trace(None)
-    blocked = np.zeros(len(exclude), bool)
-    stay = np.ones(len(exclude), bool)
+        return rays.blocked(ctx, stats)
+    blocked = np.zeros(len(rays.exclude), bool)
+    stay = np.ones(len(rays.exclude), bool)
     stay[moved] = False
     stay = np.flatnonzero(stay)
     if len(stay):
-        blocked[stay] = trace(stay)
-    if target is None:
+        blocked[stay] = rays.blocked(ctx, stats, stay)
+    if rays.target is None:
         along, reach = take(to_light, moved), np.inf
     else:
-        along, reach = normalize(np.asarray(target, origins.dtype)[:, None] - origins)
+        along, reach = normalize(np.asarray(rays.target, origins.dtype)[:, None] - origins)
     blocked[moved] = _rays_blocked(ctx, origins, along, ray_offsets(origins), reach, ignored,
                                    stats)
     return blocked
@@ -426,10 +455,8 @@ def _world_occlusion(ctx, points, normals, materials, offset, exclude, shares, s
             along = x * take(first, part) + y * take(second, part) + z * take(n, part)
             rows, starts = chosen[part], take(origins, part)
         ignored, offsets = exclude[rows], offset[rows]
-        blocked = _segments_blocked(
-            ctx, lift, origins, part, along, None, ignored,
-            lambda i: _rays_blocked(ctx, _cols(starts, i), _cols(along, i), _rows(offsets, i),
-                                    np.inf, _rows(ignored, i), stats), stats)
+        blocked = _segments_blocked(ctx, lift, origins, part,
+                                    _ShadowRays(along, ignored, offsets, starts), stats)
         if part is None:
             hidden[rows] += blocked / len(directions)
         else:
@@ -499,10 +526,8 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
                 to_light, reach = take(towards, local), distance[local]
                 ignored, ends = exclude[lit], offset[lit]
                 blocked = _segments_blocked(
-                    ctx, terminator, points, lit, to_light, light.samples[sample], ignored,
-                    lambda i: light_blocked(ctx, origin, -_cols(to_light, i), _rows(reach, i),
-                                            _rows(ignored, i), stats, end=_rows(ends, i)),
-                    stats)
+                    ctx, terminator, points, lit,
+                    _ShadowRays(-to_light, ignored, ends, origin=origin, reach=reach), stats)
                 seen, seen_local = lit[~blocked], local[~blocked]
                 visibility[seen] += (1 if shared is None else shared[sample, seen]) / count
                 colour[:, seen] += scale * light_response(
@@ -529,10 +554,9 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
                                                    - _column(position, dtype))
                     ignored, ends = exclude[lit[facing]], offset[lit[facing]]
                     blocked = _segments_blocked(
-                        ctx, lit_lift, lit_points, facing, from_sample, position, ignored,
-                        lambda i: light_blocked(ctx, light.terms[sample], _cols(from_sample, i),
-                                                _rows(reach, i), _rows(ignored, i), stats,
-                                                end=_rows(ends, i)), stats, from_light=True)
+                        ctx, lit_lift, lit_points, facing,
+                        _ShadowRays(from_sample, ignored, ends, origin=light.terms[sample],
+                                    reach=reach), stats)
                     visibility[lit[facing]] += weights[sample, facing] * ~blocked
                     continue
                 if shared is not None:   # a sun's share of its directions
@@ -541,10 +565,8 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
                     along = np.repeat(position.astype(dtype)[:, None], len(part), axis=1)
                     starts, ignored, offsets = take(lit_points, part), exclude[rows], offset[rows]
                     blocked = _segments_blocked(
-                        ctx, lit_lift, lit_points, part, along, None, ignored,
-                        lambda i: _rays_blocked(ctx, _cols(starts, i), _cols(along, i),
-                                                _rows(offsets, i), np.inf, _rows(ignored, i),
-                                                stats), stats)
+                        ctx, lit_lift, lit_points, part,
+                        _ShadowRays(along, ignored, offsets, starts), stats)
                     visibility[rows] += (~blocked) * (shared[sample, part] / len(light.samples))
                     continue
                 ignored, ends = exclude[lit], offset[lit]
@@ -552,17 +574,14 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
                     along = (lit_towards if len(light.samples) == 1 else
                              np.repeat(position.astype(dtype)[:, None], len(lit), axis=1))
                     blocked = _segments_blocked(
-                        ctx, lit_lift, lit_points, None, along, None, ignored,
-                        lambda i: _rays_blocked(ctx, _cols(lit_points, i), _cols(along, i),
-                                                _rows(ends, i), np.inf, _rows(ignored, i),
-                                                stats), stats)
+                        ctx, lit_lift, lit_points, None,
+                        _ShadowRays(along, ignored, ends, lit_points), stats)
                 else:
                     reach = distance[lit]
                     blocked = _segments_blocked(
-                        ctx, lit_lift, lit_points, None, lit_towards, position, ignored,
-                        lambda i: light_blocked(ctx, light.terms[sample], -_cols(lit_towards, i),
-                                                _rows(reach, i), _rows(ignored, i), stats,
-                                                end=_rows(ends, i)), stats)
+                        ctx, lit_lift, lit_points, None,
+                        _ShadowRays(-lit_towards, ignored, ends, origin=light.terms[sample],
+                                    reach=reach), stats)
                 visibility[lit] += (~blocked) / len(light.samples)
             seen = lit[visibility[lit] > 0]
             colour[:, seen] += scale * visibility[seen] * light_response(

@@ -775,3 +775,64 @@ def test_nearest_hits_by_leaf_slot_match_the_flat_paths(monkeypatch, dtype, sema
     assert contexts[0].geometry._tree.sorts_nearest
     assert not contexts[1].geometry._tree.sorts_nearest
     assert slot_visits
+
+
+def _same_arrays(a, b, fields):
+    """Every field of a and b the same array, bit for bit (NaN padding included)."""
+    for field in fields:
+        x, y = np.asarray(getattr(a, field)), np.asarray(getattr(b, field))
+        assert x.dtype == y.dtype and x.shape == y.shape, field
+        assert x.tobytes() == y.tobytes(), field
+
+
+@pytest.mark.parametrize("threads", [2, 3])
+@pytest.mark.parametrize("case", ["mixed", "coincident", "one huge"])
+def test_a_binary_build_in_parts_is_the_tree_one_build_makes(monkeypatch, threads, case):
+    """``build_binary_sah`` on a thread pool cuts the tree's top into parts (the root, then
+    the largest part again, until each is small enough), builds them apart and joins them:
+    the same nodes in the same order, boxes, children, ranges, depths and order, for leaves
+    of one and of four, parked small nodes, coincident boxes (median splits) and a root
+    split that leaves almost everything on one side (cut again)."""
+    from concurrent.futures import ThreadPoolExecutor
+    monkeypatch.setattr(bvh, "PARALLEL_FROM", 500)
+    rng = np.random.default_rng(7)
+    low, high = _mixed_boxes(rng, 3000, 80)
+    if case == "coincident":
+        low[:900], high[:900] = low[900], high[900]
+    elif case == "one huge":
+        low[0], high[0] = -1e4, 1e4
+    low, high = np.ascontiguousarray(low.T), np.ascontiguousarray(high.T)
+    joins = []
+    joined = bvh._joined
+    monkeypatch.setattr(bvh, "_joined", lambda *a: joins.append(1) or joined(*a))
+    fields = ("low", "high", "left", "start", "count", "depth", "order")
+    for max_leaf, median_up_to in ((4, 1), (1, 16)):
+        one = bvh.build_binary_sah(low, high, max_leaf=max_leaf, median_up_to=median_up_to)
+        with ThreadPoolExecutor(threads) as pool:
+            parts = bvh.build_binary_sah(low, high, max_leaf=max_leaf,
+                                         median_up_to=median_up_to, pool=pool,
+                                         threads=threads)
+        _same_arrays(parts, one, fields)
+    assert len(joins) >= 2 * (threads - 1)     # it was cut (twice a build at least)
+
+
+@pytest.mark.parametrize("cluster_from", [10 ** 9, 2000])
+def test_a_tree_built_on_threads_is_the_tree_one_thread_builds(monkeypatch, cluster_from):
+    """``BVH.build`` on 2 threads (the primitives' planes and the leaves' beside the rest,
+    the SAH build in parts) gives the one-thread tree, bit for bit, over primitives and over
+    Morton clusters of mixed sizes."""
+    monkeypatch.setattr(bvh, "PARALLEL_FROM", 500)
+    monkeypatch.setattr(bvh, "CLUSTER_FROM", cluster_from)
+    rng = np.random.default_rng(8)
+    low, high = _mixed_boxes(rng, 6000, 100)
+    ids = rng.permutation(9000)[:6100]
+    calls = []
+    parallel = bvh._parallel_sah
+    monkeypatch.setattr(bvh, "_parallel_sah", lambda *a: calls.append(1) or parallel(*a))
+    one = bvh.BVH.build(ids, low, high)
+    assert not calls
+    two = bvh.BVH.build(ids, low, high, threads=2)
+    assert calls
+    _same_arrays(two, one, ("root_box", "blocks", "children", "leaves", "child_counts",
+                            "depths", "leaf_boxes"))
+    assert two.origin_reach == one.origin_reach

@@ -175,3 +175,42 @@ def test_meshes_and_sphere_sets_move_with_the_scene(scale, offset):
         assert ((green > 2 * red) & (green > 2 * blue)).sum() > 50
     moved = np.abs(result.image - reference.image).max(axis=2) > 1 / 255
     assert moved.mean() < 0.003, f"{moved.sum()} pixels differ"
+
+
+def test_bounds_and_scale_ratio_cover_every_sphere_group_lights_meshes_and_the_eye():
+    """``scene_bounds`` and ``precision.scale_ratio`` reduce each sphere group an axis at a
+    time: the values of the formulas over all spheres at once (N, 3), for hand-made spheres,
+    two sphere sets (the extremes in different ones, one set empty), a mesh, a light with a
+    radius and the eye."""
+    from core.frame import scene_bounds
+    from core.precision import scale_ratio
+
+    rng = np.random.default_rng(4)
+    material = (core.Material(),)
+    sets = [core.SphereSet(rng.uniform(-3, 3, (50, 3)) + shift, rng.uniform(0.1, 0.9, 50),
+                           np.zeros(50, int), material) for shift in ((9, 0, 0), (0, -7, 4))]
+    sets.append(core.SphereSet(np.zeros((0, 3)), np.zeros(0), np.zeros(0, int), material))
+    spheres = (core.Sphere((0, 0, -20), 0.05), core.Sphere((1, 30, 0), 2.0))
+    light = core.PointLight((-40, 2, 3), radius=1.5)
+    camera = core.ScreenCamera(8, 8, eye=(0, 0, 12))
+    scene = core.Scene(camera=camera, spheres=spheres, sphere_sets=tuple(sets),
+                       lights=(light,))
+    centres = np.concatenate([[s.center for s in spheres]] + [s.centers for s in sets])
+    radii = np.concatenate([[s.radius for s in spheres]] + [s.radii for s in sets])
+    every = np.concatenate([centres - radii[:, None], centres + radii[:, None],
+                            [(-41.5, 0.5, 1.5), (-38.5, 3.5, 4.5), (0, 0, 12)]])
+    lower, upper = scene_bounds(scene)
+    assert np.array_equal(lower, every.min(axis=0)) and np.array_equal(upper, every.max(axis=0))
+    extent = max((np.abs(centres).max(axis=1) + radii).max(), 12.0, 40 + 1.5)
+    assert scale_ratio(scene) == extent / 0.05
+    with_mesh = core.Scene(camera=camera, sphere_sets=tuple(sets), meshes=(cube(60, np.array),))
+    from core.frame import _mesh_boxes
+    mesh_low, mesh_high = _mesh_boxes(with_mesh)
+    set_centres = np.concatenate([s.centers for s in sets])
+    set_radii = np.concatenate([s.radii for s in sets])
+    every = np.concatenate([set_centres - set_radii[:, None], set_centres + set_radii[:, None],
+                            mesh_low, mesh_high, [(0, 0, 12)]])
+    lower, upper = scene_bounds(with_mesh)
+    assert np.array_equal(lower, every.min(axis=0)) and np.array_equal(upper, every.max(axis=0))
+    assert upper[0] == mesh_high[:, 0].max() > set_centres[:, 0].max()   # a mesh's bound
+    assert scale_ratio(with_mesh) == np.inf

@@ -163,3 +163,29 @@ def test_8k_render_working_memory_stays_under_300_mb():
     working = peak - result.image.nbytes
     assert result.image.shape == (4320, 7680, 4)
     assert working < 300e6, f"working memory {working / 1e6:.0f} MB"
+
+
+@pytest.mark.parametrize("count", [2, 4, 7])
+def test_a_frames_last_tile_is_cut_so_that_the_tiles_end_even(count):
+    """``_even_tail``: the last tile cut across its longer side, at multiples of BLOCK,
+    into pieces that cover it exactly, so that the tiles are a multiple of count; tile
+    lists already even, and tiles too small to cut, stay as they are."""
+    from core.render import BLOCK, _even_tail, _tiles
+
+    tiles = _tiles(640, 360, 128)                   # 15: the last is 128 x 104
+    even = _even_tail(tiles, count)
+    assert len(even) % count == 0 and even[:14] == tiles[:14]
+    pieces = even[14:]
+    assert len(pieces) == 1 + len(even) - len(tiles) > 1
+    assert all((y0, y1) == (256, 360) for y0, y1, _, _ in pieces)      # cut across x
+    assert [x0 for _, _, x0, _ in pieces] + [pieces[-1][3]] == \
+        sorted({x for _, _, x0, x1 in pieces for x in (x0, x1)})       # end to end
+    assert pieces[0][2] == 512 and pieces[-1][3] == 640
+    assert all((x1 - x0) % BLOCK == 0 for _, _, x0, x1 in pieces)
+    tall = _even_tail(_tiles(300, 100, 128), count)        # the last is 44 x 100: across y
+    assert len(tall) % count == 0 and tall[-1][2:] == (256, 300) and tall[-1][1] == 100
+    assert tall[2][0] == 0 and all(a[1] == b[0] for a, b in zip(tall[2:], tall[3:]))
+    assert _even_tail(tiles[:12], count) == tiles[:12] or 12 % count
+    assert _even_tail([(0, 1, 0, 1), (0, 1, 1, 2), (0, 1, 2, 3)], 2) == \
+        [(0, 1, 0, 1), (0, 1, 1, 2), (0, 1, 2, 3)]                   # 1 x 1: no cut
+    assert _even_tail(tiles, 1) == _even_tail(tiles, 3) == _even_tail(tiles, 5) == tiles
