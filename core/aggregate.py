@@ -602,19 +602,21 @@ class Aggregate:
             return t
 
         slot_visit = None
-        if not self._tree_triangles and (rays.shared is None or rays.shared.tree_terms is None):
+        if (exclude is not None and not self._tree_triangles
+                and (rays.shared is None or rays.shared.tree_terms is None)):
             def slot_visit(r, slots, reached=None):
                 # visit's sphere pairs by leaf slot, on the leaf-ordered spheres
                 # (``_leaf_spheres``: a leaf's spheres side by side, not scattered over
-                # the scene's arrays): the same operations on the same values, so the
-                # same distances; less the pairs of the sphere each ray excludes.
+                # the scene's arrays), less the pairs of the sphere each ray excludes,
+                # dropped before their roots (rays leaving a sphere's outside: 1 of 1.75
+                # sphere tests a reflection ray off issue 9's 1,000 spheres; where no ray
+                # excludes anything, the article's rules, visiting by slot costs 1 %
+                # more): the same operations on the same values, so the same distances.
                 x, y, z, radii, ids = self._leaf_spheres()
                 prims = ids.take(slots)
-                kept = np.arange(len(slots))
-                if exclude is not None:
-                    kept = np.flatnonzero(prims != exclude.take(r))
-                    r, slots, prims = r.take(kept), slots.take(kept), prims.take(kept)
-                    reached = None if reached is None else reached.take(kept)
+                kept = np.flatnonzero(prims != exclude.take(r))
+                r, slots, prims = r.take(kept), slots.take(kept), prims.take(kept)
+                reached = None if reached is None else reached.take(kept)
                 if stats is not None:
                     stats.sphere_tests += len(slots)
                 origins = rays.origins if rays.origins.shape[1] == 1 else take(rays.origins, r)
