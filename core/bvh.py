@@ -644,6 +644,48 @@ def _ray_terms(origins, inverse, dtype, k=WIDTH):
     return _spread(origins, dtype, k), _spread(inverse, dtype, k)
 
 
+def _split(*masks_and_arrays):
+    """For each (mask (E,), arrays) given in turn: the arrays' elements where the mask holds,
+    in order (None stays None), through one index per mask (cheaper than a boolean
+    mask applied to each array)."""
+    parts = []
+    for mask, arrays in zip(masks_and_arrays[::2], masks_and_arrays[1::2]):
+        at = np.flatnonzero(mask)
+        parts.append(tuple(None if a is None else a.take(at) for a in arrays))
+    return parts
+
+
+#: Bits of a packed sort key (``front_to_back``): a pair's ray within its chunk, its entry
+#: distance (float32 bits, made monotonic), its position.
+_RAY_BITS, _NEAR_BITS, _POSITION_BITS = 12, 32, 20
+assert RAY_CHUNK <= 1 << _RAY_BITS and _RAY_BITS + _NEAR_BITS + _POSITION_BITS == 64
+
+
+def front_to_back(local, near) -> np.ndarray:
+    """(E,) the order of pairs (E,) by ray (``local``: each pair's ray within its chunk, in
+    0 .. RAY_CHUNK - 1) and, within a ray, by entry distance ``near`` (E,), nearest first.
+
+    float32 entries (the slabs' precision near the origin) and fewer than 2 ** 20 pairs:
+    one sort of packed 64-bit keys (ray, the entry's bits made monotonic, the pair's
+    position: all keys distinct, so equal entries keep their order), a value sort, several
+    times cheaper than the argsorts it replaces (a float argsort, then a stable one by ray).
+    Otherwise those argsorts (equal entries in the quicksort's order)."""
+    count = len(near)
+    if near.dtype == np.float32 and count < 1 << _POSITION_BITS:
+        # Floats as unsigned integers in the same order: the sign bit set on positives,
+        # every bit flipped on negatives (-0.0 made 0.0 first: the two are equal).
+        bits = (near + np.float32(0)).view(np.uint32)
+        flip = np.where(bits >= np.uint32(1 << 31), np.uint32(0xFFFFFFFF),
+                        np.uint32(1 << 31))
+        key = local.astype(np.uint64) << np.uint64(_NEAR_BITS + _POSITION_BITS)
+        key |= (bits ^ flip).astype(np.uint64) << np.uint64(_POSITION_BITS)
+        key |= np.arange(count, dtype=np.uint64)
+        key.sort()
+        return (key & np.uint64((1 << _POSITION_BITS) - 1)).astype(np.intp)
+    order = np.argsort(near)
+    return order.take(np.argsort(local.take(order).astype(np.uint16), kind="stable"))
+
+
 def keep_nearest(rays, prims, t, t_max, found, accept, any_hit):
     """Settles a visit's pairs (ray, primitive) (E,), grouped by ray, each primitive at most
     once per ray, with hit distances t (E,) (inf: none): ``found`` (n,) set for each ray with
@@ -861,7 +903,7 @@ class BVH:
     # ---- traversal ----------------------------------------------------------------------
 
     def traverse(self, origins, inverse, t_min, t_max, visit, accept=None, *, any_hit=False,
-                 sources=None, leaf_blocks=None, stats=None):
+                 sources=None, leaf_blocks=None, slot_visit=None, stats=None):
         """Visit, front to back, the primitives whose leaves each ray's segment reaches.
 
         origins (3, n) or (3, 1) and inverse (3, n) (1 / direction) float64; t_min scalar
@@ -877,6 +919,11 @@ class BVH:
         slot instead of by primitive: given (ray, slot) pairs (E,) (a slot indexes
         ``leaves.ravel()``), the rays (k,) (repeats allowed) whose slot's primitive blocks
         them, as ``visit`` would say.
+        ``slot_visit(rays, slots)`` (nearest hits; optional): the sorted traversal's leaf
+        visit by slot (``_visit_boxed_leaves``): given (ray, slot) pairs (E,) grouped by
+        ray, (kept (k,) the pairs it tested, an index into them (the rest cannot hit),
+        their primitives (k,), their hit distances (k,) as ``visit`` gives them); ``accept``
+        is then told pairs as indices into the kept ones.
         Returns (n,) bool: whether a hit (any_hit: a blocker) was found for each ray.
         """
         # (The slab tests' 0 * inf, a ray in a box's plane, is NaN and ignored there
@@ -884,10 +931,10 @@ class BVH:
         # call, which cost about 3 % of the trails' time.)
         with np.errstate(invalid="ignore"):
             return self._traverse_rays(origins, inverse, t_min, t_max, visit, accept,
-                                       any_hit, sources, leaf_blocks, stats)
+                                       any_hit, sources, leaf_blocks, slot_visit, stats)
 
     def _traverse_rays(self, origins, inverse, t_min, t_max, visit, accept, any_hit, sources,
-                       leaf_blocks, stats):
+                       leaf_blocks, slot_visit, stats):
         n = inverse.shape[1]
         found = np.zeros(n, bool)
         near_origin = np.abs(origins).max(initial=0) <= self.origin_reach
@@ -918,7 +965,7 @@ class BVH:
         chunk = RAY_CHUNK if levels is not None else UNSORTED_CHUNK
         for first in range(0, n, chunk):
             self._traverse(first, min(first + chunk, n), levels, rows, t_min, t_max,
-                           visit, accept, found, any_hit, stats)
+                           visit, accept, found, any_hit, stats, slot_visit)
         return found
 
     @functools.cached_property
@@ -977,7 +1024,7 @@ class BVH:
         return np.bincount(self.depths)
 
     def _traverse(self, first, stop, levels, rows, t_min, t_max, visit, accept, found,
-                  any_hit, stats):
+                  any_hit, stats, slot_visit=None):
         """Rays first .. stop - 1 from the root: front to back, sorting at ``levels``
         (``_levels``), or (levels None) level by level unsorted (``sorts_nearest``)."""
         rays = np.arange(first, stop)
@@ -986,7 +1033,7 @@ class BVH:
             # saves a test a ray where nearly every ray enters the root: issue 9's 1,000
             # spheres' reflection rays replayed 0.92-0.96x.)
             self._descend_all(rays, np.zeros(len(rays), np.intp), rows, t_min, t_max, visit,
-                              found, stats, accept, any_hit)
+                              found, stats, accept, any_hit, slot_visit=slot_visit)
             return
         # (A copy: the slab test works in place on boxes it is given for one ray.)
         near, hit = self._slabs(self.root_box[:, None, None].copy(), rays, *rows, t_min, t_max)
@@ -1004,7 +1051,7 @@ class BVH:
                 rays, refs, near = (np.concatenate([a[~inner], b])
                                     for a, b in ((rays, r), (refs, c), (near, e)))
         self._rounds(first, rays, refs, near, levels[1:], rows, t_min, t_max, visit, accept,
-                     found, any_hit, stats)
+                     found, any_hit, stats, slot_visit)
 
     # ---- occlusion trails -----------------------------------------------------------------
 
@@ -1096,7 +1143,7 @@ class BVH:
             climbed += 1
 
     def _descend_all(self, rays, refs, rows, t_min, t_max, visit, found, stats, accept=None,
-                     any_hit=True, leaf_blocks=None):
+                     any_hit=True, leaf_blocks=None, slot_visit=None):
         """Descends pairs (ray, child reference) (E,), grouped by ray, level by level,
         visiting the leaves each level reaches: for any hit (a blocked ray goes no deeper),
         only their primitives whose own boxes the rays reach (``_visit_slots``) when the tree
@@ -1112,7 +1159,7 @@ class BVH:
                                       stats, leaf_blocks)
                 else:
                     self._visit_leaves(leaf_rays, leaves, t_max, visit, accept, found,
-                                       any_hit)
+                                       any_hit, slot_visit)
                 going_on = np.logical_not(leaf, out=leaf)
                 if any_hit:
                     going_on &= ~found.take(rays)
@@ -1162,7 +1209,7 @@ class BVH:
         return (self.leaves >= 0).sum(axis=1)
 
     def _rounds(self, first, rays, refs, near, levels, rows, t_min, t_max, visit, accept,
-                found, any_hit, stats):
+                found, any_hit, stats, slot_visit=None):
         """Visit items (ray, reference, entry distance) front to back in rounds (the first
         item of each ray, then the next one, then two, four, ...); a round descends its
         nodes to the next of ``levels`` (depths), whose nodes are visited front to back in
@@ -1171,11 +1218,9 @@ class BVH:
             return
         # Each ray's items front to back (rank 0 nearest), then all items by rank, so that
         # a round (ranks done .. done + size) is one slice, grouped by ray.
-        # (Sorts: near's quicksort, then radix sorts of 16-bit keys: the rays' index in the
-        # chunk, the ranks.)
-        order = np.argsort(near)
-        order = order.take(np.argsort((rays.take(order) - first).astype(np.uint16),
-                                      kind="stable"))
+        # (Sorts: one of packed (ray, entry) keys, ``front_to_back``, then a radix sort of
+        # the ranks' 16-bit keys.)
+        order = front_to_back(rays - first, near)
         rays, refs, near = rays.take(order), refs.take(order), near.take(order)
         starts = value_run_starts(rays)
         rank = rank_within_runs(np.diff(np.r_[starts, len(rays)]))
@@ -1189,30 +1234,33 @@ class BVH:
             r, ref, entry = rays[pick], refs[pick], near[pick]
             if size > 1:
                 grouped = np.argsort((r - first).astype(np.uint16), kind="stable")
-                r, ref, entry = r[grouped], ref[grouped], entry[grouped]
-            live = entry <= t_max[r]
+                r, ref, entry = r.take(grouped), ref.take(grouped), entry.take(grouped)
+            live = entry <= t_max.take(r)
             if any_hit:
-                live &= ~found[r]
-            r, ref, entry = r[live], ref[live], entry[live]
+                live &= ~found.take(r)
             leaf = ref < 0
-            leaf_rays, leaf_refs = [r[leaf]], [ref[leaf]]
-            r, ref, entry = r[~leaf], ref[~leaf], entry[~leaf]
-            # Nodes at the next level, kept (with their entries) for rounds of their own.
+            (leaf_r, leaf_ref), (r, ref, entry) = _split(live & leaf, (r, ref),
+                                                         live & ~leaf, (r, ref, entry))
+            leaf_rays, leaf_refs = [leaf_r], [leaf_ref]
+            # Nodes at the next level, kept (with their entries) for rounds of their own;
+            # past the last level no entry is needed.
             held = []
             if levels and len(r):
                 deeper = self.depths.take(ref) >= levels[0]
-                held = [(r[deeper], ref[deeper], entry[deeper])]
-                r, ref = r[~deeper], ref[~deeper]
+                held_part, (r, ref) = _split(deeper, (r, ref, entry), ~deeper, (r, ref))
+                held = [held_part]
             while len(r):
-                r, ref, entry = self._expand(r, ref, *rows, t_min, t_max, stats)
+                r, ref, entry = self._expand(r, ref, *rows, t_min, t_max, stats,
+                                             entries=bool(levels))
                 leaf = ref < 0
-                leaf_rays.append(r[leaf])
-                leaf_refs.append(ref[leaf])
-                r, ref, entry = r[~leaf], ref[~leaf], entry[~leaf]
+                (leaf_r, leaf_ref), (r, ref, entry) = _split(leaf, (r, ref),
+                                                             ~leaf, (r, ref, entry))
+                leaf_rays.append(leaf_r)
+                leaf_refs.append(leaf_ref)
                 if levels and len(r):
                     deeper = self.depths.take(ref) >= levels[0]
-                    held.append((r[deeper], ref[deeper], entry[deeper]))
-                    r, ref = r[~deeper], ref[~deeper]
+                    held_part, (r, ref) = _split(deeper, (r, ref, entry), ~deeper, (r, ref))
+                    held.append(held_part)
             reached = [i for i, part in enumerate(leaf_rays) if len(part)]
             r, ref = np.concatenate(leaf_rays), np.concatenate(leaf_refs)
             if len(reached) > 1:
@@ -1223,34 +1271,49 @@ class BVH:
             if len(r):
                 if self._tests_slots:
                     self._visit_boxed_leaves(r, -2 - ref, rows, t_min, t_max, visit, accept,
-                                             found, any_hit, stats)
+                                             found, any_hit, stats, slot_visit)
                 else:
                     self._visit_leaves(r, -2 - ref, t_max, visit, accept, found, any_hit)
             if held and sum(len(part[0]) for part in held):
                 self._rounds(first, *(np.concatenate(parts) for parts in zip(*held)),
                              levels[1:], rows, t_min, t_max, visit, accept, found, any_hit,
-                             stats)
+                             stats, slot_visit)
             done_rank += size
             size *= 2
 
     def _visit_boxed_leaves(self, r, leaf, rows, t_min, t_max, visit, accept, found, any_hit,
-                            stats):
+                            stats, slot_visit=None):
         """``_visit_leaves`` of pairs (ray, leaf) (m,), grouped by ray, for only the
         primitives whose own boxes (``leaf_boxes``) the rays' segments reach, up to their
         nearest hits so far: a leaf's slots cost a box test each, a fraction of a primitive
         test (a 10^6-sphere set at 960x540: 69 sphere tests a camera ray, most of them
         against spheres of a leaf whose box the ray crosses but whose own boxes it misses).
-        The boxes hold their primitives, so the hits (and ties) are the same."""
+        The boxes hold their primitives, so the hits (and ties) are the same.  With
+        ``slot_visit`` (``traverse``), the pairs go to it by slot."""
         pair_slot = self._slots_reached(r, leaf, rows, t_min, t_max, stats)
         if len(pair_slot) == 0:
             return
-        rays = r.take(pair_slot // MAX_LEAF)
+        pair = pair_slot // MAX_LEAF
+        rays = r.take(pair)
+        if slot_visit is not None:
+            # (Slot pair_slot % MAX_LEAF of leaf leaf[pair], as an index of leaves.ravel().)
+            kept, prims, t = slot_visit(rays, pair_slot + (leaf.take(pair) - pair) * MAX_LEAF)
+            if len(kept):
+                keep_nearest(rays.take(kept), prims, t, t_max, found, accept, any_hit)
+            return
         prims = self.leaves.take(leaf, axis=0).ravel().take(pair_slot)
         keep_nearest(rays, prims, visit(rays, prims), t_max, found, accept, any_hit)
 
-    def _visit_leaves(self, r, leaf, t_max, visit, accept, found, any_hit):
+    def _visit_leaves(self, r, leaf, t_max, visit, accept, found, any_hit, slot_visit=None):
         prims = self.leaves.take(leaf, axis=0).ravel()
         real = np.flatnonzero(prims >= 0)
+        if slot_visit is not None:
+            pair = real // MAX_LEAF
+            leaf_rays = r.take(pair)
+            kept, prims, t = slot_visit(leaf_rays, real + (leaf.take(pair) - pair) * MAX_LEAF)
+            if len(kept):
+                keep_nearest(leaf_rays.take(kept), prims, t, t_max, found, accept, any_hit)
+            return
         leaf_rays, prims = r.take(real // MAX_LEAF), prims.take(real)
         # (A primitive is in one leaf, visited once per ray and round: unique per ray.)
         keep_nearest(leaf_rays, prims, visit(leaf_rays, prims), t_max, found, accept, any_hit)

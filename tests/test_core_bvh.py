@@ -704,6 +704,79 @@ def test_morton_codes_interleave_each_coordinates_21_bits_and_cells_cut_at_prefi
         assert np.array_equal(bvh._cells(ordered, per_cell), start)
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_front_to_back_orders_pairs_by_ray_then_entry(dtype):
+    """``bvh.front_to_back``: pairs by ray (up to the last of a chunk), then by entry
+    distance, negative, signed zero and huge entries included; in float32 (one sort of
+    packed keys) equal entries keep their order, as a stable sort by (ray, entry) has them."""
+    rng = np.random.default_rng(3)
+    count = 30_000
+    local = rng.integers(0, bvh.RAY_CHUNK, count)
+    local[:3] = bvh.RAY_CHUNK - 1
+    near = rng.choice(np.array([-3.5, -1e-30, -0.0, 0.0, 1e-30, 0.25, 2.0, 7.5, 3e38],
+                               dtype), count)
+    near[::7] = rng.uniform(-10, 10, len(near[::7]))
+    order = bvh.front_to_back(local, near)
+    assert np.array_equal(np.sort(order), np.arange(count))     # a permutation
+    expected = np.lexsort((near, local))                         # stable: ties by position
+    if dtype == np.float32:
+        assert np.array_equal(order, expected)
+    else:
+        assert np.array_equal(local[order], local[expected])
+        assert np.array_equal(near[order], near[expected])
+
+
+@pytest.mark.parametrize("semantics", ["default", "article"])
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_nearest_hits_by_leaf_slot_match_the_flat_paths(monkeypatch, dtype, semantics):
+    """A tree of spheres alone visits its leaves by slot on the leaf-ordered spheres
+    (``slot_visit``), dropping the pairs of each ray's own sphere before their roots, front
+    to back and unsorted alike.  Distances and primitives agree ray for ray with the flat
+    paths, for rays with their own origins and rays from one point (the same roots), in
+    both hit rules (the article's textbook roots) and precisions; and the two traversals
+    agree for rays sharing an origin without per-sphere terms."""
+    monkeypatch.setattr(aggregate, "SHARED_TERMS_LIMIT", 0)
+    scene = _scene(3000)
+    settings = core.RenderSettings(semantics=semantics)
+    contexts = [make_context(scene, settings, dtype) for _ in range(2)]
+    slot_visits = []
+    for ctx in contexts:
+        leaf_spheres = ctx.geometry._leaf_spheres
+        monkeypatch.setattr(ctx.geometry, "_leaf_spheres",
+                            lambda f=leaf_spheres: slot_visits.append(1) or f())
+    monkeypatch.setattr(aggregate, "BVH_MIN_SPHERES", 10 ** 9)
+    flat = make_context(scene, settings, dtype)
+    rng = np.random.default_rng(4)
+    for case in ("own origins", "one point", "shared origin"):
+        origins, directions = _rays(rng, 4000, dtype, None if case == "own origins"
+                                    else (0.5, 1.0, 11.0))
+        share = case == "shared origin"
+        if case == "one point":     # (per-ray origins, all equal: no shared terms)
+            origins = np.repeat(origins, 4000, axis=1).astype(dtype)
+        # Half the rays exclude the sphere they would hit first, the rest random ones.
+        origin = flat.geometry.shared_origin(origins[:, 0]) if share else None
+        first = flat.geometry.intersect(RayBatch(origins, directions, 0.0, np.inf, origin),
+                                        RayStats())[1]
+        exclude = rng.integers(-1, 3001, 4000)
+        exclude[:2000] = first[:2000]
+        assert (first[:2000] >= 1).sum() > 100
+        results = []
+        for ctx, sorted_from in zip(contexts + [flat], (0, 10 ** 9, 0)):
+            monkeypatch.setattr(bvh, "SORTED_FROM", sorted_from)   # read on first traversal
+            origin = ctx.geometry.shared_origin(origins[:, 0]) if share else None
+            assert origin is None or origin.tree_terms is None
+            batch = RayBatch(origins, directions, 0.0, np.inf, origin, exclude)
+            results.append(ctx.geometry.intersect(batch, RayStats())[:2])
+        (t1, p1), (t2, p2), (t3, p3) = results
+        assert np.array_equal(p1, p2) and np.array_equal(t1, t2)
+        if not share:       # (a shared origin's flat spheres take its extended terms)
+            assert np.array_equal(p1, p3) and np.array_equal(t1, t3)
+        assert ((p1 >= 1) & (p1 < 3001)).any() and (p1 == 0).any() and (p1 < 0).any()
+    assert contexts[0].geometry._tree.sorts_nearest
+    assert not contexts[1].geometry._tree.sorts_nearest
+    assert slot_visits
+
+
 def _same_arrays(a, b, fields):
     """Every field of a and b the same array, bit for bit (NaN padding included)."""
     for field in fields:
