@@ -79,8 +79,11 @@ CLUSTER_MEDIAN_UP_TO = 16
 #: more is cut at its top into parts of at most 1 / threads of the boxes (plus
 #: PARALLEL_SLACK; at most PARALLEL_SPLITS cuts), each built on its own thread and joined
 #: (``build_binary_sah``); NumPy releases the GIL in most of a build's array operations (not
-#: in ``ufunc.at`` nor ``repeat``).
-PARALLEL_FROM = 20_000
+#: in ``ufunc.at`` nor ``repeat``).  Below 50,000 the gain is a few ms and the threads'
+#: cost shows on a loaded machine (the lead's 10^5 instances, 27,894 clusters: the SAH
+#: build's critical path 0.031 -> 0.020 s of thread CPU, but the context 0.086-0.093 ->
+#: 0.097-0.103 s wall at load 3-4; the 10^6 points' 0.90-0.96 -> 0.70-0.75 s there).
+PARALLEL_FROM = 50_000
 PARALLEL_SLACK = 0.15
 PARALLEL_SPLITS = 8
 #: Bins per axis of the SAH build, and the cost of a box test relative to a primitive test

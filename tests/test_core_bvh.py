@@ -836,3 +836,19 @@ def test_a_tree_built_on_threads_is_the_tree_one_thread_builds(monkeypatch, clus
     _same_arrays(two, one, ("root_box", "blocks", "children", "leaves", "child_counts",
                             "depths", "leaf_boxes"))
     assert two.origin_reach == one.origin_reach
+
+
+def test_a_render_builds_its_tree_on_its_threads(monkeypatch):
+    """``core.render`` builds the tree on as many threads as it renders tiles with (the
+    workers wait for the context meanwhile), one thread for threads=1; the same image."""
+    monkeypatch.setattr(bvh, "PARALLEL_FROM", 500)
+    calls = []
+    parallel = bvh._parallel_sah
+    monkeypatch.setattr(bvh, "_parallel_sah",
+                        lambda *a: calls.append(a[-1]) or parallel(*a))
+    scene = _scene(3000)
+    one = core.render(scene, core.RenderSettings(threads=1, tile_size=32))
+    assert calls == []
+    two = core.render(scene, core.RenderSettings(threads=2, tile_size=32))
+    assert calls == [2]
+    assert np.array_equal(one.image, two.image)
