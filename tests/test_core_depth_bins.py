@@ -169,6 +169,7 @@ def _depth_or_tree(monkeypatch, depth: bool):
     refused, as in a field dense enough from every side: the slab is kept small.)"""
     monkeypatch.setattr(bins, "MAX_MEAN_CANDIDATES", 0.0)
     monkeypatch.setattr(aggregate, "DEPTH_RAYS_PER_PRIMITIVE", 0.0 if depth else np.inf)
+    monkeypatch.setattr(aggregate, "DEPTH_BINS_CROSSINGS", 0.0)
 
 
 @pytest.mark.parametrize("semantics", ["default", "article"])
@@ -244,3 +245,22 @@ def test_depth_bins_only_where_a_frame_has_rays_enough():
                                 geometry.shared_origin(origin)), stats)
     assert stats.node_tests > 0
     assert not any(b is not None and b.by_depth for b in geometry._bins.values())
+
+
+def test_depth_bins_only_in_dense_fields(monkeypatch):
+    """With rays enough, a tree whose random lines cross few leaf boxes (a mesh's surface:
+    ``BVH.leaf_crossings`` under DEPTH_BINS_CROSSINGS) gets no depth-ordered bins, and a
+    dense one does."""
+    monkeypatch.setattr(bins, "MAX_MEAN_CANDIDATES", 0.0)
+    monkeypatch.setattr(aggregate, "DEPTH_RAYS_PER_PRIMITIVE", 0.0)
+    scene = _slab_scene()
+    geometry = make_context(scene, core.RenderSettings(), np.float64).geometry
+    crossings = geometry._tree.leaf_crossings
+    origin = np.array([0.0, 0.0, 2.0])
+    directions = _unit(np.random.default_rng(4).normal(size=(3, 3000)))
+    for floor, expected in ((crossings * 1.01, False), (crossings * 0.99, True)):
+        monkeypatch.setattr(aggregate, "DEPTH_BINS_CROSSINGS", floor)
+        geometry = make_context(scene, core.RenderSettings(), np.float64).geometry
+        geometry.intersect(RayBatch(origin[:, None], directions, 0.0, np.inf,
+                                    geometry.shared_origin(origin)), RayStats())
+        assert any(b is not None and b.by_depth for b in geometry._bins.values()) == expected
