@@ -541,6 +541,18 @@ class Aggregate:
                     rows = self._leaf_rows = (*columns, ids)
         return rows
 
+    def _leaf_offsets(self, rays: RayBatch, r, slots, centres, stats):
+        """(3, k) each pair's ray origin less its sphere's centre, for pairs (ray ``r``,
+        leaf slot ``slots``) (k,) each, the centres (x, y, z) being the leaf-ordered
+        spheres' (``_leaf_spheres``); counts the k sphere tests."""
+        if stats is not None:
+            stats.sphere_tests += len(slots)
+        origins = rays.origins if rays.origins.shape[1] == 1 else take(rays.origins, r)
+        f = np.empty((3, len(slots)), np.result_type(origins.dtype, self.dtype))
+        for k, column in enumerate(centres):
+            np.subtract(origins[k], column.take(slots), out=f[k])
+        return f
+
     def _leaf_blocks(self, rays: RayBatch, r, slots, low, high, stats):
         """The rays (k,) of pairs (ray r, leaf slot) (E,) whose sphere blocks them under the
         default rules with the stable roots and no shared terms: ``_sphere_blocks`` on the
@@ -552,12 +564,7 @@ class Aggregate:
             # box holds the ray's origin: 22 % of the pairs in issue 9's fields).
             other = np.flatnonzero(ids.take(slots) != rays.exclude.take(r))
             r, slots = r.take(other), slots.take(other)
-        if stats is not None:
-            stats.sphere_tests += len(slots)
-        origins = rays.origins if rays.origins.shape[1] == 1 else take(rays.origins, r)
-        f = np.empty((3, len(slots)), np.result_type(origins.dtype, self.dtype))
-        for k, column in enumerate((x, y, z)):
-            np.subtract(origins[k], column.take(slots), out=f[k])
+        f = self._leaf_offsets(rays, r, slots, (x, y, z), stats)
         radius = radii.take(slots)
         b, disc = offset_discriminants(f, take(rays.directions, r), radius)
         meet = np.flatnonzero(disc > 0)
@@ -636,12 +643,7 @@ class Aggregate:
                 kept = np.flatnonzero(prims != exclude.take(r))
                 r, slots, prims = r.take(kept), slots.take(kept), prims.take(kept)
                 reached = None if reached is None else reached.take(kept)
-                if stats is not None:
-                    stats.sphere_tests += len(slots)
-                origins = rays.origins if rays.origins.shape[1] == 1 else take(rays.origins, r)
-                f = np.empty((3, len(slots)), np.result_type(origins.dtype, self.dtype))
-                for k, column in enumerate((x, y, z)):
-                    np.subtract(origins[k], column.take(slots), out=f[k])
+                f = self._leaf_offsets(rays, r, slots, (x, y, z), stats)
                 roots = offset_roots(f, take(rays.directions, r), radii.take(slots),
                                      article=self._textbook)
                 d = first_hit_distance(*roots, t_min.take(r), article=self.article)
