@@ -39,7 +39,9 @@ bounding sphere (``_cone_near``; entries whose cone misses the sphere are droppe
 list their entries nearest first, and a ray walks its cell front to back until its next
 entry lies beyond its nearest hit (ties walked on, for the lower id): the same answer, the
 least distance and the lower id, for the rays the walk finishes; the others are handed back
-to be answered by the tree.
+to be answered by the tree.  Shadow segments keep to the tree: from a light, a lit point's
+overlapping neighbours lie in its cell's cone before it, and 39 % of the 10^6 set's segments
+were still walking after the last round.
 """
 
 from __future__ import annotations
@@ -490,11 +492,11 @@ class OriginBins:
             keep_nearest(ray, prims, visit(ray, prims), t_max, found, accept, any_hit)
         return found
 
-    def walk(self, plan, t_max, visit, accept=None, *, any_hit=False, exclude=None):
-        """Depth-ordered bins' (``by_depth``) answer to ``traverse``'s question, walking each
-        ray's cell front to back: round k meets the next WALK_ROUNDS[k] entries of every ray
-        still walking, and a ray stops at its first blocker (any_hit), at the end of its
-        cell, or once its next entry's ``near`` is beyond its nearest hit so far (a hit
+    def walk(self, plan, t_max, visit, accept=None, *, exclude=None):
+        """Depth-ordered bins' (``by_depth``) answer to ``traverse``'s nearest-hit question
+        (shadow segments keep to the tree: module docstring), walking each ray's cell front
+        to back: round k meets the next WALK_ROUNDS[k] entries of every ray still walking,
+        and a ray stops at the end of its cell, or once its next entry's ``near`` is beyond its nearest hit so far (a hit
         there could at best tie: walked on while equal, for the lower id) or beyond its
         t_max.  plan, t_max (lowered in place), accept, exclude: as ``traverse``'s;
         ``visit(rays, prims, reach)`` as ``traverse``'s visit with each pair's reach (E,)
@@ -510,7 +512,7 @@ class OriginBins:
         position = start.take(live).astype(np.intp)
         end = position + count.take(live)
         for size in WALK_ROUNDS:
-            live, position, end = self._walking(live, position, end, t_max, found, any_hit)
+            live, position, end = self._walking(live, position, end, t_max, found)
             if len(live) == 0:
                 break
             step = np.minimum(end - position, size)
@@ -527,25 +529,18 @@ class OriginBins:
                 continue
             ray, prims = ray.take(keep), self.primitives.take(entry.take(keep)).astype(np.intp)
             t = visit(ray, prims, np.where(settled.take(keep), np.inf, reach.take(keep)))
-            if any_hit:
-                found[ray[t < np.inf]] = True
-            else:
-                _settle(ray, prims, t, t_max, found, best, accept)
-        live, position, end = self._walking(live, position, end, t_max, found, any_hit)
+            _settle(ray, prims, t, t_max, found, best, accept)
+        live, position, end = self._walking(live, position, end, t_max, found)
         found[live] = False
         return found, live
 
-    def _walking(self, live, position, end, t_max, found, any_hit):
+    def _walking(self, live, position, end, t_max, found):
         """(live, position, end) of ``walk``'s rays that walk on: entries left, and the next
-        one within reach (nearest hits: up to an equal distance once a hit is found; any
-        hit: short of t_max, and no blocker found)."""
+        one within reach (up to an equal distance once a hit is found)."""
         go = position < end
         near = self.near.take(np.minimum(position, len(self.near) - 1))
         reach, settled = t_max.take(live), found.take(live)
-        if any_hit:
-            go &= ~settled & (near < reach)
-        else:
-            go &= np.where(settled, near <= reach, near < reach)
+        go &= np.where(settled, near <= reach, near < reach)
         go = np.flatnonzero(go)
         return live.take(go), position.take(go), end.take(go)
 
