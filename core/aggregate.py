@@ -183,6 +183,7 @@ class Aggregate:
         if len(tree_spheres) or len(tree_triangles):
             self._build_tree(spheres, triangles, tree_spheres, tree_triangles, threads)
         self._bins = {}     # origin (bytes) -> OriginBins, or None: the tree answers there
+        self._parallel = {}     # a sun's direction (bytes) -> (ParallelBins, ids), or None
         self._bins_bytes = 0
         #: How many rays a frame traces from one shared origin (the eye, a light sample), as
         #: far as its context knows (``make_context``: the pixels); 0: unknown.  Decides
@@ -228,10 +229,10 @@ class Aggregate:
         return self.sphere_count + self.triangle_count
 
     def __getstate__(self):
-        """Pickled (for worker processes) without its direction bins and their lock, nor its
-        leaf-ordered spheres: each process builds its own (``_origin_bins``,
-        ``_leaf_spheres``)."""
-        state = dict(self.__dict__, _bins={}, _bins_bytes=0, _leaf_rows=None)
+        """Pickled (for worker processes) without its direction and parallel bins and their
+        lock, nor its leaf-ordered spheres: each process builds its own (``_origin_bins``,
+        ``_parallel_spheres``, ``_leaf_spheres``)."""
+        state = dict(self.__dict__, _bins={}, _parallel={}, _bins_bytes=0, _leaf_rows=None)
         del state["_lazy_lock"]
         return state
 
@@ -814,61 +815,67 @@ class Aggregate:
         where id-ordered ones do not pay.  Built on first use, once per origin, under a
         lock (tiles run in threads)."""
         position = np.asarray(position, np.float64)
-        key = (position.tobytes(), mirror, depth)
-        bins = self._bins.get(key, False)
-        if bins is False:
+
+        def make():
+            bins = None
+            if self._bins_bytes < BINS_MAX_BYTES and self._tree_boxes is not None:
+                ids, low, high = self._tree_boxes
+                if mirror:
+                    low, high = low - self.mirror_slack, high + self.mirror_slack
+                bins = OriginBins.build(position, ids, low, high)
+            if bins is None and depth and self._bins_bytes < self._bins_max_bytes():
+                ids, low, high = self._bins_boxes()
+                bins = OriginBins.build(position, ids, low, high, by_depth=True,
+                                        bounds=self._bounding_spheres(ids),
+                                        rounding=float(np.finfo(self.dtype).eps))
+            return None if bins is None else (bins, bins.nbytes)
+
+        return self._held_bins(self._bins, (position.tobytes(), mirror, depth), make)
+
+    def _held_bins(self, store, key, make):
+        """The bins held in ``store`` under ``key``, made on first use by ``make()``
+        ((bins, bytes), or None where there are none), once, under a lock (tiles run in
+        threads)."""
+        held = store.get(key, False)
+        if held is False:
             with self._lazy_lock:
-                bins = self._bins.get(key, False)
-                if bins is False:
-                    bins = None
-                    if self._bins_bytes < BINS_MAX_BYTES and self._tree_boxes is not None:
-                        ids, low, high = self._tree_boxes
-                        if mirror:
-                            low, high = low - self.mirror_slack, high + self.mirror_slack
-                        bins = OriginBins.build(position, ids, low, high)
-                    if (bins is None and depth
-                            and self._bins_bytes < self._bins_max_bytes()):
-                        ids, low, high = self._bins_boxes()
-                        bins = OriginBins.build(position, ids, low, high, by_depth=True,
-                                                bounds=self._bounding_spheres(ids),
-                                                rounding=float(np.finfo(self.dtype).eps))
-                    self._bins[key] = bins
-                    self._bins_bytes += 0 if bins is None else bins.nbytes
-        return bins
+                held = store.get(key, False)
+                if held is False:
+                    made = make()
+                    held = store[key] = None if made is None else made[0]
+                    self._bins_bytes += 0 if made is None else made[1]
+        return held
 
     def _parallel_spheres(self, segments: RayBatch):
         """(bins, listed): the parallel bins (``core.bins.ParallelBins``) of segments that
         all leave along one direction unbounded from t_min >= 0 (a sun's shadow rays), with
-        the sphere (global id) of each entry; or None where the tree answers (other segments, a frame of too few rays per tree
-        sphere, PARALLEL_RAYS_PER_PRIMITIVE, bins that would not pay or not fit).  Built on
-        first use, once per direction, under a lock (tiles run in threads).  For a tree of
-        spheres alone (``_occluded_in_tree``'s leaf visits by slot)."""
+        the sphere (global id) of each entry; or None where the tree answers (other
+        segments, a frame of too few rays per tree sphere, PARALLEL_RAYS_PER_PRIMITIVE, bins
+        that would not pay or not fit).  Built on first use, once per direction.  For a tree
+        of spheres alone (``_occluded_in_tree``'s leaf visits by slot)."""
         d = segments.directions
         if (self.rays_per_origin < PARALLEL_RAYS_PER_PRIMITIVE * self._tree_size()
                 or len(segments) == 0 or not np.isposinf(segments.t_max).all()
                 or np.min(segments.t_min) < 0 or not (d == d[:, :1]).all()):
             return None
-        key = ("parallel", d[:, 0].astype(np.float64).tobytes())
-        held = self._bins.get(key, False)
-        if held is False:
-            with self._lazy_lock:
-                held = self._bins.get(key, False)
-                if held is False:
-                    held = None
-                    if self._bins_bytes < self._bins_max_bytes():
-                        ids = self._tree.primitives()
-                        # The tree's own padding of its boxes, which covers the kernels'
-                        # rounding (twice, and the projections' own).
-                        pad = 2 * SLAB_PADDING_32 * self._tree.origin_reach
-                        bins = ParallelBins.build(d[:, 0], self.spheres.centers[ids].T,
-                                                  self.spheres.radii[ids], pad)
-                        if bins is not None:
-                            # (Each entry's sphere id: its centre is read from the
-                            # scene's arrays, as fast as from copies in entry order.)
-                            held = (bins, ids.take(bins.entries))
-                            self._bins_bytes += bins.nbytes + held[1].nbytes
-                    self._bins[key] = held
-        return held
+
+        def make():
+            if self._bins_bytes >= self._bins_max_bytes():
+                return None
+            ids = self._tree.primitives()
+            # The tree's own padding of its boxes, which covers the kernels' rounding (twice,
+            # and the projections' own).
+            pad = 2 * SLAB_PADDING_32 * self._tree.origin_reach
+            bins = ParallelBins.build(d[:, 0], self.spheres.centers[ids].T,
+                                      self.spheres.radii[ids], pad)
+            if bins is None:
+                return None
+            # (Each entry's sphere id: its centre is read from the scene's arrays, as fast
+            # as from copies in entry order.)
+            listed = ids.take(bins.entries)
+            return (bins, listed), bins.nbytes + listed.nbytes
+
+        return self._held_bins(self._parallel, d[:, 0].astype(np.float64).tobytes(), make)
 
     def _tree_size(self) -> int:
         return self._tree_spheres + self._tree_triangles

@@ -149,7 +149,7 @@ def test_parallel_bins_serve_only_unbounded_rays_of_one_direction(monkeypatch):
         assert stats.node_tests > 0
     # A frame of fewer rays than the tree has spheres builds none.
     geometry.rays_per_origin = 100
-    geometry._bins.clear()
+    geometry._parallel.clear()
     assert geometry._parallel_spheres(rays) is None
 
 
