@@ -51,7 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bvh import keep_nearest
+from .bvh import keep_nearest, map_on
 from .runs import rank_within_runs, value_run_starts
 
 #: Cells per cube-face side: 512 makes cells of about 3.75 pixels at 1920 pixels across a
@@ -298,7 +298,7 @@ class OriginBins:
     @classmethod
     def build(cls, position, ids, low, high, cells: int = None, max_entries: int = None,
               max_mean: float = None, by_depth: bool = False, bounds=None,
-              rounding: float = 0.0) -> "OriginBins | None":
+              rounding: float = 0.0, pool=None) -> "OriginBins | None":
         """Bins around ``position`` (3,) of primitives ``ids`` (K,) ascending, with bounding
         boxes low, high (K, 3), with ``cells`` cells per face side, or half or a quarter as
         many when boxes near the origin would make more than ``max_entries`` entries; None
@@ -312,7 +312,9 @@ class OriginBins:
         primitive's ``near`` is the larger of its box's and its sphere's distance, and a
         depth-ordered entry's its cell's (``_cone_near``).  rounding: the machine epsilon
         of the kernels that will intersect the pairs: the spheres are grown by what their
-        roots' rounding may add (``_rounding_slack``)."""
+        roots' rounding may add (``_rounding_slack``).  pool: a thread pool the faces'
+        ranges and the depth-ordered entries are made on, a face or DEPTH_CHUNK boxes a job
+        (None: this thread), joined in the one build's order: the same bins."""
         cells = CELLS if cells is None else cells
         if max_entries is None:
             max_entries = MAX_DEPTH_ENTRIES if by_depth else MAX_ENTRIES
@@ -343,12 +345,13 @@ class OriginBins:
         distance *= NEAR_SLACK
         if by_depth and bounds is None:
             raise ValueError("depth-ordered bins need the primitives' bounding spheres")
-        ranges = [(face, *_face_ranges(relative_low, relative_high, face // 2,
-                                       bool(face % 2))) for face in range(6)]
+        ranges = map_on(pool, lambda face: (face, *_face_ranges(
+            relative_low, relative_high, face // 2, bool(face % 2))), range(6))
         del relative_low, relative_high
         sizes = [cells >> k for k in range(5 if by_depth else 3) if cells >> k >= BLOCK]
         for size in sizes:
-            faces = [(face, shown, _face_cells(r, size)) for face, shown, r in ranges]
+            faces = map_on(pool, lambda face: (face[0], face[1], _face_cells(face[2], size)),
+                           ranges)
             total = sum(int(((lu - fu + 1) * (lv - fv + 1)).sum())
                         for _, _, (fu, lu, fv, lv) in faces)
             if total <= enough or (size == sizes[-1] and total <= max_entries):
@@ -370,7 +373,7 @@ class OriginBins:
         np.cumsum(by_block[stored].ravel(), out=starts[1:-1])
         starts[-1] = starts[-2]
         if by_depth:
-            return cls._by_depth(cells, slots, starts, faces, ids, unit, reach, radii)
+            return cls._by_depth(cells, slots, starts, faces, ids, unit, reach, radii, pool)
         places, owners = [], []
         for face, shown, cell_ranges in faces:
             u, v, owner = _entries(shown, *cell_ranges)
@@ -383,34 +386,37 @@ class OriginBins:
                    by_depth)
 
     @classmethod
-    def _by_depth(cls, cells, slots, starts, faces, ids, unit, reach, radii):
+    def _by_depth(cls, cells, slots, starts, faces, ids, unit, reach, radii, pool=None):
         """``build``'s depth-ordered entries: each entry's near is its own cell's
         (``_cone_near``), rounded down to 2^-30 of the farthest centre, entries whose cone
         misses the sphere are dropped (the offsets are counted again), and the rest sorted
         by (cell, near).  Made DEPTH_CHUNK boxes at a time, so that the temporaries stay a
-        few tens of MB while the entries run to millions."""
+        few tens of MB while the entries run to millions (a chunk a job on ``pool``)."""
         blocks = cells // BLOCK
         step = max(float(reach.max(initial=0.0)), 1e-300) / 2 ** 30
-        places, owners, levels = [], [], []
-        for face, shown, (first_u, last_u, first_v, last_v) in faces:
-            for at in range(0, len(shown), DEPTH_CHUNK):
-                part = slice(at, at + DEPTH_CHUNK)
-                u, v, owner = _entries(shown[part], first_u[part], last_u[part],
-                                       first_v[part], last_v[part])
-                near, seen = _cone_near(face, u, v, cells, unit.take(owner, axis=1),
-                                        reach.take(owner), radii.take(owner))
-                seen = np.flatnonzero(seen)
-                u, v, owner, near = u.take(seen), v.take(seen), owner.take(seen), near.take(seen)
-                places.append(_place(slots, face, u, v, blocks, len(starts) - 2)
-                              .astype(np.int32))
-                owners.append(owner.astype(np.int32))
-                near /= step
-                levels.append(np.floor(near, out=near).astype(np.int32))
-                del u, v, owner, near, seen
-        place = np.concatenate(places)
-        del places
-        level = np.concatenate(levels)
-        del levels
+        _cell_cones(cells)      # (made once, before the jobs ask for it)
+
+        def chunk(job):
+            """(place, owner, level) (e,) int32: the entries of DEPTH_CHUNK of a face's boxes
+            from the ``at``-th, each with its cell's place, its box and its near level."""
+            face, shown, (first_u, last_u, first_v, last_v), at = job
+            part = slice(at, at + DEPTH_CHUNK)
+            u, v, owner = _entries(shown[part], first_u[part], last_u[part],
+                                   first_v[part], last_v[part])
+            near, seen = _cone_near(face, u, v, cells, unit.take(owner, axis=1),
+                                    reach.take(owner), radii.take(owner))
+            seen = np.flatnonzero(seen)
+            u, v, owner, near = u.take(seen), v.take(seen), owner.take(seen), near.take(seen)
+            near /= step
+            return (_place(slots, face, u, v, blocks, len(starts) - 2).astype(np.int32),
+                    owner.astype(np.int32), np.floor(near, out=near).astype(np.int32))
+
+        parts = map_on(pool, chunk, [(*face, at) for face in faces
+                                     for at in range(0, len(face[1]), DEPTH_CHUNK)])
+        place = np.concatenate([p[0] for p in parts])
+        level = np.concatenate([p[2] for p in parts])
+        owners = [p[1] for p in parts]
+        del parts
         key = place.astype(np.int64) << 31
         key |= level
         order = np.argsort(key)
