@@ -543,10 +543,11 @@ class Aggregate:
                 rows = self._leaf_rows
                 if rows is None:
                     rows = self._leaf_rows = self._leaf_ordered_spheres()
-        return rows
+        # (The ids are the tree's leaves themselves: not held, nor pickled, twice.)
+        return (*rows, self._tree.leaves.ravel())
 
     def _leaf_ordered_spheres(self):
-        """``_leaf_spheres``' arrays, made."""
+        """``_leaf_spheres``' centres and radii, made."""
         ids = self._tree.leaves.ravel()
         pad = ids < 0
         safe = np.where(pad, 0, ids)
@@ -554,7 +555,7 @@ class Aggregate:
         columns.append(self._radii_t.take(safe))
         for column in columns:
             column[pad] = np.nan
-        return (*columns, ids)
+        return tuple(columns)
 
     def build_frame_tables(self, eye=None, *, bounces: bool = True, trails: bool = True,
                            threads: int = 1) -> None:

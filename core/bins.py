@@ -81,7 +81,8 @@ MAX_PAIRS_PER_RAY = 16.0
 #: Cells are stored in square blocks of BLOCK x BLOCK, only where a block lists something.
 BLOCK_BITS = 4
 BLOCK = 1 << BLOCK_BITS
-#: Boxes whose depth-ordered entries are made at once (``OriginBins._by_depth``).
+#: Boxes whose terms and face ranges, or depth-ordered entries, are made at once (a job of
+#: ``OriginBins.build``, ``OriginBins._by_depth``).
 DEPTH_CHUNK = 1 << 17
 #: Upper bound on pairs intersected at once; bounds the per-pair temporaries.
 BLOCK_PAIRS = 1 << 18
@@ -312,9 +313,9 @@ class OriginBins:
         primitive's ``near`` is the larger of its box's and its sphere's distance, and a
         depth-ordered entry's its cell's (``_cone_near``).  rounding: the machine epsilon
         of the kernels that will intersect the pairs: the spheres are grown by what their
-        roots' rounding may add (``_rounding_slack``).  pool: a thread pool the faces'
-        ranges and the depth-ordered entries are made on, a face or DEPTH_CHUNK boxes a job
-        (None: this thread), joined in the one build's order: the same bins."""
+        roots' rounding may add (``_rounding_slack``).  pool: a thread pool the boxes'
+        terms and face ranges and the depth-ordered entries are made on, DEPTH_CHUNK boxes
+        (of a face) a job (None: this thread), joined in the boxes' order: the same bins."""
         cells = CELLS if cells is None else cells
         if max_entries is None:
             max_entries = MAX_DEPTH_ENTRIES if by_depth else MAX_ENTRIES
@@ -324,30 +325,47 @@ class OriginBins:
             else max_entries
         max_mean = MAX_MEAN_CANDIDATES if max_mean is None else max_mean
         position = np.asarray(position, np.float64)
-        relative_low = (np.asarray(low, np.float64) - position).T
-        relative_high = (np.asarray(high, np.float64) - position).T
-        ids = np.asarray(ids)
-        # Distance from the origin to each box (0 inside it).
-        gap = np.maximum(np.maximum(relative_low, -relative_high), 0.0)
-        distance = np.sqrt((gap * gap).sum(axis=0))
-        del gap
-        if bounds is not None:
-            centres, radii = bounds
-            towards_all = (np.asarray(centres, np.float64) - position).T
-            reach = np.sqrt((towards_all * towards_all).sum(axis=0))
-            radii = np.asarray(radii, np.float64)
-            radii = radii + _rounding_slack(reach, radii, rounding,
-                                            np.abs(position).max() + np.abs(centres).max())
-            np.maximum(distance, reach - radii, out=distance)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                unit = towards_all / reach       # (a centre at the origin: NaN, inside)
-            del towards_all
-        distance *= NEAR_SLACK
+        low, high, ids = np.asarray(low, np.float64), np.asarray(high, np.float64), np.asarray(ids)
         if by_depth and bounds is None:
             raise ValueError("depth-ordered bins need the primitives' bounding spheres")
-        ranges = map_on(pool, lambda face: (face, *_face_ranges(
-            relative_low, relative_high, face // 2, bool(face % 2))), range(6))
-        del relative_low, relative_high
+        if bounds is not None:
+            centres, radii = np.asarray(bounds[0], np.float64), np.asarray(bounds[1], np.float64)
+            scale = np.abs(position).max() + np.abs(centres).max()
+
+        def boxes(part):
+            """(distance, reach, radii, unit, faces' (shown, ranges)) of boxes ``part`` (a
+            slice): what every box gives alone, so that the parts join into the whole's."""
+            relative_low = (low[part] - position).T
+            relative_high = (high[part] - position).T
+            # Distance from the origin to each box (0 inside it).
+            gap = np.maximum(np.maximum(relative_low, -relative_high), 0.0)
+            distance = np.sqrt((gap * gap).sum(axis=0))
+            del gap
+            reach = grown = unit = None
+            if bounds is not None:
+                towards = (centres[part] - position).T
+                reach = np.sqrt((towards * towards).sum(axis=0))
+                grown = radii[part] + _rounding_slack(reach, radii[part], rounding, scale)
+                np.maximum(distance, reach - grown, out=distance)
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    unit = towards / reach       # (a centre at the origin: NaN, inside)
+            distance *= NEAR_SLACK
+            return distance, reach, grown, unit, [
+                _face_ranges(relative_low, relative_high, face // 2, bool(face % 2))
+                for face in range(6)]
+
+        firsts = range(0, max(len(ids), 1), DEPTH_CHUNK)
+        parts = map_on(pool, boxes, [slice(at, at + DEPTH_CHUNK) for at in firsts])
+        distance = np.concatenate([part[0] for part in parts])
+        if bounds is not None:
+            reach, radii = (np.concatenate([part[k] for part in parts]) for k in (1, 2))
+            unit = np.concatenate([part[3] for part in parts], axis=1)
+        ranges = []
+        for face in range(6):
+            shown = [part[4][face][0] + at for at, part in zip(firsts, parts)]
+            ranges.append((face, np.concatenate(shown), tuple(
+                np.concatenate([part[4][face][1][k] for part in parts]) for k in range(4))))
+        del parts
         sizes = [cells >> k for k in range(5 if by_depth else 3) if cells >> k >= BLOCK]
         for size in sizes:
             faces = map_on(pool, lambda face: (face[0], face[1], _face_cells(face[2], size)),
