@@ -403,7 +403,9 @@ def fitted_exponent(counts, seconds) -> float:
 
 def curve_exponents(bench: Bench, curve: str) -> list[str]:
     """For each contender and size of a sphere-count curve: the fitted exponent over all its
-    points and over its last decade (logarithmic cost would fit near 0)."""
+    points and over its last decade (logarithmic cost would fit near 0), of the whole render
+    and, for Glint, of its tiles alone: the tracing, whose cost a tree makes logarithmic,
+    without the frame's set-up, whose build is linear in the spheres at best."""
     if curve == "cost-pixels":
         return []
     lines = []
@@ -416,13 +418,17 @@ def curve_exponents(bench: Bench, curve: str) -> list[str]:
         if len(points) < 3:
             continue
         counts = np.array([p.spheres for p in points], float)
-        seconds = np.array([p.seconds for p in points])
-        tail = counts >= counts[-1] / 10
-        tail_text = (f", {fitted_exponent(counts[tail], seconds[tail]):.2f} from "
-                     f"{int(counts[tail][0]):,}" if tail.sum() >= 2 else "")
-        lines.append(f"- {contender} at {width}x{height}: time ~ spheres^k with k = "
-                     f"{fitted_exponent(counts, seconds):.2f} over {int(counts[0]):,} to "
-                     f"{int(counts[-1]):,}{tail_text}")
+        measured = [("", [p.seconds for p in points])]
+        if all(p.tile_seconds for p in points):
+            measured.append((" (tiles alone)", [p.tile_seconds for p in points]))
+        for what, seconds in measured:
+            seconds = np.array(seconds)
+            tail = counts >= counts[-1] / 10
+            tail_text = (f", {fitted_exponent(counts[tail], seconds[tail]):.2f} from "
+                         f"{int(counts[tail][0]):,}" if tail.sum() >= 2 else "")
+            lines.append(f"- {contender} at {width}x{height}{what}: time ~ spheres^k with k = "
+                         f"{fitted_exponent(counts, seconds):.2f} over {int(counts[0]):,} to "
+                         f"{int(counts[-1]):,}{tail_text}")
     return lines + ([""] if lines else [])
 
 

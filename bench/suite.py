@@ -240,6 +240,10 @@ class CurvePoint:
     runs: int
     peak_bytes: Optional[int]
     image_bytes: int
+    #: Glint's tiles alone (``RayStats.seconds_tiles``, summed over its threads or workers):
+    #: the tracing, without the frame's set-up (the tree's build, the context); None for the
+    #: baseline.
+    tile_seconds: Optional[float] = None
 
     @property
     def pixels(self) -> int:
@@ -276,6 +280,7 @@ class Bench:
         self._blender_error: Optional[str] = None
         self._blender_results = {}   # BlenderJob -> (Timing, image)
         self._timings = {}           # (scene key, contender key) -> (Timing, image bytes)
+        self._tile_seconds = {}      # (scene key, contender key) -> a render's tiles' seconds
         self._floor_bands = {}       # size -> bool mask
         self.phases: list[tuple] = []  # (workload title, contender, RayStats) per-phase timers
         self.scale_results: list[dict] = []  # bench.scale's JSON result per scale case
@@ -674,15 +679,19 @@ class Bench:
     # Cost curves
 
     def _curve_point(self, curve, scene_key, scene, contender) -> None:
+        tile_seconds = None
         if contender == "baseline":
             label = BASELINE_LABEL
             _, timing, image_bytes = self.measure_baseline(scene_key, scene)
         else:
             label = contender.label
-            _, timing, image_bytes = self.measure_glint(scene_key, scene, contender)
+            result, timing, image_bytes = self.measure_glint(scene_key, scene, contender)
+            if result is not None:   # the warm-up's; a reused measurement keeps its own
+                self._tile_seconds[scene_key, contender] = result.stats.seconds_tiles
+            tile_seconds = self._tile_seconds.get((scene_key, contender))
         self.curve_points.append(CurvePoint(
             curve, label, scene.camera.width, scene.camera.height, scene.sphere_count,
-            timing.median, len(timing.runs), timing.peak_bytes, image_bytes))
+            timing.median, len(timing.runs), timing.peak_bytes, image_bytes, tile_seconds))
 
     def pixel_curve(self) -> None:
         for width, height in self.plan.pixel_curve:
