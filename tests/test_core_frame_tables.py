@@ -18,12 +18,7 @@ from core import aggregate, bins, bvh, workers
 from core.context import make_context
 from core.render import _tiles, render_tile
 from core.shading import traces_from_points
-
-
-@pytest.fixture
-def small_renders_in_processes(monkeypatch):
-    """Let test-sized renders use processes (renders under MIN_PIXELS stay in-process)."""
-    monkeypatch.setattr(workers, "MIN_PIXELS", 0)
+from test_core_workers import small_renders_in_processes  # noqa: F401 (a fixture)
 
 
 def _cloud_scene(lights, count=3000, width=96, height=64):
