@@ -496,8 +496,12 @@ class OriginBins:
         edges = np.unique(np.r_[0, cuts, n])
         for first, stop in zip(edges[:-1], edges[1:]):
             part_count = count[first:stop]
-            entry = (np.repeat(start[first:stop], part_count)
-                     + rank_within_runs(part_count))
+            # Each pair's entry: its ray's start plus its rank among the ray's pairs, as its
+            # place among the part's pairs less that of its ray's first pair (``ends``).
+            before = int(ends[first - 1]) if first else 0
+            entry = np.repeat(start[first:stop] - (ends[first:stop] - part_count - before),
+                              part_count)
+            entry += np.arange(len(entry))
             ray = np.repeat(np.arange(first, stop), part_count)
             # Pairs whose ray stops before the primitive's box, or ignores the primitive, are
             # never intersected.

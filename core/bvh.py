@@ -693,12 +693,16 @@ def keep_nearest(rays, prims, t, t_max, found, accept, any_hit):
     it), and ``accept(rays, pairs)`` told which pair (index into t) is each improved ray's new
     nearest hit, ties to the lower primitive id (``BVH.traverse``'s contract; the direction
     bins, ``core.bins``, keep it too)."""
+    if any_hit:
+        # (Any pair with a hit blocks its ray: no grouping needed.)
+        found[rays[t < np.inf]] = True
+        return
     group = value_run_starts(rays)
     nearest = np.minimum.reduceat(t, group)
     owner = rays.take(group)
-    hit = nearest < (np.inf if any_hit else t_max.take(owner))
+    hit = nearest < t_max.take(owner)
     found[owner[hit]] = True
-    if any_hit or not hit.any():
+    if not hit.any():
         return
     lengths = np.diff(group, append=len(t))
     # The pairs at an improved ray's minimum, then of those its lowest primitive id.
