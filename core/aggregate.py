@@ -31,7 +31,7 @@ import numpy as np
 
 from .arrays import SphereArrays, TriangleArrays
 from .bins import OriginBins, ParallelBins
-from .bvh import BVH, MAX_LEAF, SLAB_PADDING_32
+from .bvh import BVH, MAX_LEAF, SLAB_PADDING_32, run_on, thread_pool
 from .cull import (DENSE_CANDIDATES, REFLECTION_CELLS, SHADOW_CELLS, bundle_candidates,
                    candidate_roots, cones,
                    cluster_spheres, direction_cells, reachable)
@@ -101,6 +101,12 @@ PARALLEL_RAYS_PER_PRIMITIVE = 1.0
 #: tree's median box half side; ``Aggregate._mirror_groups``) are answered by direction bins
 #: around that point, with the boxes grown by as much.
 MIRROR_SLACK = 0.125
+#: Spheres culled flat beside a tree are the huge ones (``_partition``: a floor), which
+#: nearly every bundle's cone reaches: up to this many, every ray tests each of them
+#: without the bundle's cone, which cost more than it saved (issue 9's 1,000 spheres over
+#: the article's floor: the cone 15-23 ns a ray, 0.08 s of a 2 s frame, left the floor
+#: out of 60 of 508 batches; a test of the floor about 25 ns a ray).
+UNCULLED_BESIDE_TREE = 2
 
 
 def _roots_block(t_near, t_far, low, high, article: bool):
@@ -180,6 +186,10 @@ class Aggregate:
         self._surface_keys = None   # built on first use (adaptive anti-aliasing only)
         self._tree_spheres = len(tree_spheres)
         self._tree_triangles = len(tree_triangles)
+        # A tree of spheres alone: rays that exclude a sphere (the default rules' rays
+        # leaving one) visit its leaves by slot, on the leaf-ordered spheres
+        # (``_leaf_spheres``).
+        self._spheres_by_slot = bool(self._tree_spheres) and not self._tree_triangles
         if len(tree_spheres) or len(tree_triangles):
             self._build_tree(spheres, triangles, tree_spheres, tree_triangles, threads)
         self._bins = {}     # origin (bytes) -> OriginBins, or None: the tree answers there
@@ -228,11 +238,17 @@ class Aggregate:
     def __len__(self) -> int:
         return self.sphere_count + self.triangle_count
 
+    @property
+    def lifts_terminator(self) -> bool:
+        """Whether hits on smooth triangles are lifted off their facets (``Hits.terminator``:
+        their shadow rays leave the lifted points, ``core.terminator``)."""
+        return bool(self.triangle_count) and self._tri_terminator is not None
+
     def __getstate__(self):
-        """Pickled (for worker processes) without its direction and parallel bins and their
-        lock, nor its leaf-ordered spheres: each process builds its own (``_origin_bins``,
-        ``_parallel_spheres``, ``_leaf_spheres``)."""
-        state = dict(self.__dict__, _bins={}, _parallel={}, _bins_bytes=0, _leaf_rows=None)
+        """Pickled (for worker processes) without its lock, with the tables built so far
+        (``build_frame_tables``: the frame's, built once for every worker; a table a worker
+        then builds on first use, such as a sun's parallel bins, is its own)."""
+        state = dict(self.__dict__)
         del state["_lazy_lock"]
         return state
 
@@ -412,9 +428,12 @@ class Aggregate:
         return None
 
     def _bundle_candidates(self, rays: RayBatch) -> np.ndarray:
-        """(k,) the flat spheres (local indices) some ray of the batch may reach."""
+        """(k,) the flat spheres (local indices) some ray of the batch may reach: all of
+        them beside a tree when they are at most UNCULLED_BESIDE_TREE."""
         if len(rays) == 0:
             return np.zeros(0, np.intp)
+        if self._tree is not None and self._flat_count <= UNCULLED_BESIDE_TREE:
+            return np.arange(self._flat_count)
         reach = rays.t_max if np.ndim(rays.t_max) == 0 else rays.t_max.max()
         return bundle_candidates(self._flat_centers, self._flat_radii, rays.origins,
                                  rays.directions, float(reach))
@@ -532,22 +551,58 @@ class Aggregate:
         """(x, y, z, radii, ids) (L * MAX_LEAF,): the tree's spheres in leaf-slot order (leaf
         i's slots at i * MAX_LEAF ...): centres and radii in the render precision (NaN in a
         padding slot) and global ids (-1: padding).  The pairs of a visit then read short
-        stretches of these instead of random elements of scene-long arrays.  Built on the
-        first occlusion trail (about 40 bytes a sphere in float64, 24 in float32)."""
+        stretches of these instead of random elements of scene-long arrays.  Built for the
+        frame (``build_frame_tables``) or on first use (about 40 bytes a sphere in float64,
+        24 in float32)."""
         rows = self._leaf_rows
         if rows is None:
             with self._lazy_lock:
                 rows = self._leaf_rows
                 if rows is None:
-                    ids = self._tree.leaves.ravel()
-                    pad = ids < 0
-                    safe = np.where(pad, 0, ids)
-                    columns = [self._centers_t[k].take(safe) for k in range(3)]
-                    columns.append(self._radii_t.take(safe))
-                    for column in columns:
-                        column[pad] = np.nan
-                    rows = self._leaf_rows = (*columns, ids)
-        return rows
+                    rows = self._leaf_rows = self._leaf_ordered_spheres()
+        # (The ids are the tree's leaves themselves: not held, nor pickled, twice.)
+        return (*rows, self._tree.leaves.ravel())
+
+    def _leaf_ordered_spheres(self):
+        """``_leaf_spheres``' centres and radii, made."""
+        ids = self._tree.leaves.ravel()
+        pad = ids < 0
+        safe = np.where(pad, 0, ids)
+        columns = [self._centers_t[k].take(safe) for k in range(3)]
+        columns.append(self._radii_t.take(safe))
+        for column in columns:
+            column[pad] = np.nan
+        return tuple(columns)
+
+    def build_frame_tables(self, eye=None, *, bounces: bool = True, trails: bool = True,
+                           threads: int = 1) -> None:
+        """Build now, on up to ``threads`` threads, the tables a frame's tiles would each
+        build on first use (in every worker process, before its first tile: the eye's
+        depth-ordered bins of a million spheres took 2 s of each worker's CPU), for a frame
+        whose camera rays share the origin ``eye`` (3,) (None: they do not), whose rays may
+        leave hit points (``bounces``) and whose occlusion rays may (``trails``: a sun's,
+        the world's; ``shading.traces_from_points``).  Only what those rays would use: the
+        tree's traversal tables; the eye's bins where a camera batch of the frame gets
+        depth-ordered ones (``_depth_bins_pay``: whatever the batch); the occlusion trails'
+        tables (``BVH.table_jobs``); the leaf-ordered spheres where rays leaving spheres
+        read them (``_spheres_by_slot``).  They are pickled with the aggregate, so workers
+        get them in the render's shared arrays (``core.workers``) and build none."""
+        tree = self._tree
+        if tree is None:
+            return
+        tree.leaf_crossings     # (which the rules below and the traversal ask for)
+        leaf_rows = (self._spheres_by_slot and not self.article and self._leaf_rows is None
+                     and (bounces or (trails and not self._textbook)))
+        with thread_pool(threads) as pool:
+            # (Queued first, so that they run on the pool while this thread starts the bins.)
+            made = [run_on(pool, job) for job in tree.table_jobs(trails)]
+            rows = run_on(pool, self._leaf_ordered_spheres) if leaf_rows else None
+            if eye is not None and self._depth_bins_pay():
+                self._bins_at(eye, depth=True, pool=pool)
+            for future in made:
+                future.result()
+            if rows is not None:
+                self._leaf_rows = rows.result()
 
     def _leaf_offsets(self, rays: RayBatch, r, slots, centres, stats):
         """(3, k) each pair's ray origin less its sphere's centre, for pairs (ray ``r``,
@@ -644,7 +699,7 @@ class Aggregate:
             return t
 
         slot_visit = None
-        if (exclude is not None and not self._tree_triangles
+        if (exclude is not None and self._spheres_by_slot
                 and (rays.shared is None or rays.shared.tree_terms is None)):
             def slot_visit(r, slots, reached=None):
                 # visit's sphere pairs by leaf slot, on the leaf-ordered spheres
@@ -771,7 +826,7 @@ class Aggregate:
         # a tree of spheres alone is visited by leaf there (``_leaf_blocks``) when its spheres
         # take the offset roots.
         leaf_blocks = None
-        if (not self.article and not self._textbook and not self._tree_triangles
+        if (not self.article and not self._textbook and self._spheres_by_slot
                 and (segments.shared is None or segments.shared.tree_terms is None)):
             def leaf_blocks(r, leaf):
                 return self._leaf_blocks(segments, r, leaf, low, high, stats)
@@ -808,12 +863,13 @@ class Aggregate:
         plan = bins.plan(rays.directions)
         return (bins, plan) if plan is not None else (None, None)
 
-    def _bins_at(self, position, mirror: bool = False, depth: bool = False):
+    def _bins_at(self, position, mirror: bool = False, depth: bool = False, pool=None):
         """The direction bins around ``position`` (3,) of the tree's boxes (mirror: grown by
         ``mirror_slack``, ``_mirror_groups``), or None where they do not pay or the bins
         held are at their bound; with ``depth``, depth-ordered bins (``OriginBins.walk``)
         where id-ordered ones do not pay.  Built on first use, once per origin, under a
-        lock (tiles run in threads)."""
+        lock (tiles run in threads); pool: a thread pool to build them on (``OriginBins
+        .build``), or None."""
         position = np.asarray(position, np.float64)
 
         def make():
@@ -822,12 +878,12 @@ class Aggregate:
                 ids, low, high = self._tree_boxes
                 if mirror:
                     low, high = low - self.mirror_slack, high + self.mirror_slack
-                bins = OriginBins.build(position, ids, low, high)
+                bins = OriginBins.build(position, ids, low, high, pool=pool)
             if bins is None and depth and self._bins_bytes < self._bins_max_bytes():
                 ids, low, high = self._bins_boxes()
                 bins = OriginBins.build(position, ids, low, high, by_depth=True,
                                         bounds=self._bounding_spheres(ids),
-                                        rounding=float(np.finfo(self.dtype).eps))
+                                        rounding=float(np.finfo(self.dtype).eps), pool=pool)
             return None if bins is None else (bins, bins.nbytes)
 
         return self._held_bins(self._bins, (position.tobytes(), mirror, depth), make)

@@ -55,7 +55,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bvh import keep_nearest
+from .bvh import keep_nearest, map_on
 from .runs import rank_within_runs, value_run_starts
 
 #: Cells per cube-face side: 512 makes cells of about 3.75 pixels at 1920 pixels across a
@@ -85,7 +85,8 @@ MAX_PAIRS_PER_RAY = 16.0
 #: Cells are stored in square blocks of BLOCK x BLOCK, only where a block lists something.
 BLOCK_BITS = 4
 BLOCK = 1 << BLOCK_BITS
-#: Boxes whose depth-ordered entries are made at once (``OriginBins._by_depth``).
+#: Boxes whose terms and face ranges, or depth-ordered entries, are made at once (a job of
+#: ``OriginBins.build``, ``OriginBins._by_depth``).
 DEPTH_CHUNK = 1 << 17
 #: Upper bound on pairs intersected at once; bounds the per-pair temporaries.
 BLOCK_PAIRS = 1 << 18
@@ -302,7 +303,7 @@ class OriginBins:
     @classmethod
     def build(cls, position, ids, low, high, cells: int = None, max_entries: int = None,
               max_mean: float = None, by_depth: bool = False, bounds=None,
-              rounding: float = 0.0) -> "OriginBins | None":
+              rounding: float = 0.0, pool=None) -> "OriginBins | None":
         """Bins around ``position`` (3,) of primitives ``ids`` (K,) ascending, with bounding
         boxes low, high (K, 3), with ``cells`` cells per face side, or half or a quarter as
         many when boxes near the origin would make more than ``max_entries`` entries; None
@@ -316,7 +317,9 @@ class OriginBins:
         primitive's ``near`` is the larger of its box's and its sphere's distance, and a
         depth-ordered entry's its cell's (``_cone_near``).  rounding: the machine epsilon
         of the kernels that will intersect the pairs: the spheres are grown by what their
-        roots' rounding may add (``_rounding_slack``)."""
+        roots' rounding may add (``_rounding_slack``).  pool: a thread pool the boxes'
+        terms and face ranges and the depth-ordered entries are made on, DEPTH_CHUNK boxes
+        (of a face) a job (None: this thread), joined in the boxes' order: the same bins."""
         cells = CELLS if cells is None else cells
         if max_entries is None:
             max_entries = MAX_DEPTH_ENTRIES if by_depth else MAX_ENTRIES
@@ -326,33 +329,51 @@ class OriginBins:
             else max_entries
         max_mean = MAX_MEAN_CANDIDATES if max_mean is None else max_mean
         position = np.asarray(position, np.float64)
-        relative_low = (np.asarray(low, np.float64) - position).T
-        relative_high = (np.asarray(high, np.float64) - position).T
-        ids = np.asarray(ids)
-        # Distance from the origin to each box (0 inside it).
-        gap = np.maximum(np.maximum(relative_low, -relative_high), 0.0)
-        distance = np.sqrt((gap * gap).sum(axis=0))
-        del gap
-        if bounds is not None:
-            centres, radii = bounds
-            towards_all = (np.asarray(centres, np.float64) - position).T
-            reach = np.sqrt((towards_all * towards_all).sum(axis=0))
-            radii = np.asarray(radii, np.float64)
-            radii = radii + _rounding_slack(reach, radii, rounding,
-                                            np.abs(position).max() + np.abs(centres).max())
-            np.maximum(distance, reach - radii, out=distance)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                unit = towards_all / reach       # (a centre at the origin: NaN, inside)
-            del towards_all
-        distance *= NEAR_SLACK
+        low, high, ids = np.asarray(low, np.float64), np.asarray(high, np.float64), np.asarray(ids)
         if by_depth and bounds is None:
             raise ValueError("depth-ordered bins need the primitives' bounding spheres")
-        ranges = [(face, *_face_ranges(relative_low, relative_high, face // 2,
-                                       bool(face % 2))) for face in range(6)]
-        del relative_low, relative_high
+        if bounds is not None:
+            centres, radii = np.asarray(bounds[0], np.float64), np.asarray(bounds[1], np.float64)
+            scale = np.abs(position).max() + np.abs(centres).max()
+
+        def boxes(part):
+            """(distance, reach, radii, unit, faces' (shown, ranges)) of boxes ``part`` (a
+            slice): what every box gives alone, so that the parts join into the whole's."""
+            relative_low = (low[part] - position).T
+            relative_high = (high[part] - position).T
+            # Distance from the origin to each box (0 inside it).
+            gap = np.maximum(np.maximum(relative_low, -relative_high), 0.0)
+            distance = np.sqrt((gap * gap).sum(axis=0))
+            del gap
+            reach = grown = unit = None
+            if bounds is not None:
+                towards = (centres[part] - position).T
+                reach = np.sqrt((towards * towards).sum(axis=0))
+                grown = radii[part] + _rounding_slack(reach, radii[part], rounding, scale)
+                np.maximum(distance, reach - grown, out=distance)
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    unit = towards / reach       # (a centre at the origin: NaN, inside)
+            distance *= NEAR_SLACK
+            return distance, reach, grown, unit, [
+                _face_ranges(relative_low, relative_high, face // 2, bool(face % 2))
+                for face in range(6)]
+
+        firsts = range(0, max(len(ids), 1), DEPTH_CHUNK)
+        parts = map_on(pool, boxes, [slice(at, at + DEPTH_CHUNK) for at in firsts])
+        distance = np.concatenate([part[0] for part in parts])
+        if bounds is not None:
+            reach, radii = (np.concatenate([part[k] for part in parts]) for k in (1, 2))
+            unit = np.concatenate([part[3] for part in parts], axis=1)
+        ranges = []
+        for face in range(6):
+            shown = [part[4][face][0] + at for at, part in zip(firsts, parts)]
+            ranges.append((face, np.concatenate(shown), tuple(
+                np.concatenate([part[4][face][1][k] for part in parts]) for k in range(4))))
+        del parts
         sizes = [cells >> k for k in range(5 if by_depth else 3) if cells >> k >= BLOCK]
         for size in sizes:
-            faces = [(face, shown, _face_cells(r, size)) for face, shown, r in ranges]
+            faces = map_on(pool, lambda face: (face[0], face[1], _face_cells(face[2], size)),
+                           ranges)
             total = sum(int(((lu - fu + 1) * (lv - fv + 1)).sum())
                         for _, _, (fu, lu, fv, lv) in faces)
             if total <= enough or (size == sizes[-1] and total <= max_entries):
@@ -374,7 +395,7 @@ class OriginBins:
         np.cumsum(by_block[stored].ravel(), out=starts[1:-1])
         starts[-1] = starts[-2]
         if by_depth:
-            return cls._by_depth(cells, slots, starts, faces, ids, unit, reach, radii)
+            return cls._by_depth(cells, slots, starts, faces, ids, unit, reach, radii, pool)
         places, owners = [], []
         for face, shown, cell_ranges in faces:
             u, v, owner = _entries(shown, *cell_ranges)
@@ -387,34 +408,37 @@ class OriginBins:
                    by_depth)
 
     @classmethod
-    def _by_depth(cls, cells, slots, starts, faces, ids, unit, reach, radii):
+    def _by_depth(cls, cells, slots, starts, faces, ids, unit, reach, radii, pool=None):
         """``build``'s depth-ordered entries: each entry's near is its own cell's
         (``_cone_near``), rounded down to 2^-30 of the farthest centre, entries whose cone
         misses the sphere are dropped (the offsets are counted again), and the rest sorted
         by (cell, near).  Made DEPTH_CHUNK boxes at a time, so that the temporaries stay a
-        few tens of MB while the entries run to millions."""
+        few tens of MB while the entries run to millions (a chunk a job on ``pool``)."""
         blocks = cells // BLOCK
         step = max(float(reach.max(initial=0.0)), 1e-300) / 2 ** 30
-        places, owners, levels = [], [], []
-        for face, shown, (first_u, last_u, first_v, last_v) in faces:
-            for at in range(0, len(shown), DEPTH_CHUNK):
-                part = slice(at, at + DEPTH_CHUNK)
-                u, v, owner = _entries(shown[part], first_u[part], last_u[part],
-                                       first_v[part], last_v[part])
-                near, seen = _cone_near(face, u, v, cells, unit.take(owner, axis=1),
-                                        reach.take(owner), radii.take(owner))
-                seen = np.flatnonzero(seen)
-                u, v, owner, near = u.take(seen), v.take(seen), owner.take(seen), near.take(seen)
-                places.append(_place(slots, face, u, v, blocks, len(starts) - 2)
-                              .astype(np.int32))
-                owners.append(owner.astype(np.int32))
-                near /= step
-                levels.append(np.floor(near, out=near).astype(np.int32))
-                del u, v, owner, near, seen
-        place = np.concatenate(places)
-        del places
-        level = np.concatenate(levels)
-        del levels
+        _cell_cones(cells)      # (made once, before the jobs ask for it)
+
+        def chunk(job):
+            """(place, owner, level) (e,) int32: the entries of DEPTH_CHUNK of a face's boxes
+            from the ``at``-th, each with its cell's place, its box and its near level."""
+            face, shown, (first_u, last_u, first_v, last_v), at = job
+            part = slice(at, at + DEPTH_CHUNK)
+            u, v, owner = _entries(shown[part], first_u[part], last_u[part],
+                                   first_v[part], last_v[part])
+            near, seen = _cone_near(face, u, v, cells, unit.take(owner, axis=1),
+                                    reach.take(owner), radii.take(owner))
+            seen = np.flatnonzero(seen)
+            u, v, owner, near = u.take(seen), v.take(seen), owner.take(seen), near.take(seen)
+            near /= step
+            return (_place(slots, face, u, v, blocks, len(starts) - 2).astype(np.int32),
+                    owner.astype(np.int32), np.floor(near, out=near).astype(np.int32))
+
+        parts = map_on(pool, chunk, [(*face, at) for face in faces
+                                     for at in range(0, len(face[1]), DEPTH_CHUNK)])
+        place = np.concatenate([p[0] for p in parts])
+        level = np.concatenate([p[2] for p in parts])
+        owners = [p[1] for p in parts]
+        del parts
         key = place.astype(np.int64) << 31
         key |= level
         order = np.argsort(key)
@@ -476,8 +500,12 @@ class OriginBins:
         edges = np.unique(np.r_[0, cuts, n])
         for first, stop in zip(edges[:-1], edges[1:]):
             part_count = count[first:stop]
-            entry = (np.repeat(start[first:stop], part_count)
-                     + rank_within_runs(part_count))
+            # Each pair's entry: its ray's start plus its rank among the ray's pairs, as its
+            # place among the part's pairs less that of its ray's first pair (``ends``).
+            before = int(ends[first - 1]) if first else 0
+            entry = np.repeat(start[first:stop] - (ends[first:stop] - part_count - before),
+                              part_count)
+            entry += np.arange(len(entry))
             ray = np.repeat(np.arange(first, stop), part_count)
             # Pairs whose ray stops before the primitive's box, or ignores the primitive, are
             # never intersected.

@@ -693,12 +693,16 @@ def keep_nearest(rays, prims, t, t_max, found, accept, any_hit):
     it), and ``accept(rays, pairs)`` told which pair (index into t) is each improved ray's new
     nearest hit, ties to the lower primitive id (``BVH.traverse``'s contract; the direction
     bins, ``core.bins``, keep it too)."""
+    if any_hit:
+        # (Any pair with a hit blocks its ray: no grouping needed.)
+        found[rays[t < np.inf]] = True
+        return
     group = value_run_starts(rays)
     nearest = np.minimum.reduceat(t, group)
     owner = rays.take(group)
-    hit = nearest < (np.inf if any_hit else t_max.take(owner))
+    hit = nearest < t_max.take(owner)
     found[owner[hit]] = True
-    if any_hit or not hit.any():
+    if not hit.any():
         return
     lengths = np.diff(group, append=len(t))
     # The pairs at an improved ray's minimum, then of those its lowest primitive id.
@@ -716,7 +720,7 @@ def keep_nearest(rays, prims, t, t_max, found, accept, any_hit):
 
 
 @contextmanager
-def _thread_pool(threads: int):
+def thread_pool(threads: int):
     """A pool of ``threads`` threads for the duration of a build, or None for one thread."""
     if threads <= 1:
         yield None
@@ -725,13 +729,20 @@ def _thread_pool(threads: int):
         yield pool
 
 
-def _run(pool, function, *args) -> Future:
+def run_on(pool, function, *args) -> Future:
     """function(*args) on ``pool``, or now where there is none: its Future."""
     if pool is not None:
         return pool.submit(function, *args)
     done = Future()
     done.set_result(function(*args))
     return done
+
+
+def map_on(pool, function, items) -> list:
+    """[function(item) for item in items], on ``pool`` where there is one (in order)."""
+    if pool is None:
+        return [function(item) for item in items]
+    return list(pool.map(function, items))
 
 
 @dataclass(frozen=True)
@@ -769,7 +780,7 @@ class BVH:
         ids = np.asarray(ids)
         # The boxes as columns (3, P): every pass below then runs over contiguous rows.
         low, high = np.ascontiguousarray(low.T), np.ascontiguousarray(high.T)
-        with _thread_pool(threads if low.shape[1] >= PARALLEL_FROM else 1) as pool:
+        with thread_pool(threads if low.shape[1] >= PARALLEL_FROM else 1) as pool:
             return cls._build(ids, low, high, pool, threads)
 
     @classmethod
@@ -780,7 +791,7 @@ class BVH:
         # the root's box is every primitive's.
         grow = SLAB_PADDING_32 * ORIGIN_REACH * _reach(low.min(axis=1), high.max(axis=1))
         size = np.empty(count)
-        planes = _run(pool, _box_planes, low, high, grow, size)
+        planes = run_on(pool, _box_planes, low, high, grow, size)
         if count < CLUSTER_FROM:
             tree = build_binary_sah(low, high, pool=pool, threads=threads)
             leaf = tree.left < 0
@@ -831,7 +842,7 @@ class BVH:
         """The wide tree of a binary one whose leaves hold ``slots`` (L, MAX_LEAF) (indices
         into ids; -1: padding), with their primitives' planes (``planes``: a Future of the
         (6, P) planes of every primitive), made on ``pool`` beside the collapse."""
-        leaf_boxes = _run(pool, lambda: _leaf_planes(planes.result(), slots))
+        leaf_boxes = run_on(pool, lambda: _leaf_planes(planes.result(), slots))
         wide = cls.collapse(tree, _leaf_ids(ids, slots))
         return dataclasses.replace(wide, leaf_boxes=leaf_boxes.result())
 
@@ -1088,6 +1099,16 @@ class BVH:
         children = np.full((self.node_count, WIDTH - 1), EMPTY, self.children.dtype)
         children[child] = self.children[rows[:, None], others]
         return planes, children, (children != EMPTY).sum(axis=1)
+
+    def table_jobs(self, trails: bool) -> list:
+        """Callables, each making tables a traversal would otherwise make on first use
+        (cached on the tree, so pickled with it: ``Aggregate.build_frame_tables``): the sort
+        depths and leaf fills every traversal reads, and with ``trails`` the occlusion
+        trails' (``_trail_tables``, ``_sibling_tables``)."""
+        jobs = [lambda: (self._nearest_levels, self._leaf_fill)]
+        if trails:
+            jobs += [lambda: self._trail_tables, lambda: self._sibling_tables]
+        return jobs
 
     def _start_nodes(self, sources):
         """(n,) the wide node holding the leaf of each ray's source primitive (-1: none)."""

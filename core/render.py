@@ -37,7 +37,7 @@ from .frame import canonical_scene, scene_frame
 from .lights import SampleShares, pixel_shares
 from .precision import choose_precision
 from .scene import RenderSettings, Scene, SceneError
-from .shading import shares_matter
+from .shading import shares_matter, traces_from_points
 from .trace import trace_bundle
 from . import allocator, workers
 
@@ -525,6 +525,12 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
         workers.prestart(threads)  # they start while the context is built
         tiles = _even_tail(tiles, threads)
     ctx = make_context(scene, settings, dtype, threads=threads)  # (the tree: on threads)
+    # What the frame's tiles would each build on first use (in every worker process), built
+    # once here on the render's threads: the eye's bins, the occlusion trails' tables.
+    shared_eye = ctx.camera_origin is not None and not has_aperture(scene.camera)
+    ctx.geometry.build_frame_tables(ctx.camera_origin.position if shared_eye else None,
+                                    bounces=settings.max_depth > 1,
+                                    trails=traces_from_points(ctx), threads=threads)
     shape = (height, width, 4)
     stats = RayStats()
     if isinstance(passes, PrimaryPasses):

@@ -116,6 +116,23 @@ def light_blocked(ctx: TraceContext, origin, directions, distance, exclude, stat
     return ctx.geometry.occluded(segments, stats)
 
 
+def traces_from_points(ctx: TraceContext) -> bool:
+    """Whether the shading may trace occlusion rays that leave its hit points
+    (``_rays_blocked``, which the aggregate answers by occlusion trails): a sun's and the
+    world's (default semantics with Blender's look), and any light's from the lifted points
+    of smooth triangles (``core.terminator``).  Every other shadow segment (the article's,
+    a point, spot, sphere or area light sample's) leaves the light."""
+    if ctx.article:
+        return False
+    look = ctx.look if ctx.look is not None and ctx.look.active else None
+    world = bool(ctx.settings.world_samples) and bool(np.any(ctx.ambient)) \
+        and len(ctx.geometry) > 1
+    if look is not None and (world or any(light.kind == "sun" for light in look.lights)):
+        return True
+    lit = len(ctx.lights) > 0 or (look is not None and bool(look.lights))
+    return ctx.geometry.lifts_terminator and lit
+
+
 def shares_matter(ctx: TraceContext) -> bool:
     """Whether an anti-aliasing sample's share of the soft lights' samples (``shares`` of
     ``shade``) can change what it traces: not in article semantics (point lights), nor in

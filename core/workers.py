@@ -21,7 +21,8 @@ tile), so large renders run their tiles in ``count`` worker processes instead:
   import, once); ``shutdown()`` ends them, as does the parent's exit.  Each render sends
   every worker it uses the prepared ``TraceContext`` and camera once, dropped when the render
   ends: pickled (a few kB for the article's scene), except that arrays of SHARED_ARRAY_BYTES
-  or more (a big scene's spheres, triangles and tree) go out of band (pickle protocol 5)
+  or more (a big scene's spheres, triangles and tree, and the tables the render built for
+  the frame: ``Aggregate.build_frame_tables``) go out of band (pickle protocol 5)
   into one anonymous file that every worker maps copy-on-write (``_SharedPayload``), so a
   million-sphere scene is written once, not serialized into every worker's socket, and its
   pages exist once in memory however many workers read them.
@@ -788,8 +789,8 @@ def prestart(count: int) -> None:
 def planned_bytes(count: int, scene_bytes: int) -> int:
     """What rendering in ``count`` workers holds beyond a threaded render (``core.memory``):
     per worker its interpreter, and one more copy of the scene's arrays, the shared file all
-    workers map (``_SharedPayload``; the tables a worker builds lazily are small beside the
-    plan's scene bound: 44 MB a worker for a million spheres whose plan counts 2.2 GB).  The
+    workers map (``_SharedPayload``, with the frame's tables the parent built:
+    ``Aggregate.build_frame_tables``; what a worker still builds on first use is small).  The
     tracing memory only moves into the workers, and the image is the frame they share."""
     return count * WORKER_PROCESS_BYTES + scene_bytes
 

@@ -240,12 +240,14 @@ def test_a_batch_with_too_many_candidates_goes_to_the_tree(monkeypatch):
     assert np.array_equal(t, t2) and np.array_equal(primitive, primitive2)
 
 
-def test_an_aggregate_travels_to_a_worker_without_its_bins():
-    """Pickled for a worker process, the aggregate leaves its bins (and their lock) behind;
-    the copy builds its own and answers the same."""
+def test_an_aggregate_travels_to_a_worker_with_the_bins_it_holds():
+    """Pickled for a worker process, the aggregate takes the bins it holds (the frame's,
+    ``Aggregate.build_frame_tables``) and leaves their lock behind: the copy answers the
+    same with them, building none; a copy made before any bins builds its own."""
     import pickle
 
     geometry = make_context(_cloud_scene(), core.RenderSettings(), np.float64).geometry
+    fresh = pickle.loads(pickle.dumps(geometry))
     origin = np.array([0.0, 0.0, 12.0])
     directions = _unit(np.random.default_rng(7).normal(size=(3, 3000)))
 
@@ -256,7 +258,13 @@ def test_an_aggregate_travels_to_a_worker_without_its_bins():
     t, primitive = nearest(geometry)
     assert len(geometry._bins) == 1
     copy = pickle.loads(pickle.dumps(geometry))
-    assert copy._bins == {} and copy._bins_bytes == 0
+    assert copy._bins.keys() == geometry._bins.keys()
+    assert copy._bins_bytes == geometry._bins_bytes > 0
+    held = list(copy._bins.values())
     t2, primitive2 = nearest(copy)
-    assert len(copy._bins) == 1
+    assert list(copy._bins.values()) == held
+    assert np.array_equal(t, t2) and np.array_equal(primitive, primitive2)
+    assert fresh._bins == {}
+    t2, primitive2 = nearest(fresh)
+    assert len(fresh._bins) == 1
     assert np.array_equal(t, t2) and np.array_equal(primitive, primitive2)

@@ -1,0 +1,173 @@
+"""A frame's acceleration tables built once, in the rendering process, and shipped to the
+worker processes with the scene (``Aggregate.build_frame_tables``): the eye's depth-ordered
+bins, the occlusion trails' tables and the leaf-ordered spheres reach a worker as the
+parent's arrays, and tracing every tile there builds none of them again; a frame builds only
+the tables its rays use; images are the same however the tiles run."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import mmap
+
+import numpy as np
+import pytest
+
+import core
+from core import aggregate, bins, bvh, workers
+from core.context import make_context
+from core.render import _tiles, render_tile
+from core.shading import traces_from_points
+from test_core_workers import small_renders_in_processes  # noqa: F401 (a fixture)
+
+
+def _cloud_scene(lights, count=3000, width=96, height=64):
+    """A dense cloud of overlapping spheres in front of the eye (a random line through the
+    tree crosses about 44 leaf boxes: depth-ordered bins, once the frame has a ray per
+    sphere), reflective and not."""
+    rng = np.random.default_rng(7)
+    centres = np.column_stack([rng.uniform(-3, 3, count), rng.uniform(-2, 2, count),
+                               rng.uniform(-6, -3, count)])
+    materials = (core.Material(reflection=0.5), core.Material(diffuse=(0.8, 0.2, 0.1)))
+    cloud = core.SphereSet(centres, rng.uniform(0.2, 0.45, count),
+                           rng.integers(0, 2, count), materials, name="cloud")
+    return core.Scene(camera=core.ScreenCamera(width, height, eye=(0, 0, 2)),
+                      sphere_sets=(cloud,), lights=lights, ambient=(0.1, 0.1, 0.1))
+
+
+SUN = (core.SunLight((0.3, -1.0, -0.2), strength=3.0),)
+POINT = (core.PointLight((3, 6, 4)),)
+
+
+def _counting(monkeypatch):
+    """Counts of every build of a frame table from now on (by table)."""
+    counts = {}
+
+    def counted(name, function):
+        @functools.wraps(function)
+        def wrapper(*args, **kwargs):
+            counts[name] = counts.get(name, 0) + 1
+            return function(*args, **kwargs)
+        return wrapper
+
+    build = bins.OriginBins.build.__func__
+
+    def built(cls, *args, by_depth=False, **kwargs):
+        name = "depth bins" if by_depth else "bins (or refused)"
+        counts[name] = counts.get(name, 0) + 1
+        return build(cls, *args, by_depth=by_depth, **kwargs)
+
+    monkeypatch.setattr(bins.OriginBins, "build", classmethod(built))
+    for name in ("_trail_tables", "_sibling_tables", "_leaf_fill", "_nearest_levels"):
+        table = counted(name, getattr(bvh.BVH, name).func)
+        cached = functools.cached_property(table)
+        cached.__set_name__(bvh.BVH, name)
+        monkeypatch.setattr(bvh.BVH, name, cached)
+    monkeypatch.setattr(aggregate.Aggregate, "_leaf_ordered_spheres",
+                        counted("leaf spheres", aggregate.Aggregate._leaf_ordered_spheres))
+    return counts
+
+
+def test_workers_get_the_frames_tables_and_build_none(small_renders_in_processes,
+                                                       monkeypatch):
+    """The render's shared payload, loaded as a worker loads it (``_shared_loads`` over a
+    private mapping of its file), holds the eye's depth-ordered bins, the trails' tables and
+    the leaf-ordered spheres as out-of-band arrays; every tile traced on it builds no table
+    (the counts stay empty), and its image is the one the workers and threads made."""
+    scene = _cloud_scene(SUN)
+    settings = core.RenderSettings(threads=2, parallelism="processes", tile_size=32,
+                                   precision="float64")
+    loaded = []
+    real_payload = workers._SharedPayload
+
+    def payload_as_a_worker_sees_it(obj):
+        shared = real_payload(obj)
+        mapping = mmap.mmap(shared.descriptor, shared.size, flags=mmap.MAP_PRIVATE,
+                            prot=mmap.PROT_READ | mmap.PROT_WRITE)
+        loaded.append((workers._shared_loads(shared.payload, mapping, shared.layout),
+                       shared.layout))
+        return shared
+
+    monkeypatch.setattr(workers, "_SharedPayload", payload_as_a_worker_sees_it)
+    result = core.render(scene, settings)
+    assert result.parallelism == "processes"
+    (ctx, camera), layout = loaded[0]
+    geometry, tree = ctx.geometry, ctx.geometry._tree
+    eye = [b for b in geometry._bins.values() if b is not None]
+    assert [b.by_depth for b in eye] == [True]
+    assert {"_trail_tables", "_sibling_tables", "_leaf_fill", "_nearest_levels"} \
+        <= set(vars(tree))
+    assert geometry._leaf_rows is not None
+    # The tables' large arrays travelled out of band, in the shared file.
+    shipped = {size for _, size, _ in layout}
+    assert eye[0].primitives.nbytes in shipped and tree._sibling_tables[0].nbytes in shipped
+    assert geometry._leaf_rows[0].nbytes in shipped
+
+    counts = _counting(monkeypatch)
+    image = np.zeros_like(result.image)
+    for tile in _tiles(camera.width, camera.height, settings.tile_size):
+        rgba, stats = render_tile(ctx, camera, tile)
+        y0, y1, x0, x1 = tile
+        image[y0:y1, x0:x1] = rgba
+    assert counts == {}
+    assert np.array_equal(image, result.image)
+    threads = core.render(scene, dataclasses.replace(settings, parallelism="threads"))
+    assert np.array_equal(threads.image, result.image)
+    assert result.stats.camera_rays == threads.stats.camera_rays
+
+
+def test_a_render_on_threads_builds_each_table_once(monkeypatch):
+    """On threads too the frame's tables are built before the tiles, once each (the eye's
+    id-ordered bins tried and refused first: a dense field)."""
+    counts = _counting(monkeypatch)
+    core.render(_cloud_scene(SUN), core.RenderSettings(threads=2, parallelism="threads",
+                                                       tile_size=32))
+    assert counts == {"bins (or refused)": 1, "depth bins": 1, "_trail_tables": 1,
+                      "_sibling_tables": 1, "_leaf_fill": 1, "_nearest_levels": 1,
+                      "leaf spheres": 1}
+
+
+@pytest.mark.parametrize("case", ["point light", "few pixels", "mirrors off", "sun"])
+def test_a_frame_builds_only_the_tables_its_rays_use(case):
+    """No trails' tables without occlusion rays leaving hit points (a point light's segments
+    leave the light), no eye bins for a frame with fewer rays than the tree's primitives, no
+    leaf-ordered spheres where no ray leaves a sphere (depth 1, point light)."""
+    lights = SUN if case == "sun" else POINT
+    pixels = (40, 30) if case == "few pixels" else (96, 64)
+    settings = core.RenderSettings(max_depth=1 if case == "mirrors off" else 3)
+    ctx = make_context(_cloud_scene(lights, width=pixels[0], height=pixels[1]), settings,
+                       np.float64)
+    geometry = ctx.geometry
+    geometry.build_frame_tables(ctx.camera_origin.position, bounces=settings.max_depth > 1,
+                                trails=traces_from_points(ctx), threads=2)
+    tree = vars(geometry._tree)
+    assert ("_trail_tables" in tree) == ("_sibling_tables" in tree) == (case == "sun")
+    assert bool(geometry._bins) == (case != "few pixels")
+    assert (geometry._leaf_rows is not None) == (case != "mirrors off")
+
+
+def test_the_article_scene_builds_no_table():
+    ctx = make_context(core.article_scene(64, 48), core.RenderSettings(semantics="article"),
+                       np.float64)
+    ctx.geometry.build_frame_tables(ctx.camera_origin.position, threads=2)
+    assert ctx.geometry._tree is None and ctx.geometry._bins == {}
+
+
+@pytest.mark.parametrize("count", [3000, 20_000])
+def test_depth_bins_built_on_threads_are_one_threads(monkeypatch, count):
+    """The eye's depth-ordered bins made on a pool of threads (faces and chunks of boxes a
+    job, ``DEPTH_CHUNK`` forced small) are one thread's, array for array."""
+    monkeypatch.setattr(bins, "DEPTH_CHUNK", 1000)
+    scene = _cloud_scene(POINT, count=count)
+    geometry = make_context(scene, core.RenderSettings(), np.float64).geometry
+    ids, low, high = geometry._bins_boxes()
+    options = dict(by_depth=True, bounds=geometry._bounding_spheres(ids), rounding=2e-16)
+    made = []
+    for threads in (1, 2):
+        with bvh.thread_pool(threads) as pool:
+            made.append(bins.OriginBins.build(np.array([0.0, 0.0, 2.0]), ids, low, high,
+                                              pool=pool, **options))
+    one, two = made
+    assert one is not None and one.by_depth and one.entries > count
+    for field in ("cells", "slots", "starts", "primitives", "near"):
+        assert np.array_equal(getattr(one, field), getattr(two, field)), field
