@@ -125,12 +125,18 @@ def traces_from_points(ctx: TraceContext) -> bool:
     if ctx.article:
         return False
     look = ctx.look if ctx.look is not None and ctx.look.active else None
-    world = bool(ctx.settings.world_samples) and bool(np.any(ctx.ambient)) \
-        and len(ctx.geometry) > 1
+    world = _traces_world(ctx) and bool(np.any(ctx.ambient))
     if look is not None and (world or any(light.kind == "sun" for light in look.lights)):
         return True
     lit = len(ctx.lights) > 0 or (look is not None and bool(look.lights))
     return ctx.geometry.lifts_terminator and lit
+
+
+def _traces_world(ctx: TraceContext) -> bool:
+    """Whether Blender's look traces the world's occlusion rays (``_world_occlusion``) where
+    the world is not black: world samples asked for, and more than the one primitive a
+    point lies on to block them."""
+    return bool(ctx.settings.world_samples) and len(ctx.geometry) > 1
 
 
 def shares_matter(ctx: TraceContext) -> bool:
@@ -511,7 +517,7 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
     colour = np.zeros((3, m), dtype)
     colour += environment(surfaces, materials, normals, to_view, world)
     offset = ray_offsets(points)
-    if ctx.settings.world_samples and world.any() and len(ctx.geometry) > 1:
+    if world.any() and _traces_world(ctx):
         seen_diffuse = diffuse_seen(surfaces, materials, np.clip(dot(normals, to_view), 0, 1))
         colour -= _world_occlusion(ctx, points, normals, materials, offset, exclude, shares,
                                    stats, terminator) * (seen_diffuse * world)
