@@ -674,11 +674,9 @@ class ParallelBins:
         if count.sum() > PARALLEL_MAX_ENTRIES_PER_PRIMITIVE * len(radii):
             return None
         shape = (int((first_u + span_u).max()), int((first_v + span_v).max()))
-        sphere = np.repeat(np.arange(len(radii)), count)
-        k = rank_within_runs(count)
-        across = span_v.take(sphere)
-        cells = ((first_u.take(sphere) + k // across) * shape[1]
-                 + first_v.take(sphere) + k % across)
+        cell_u, cell_v, sphere = _entries(np.arange(len(radii)), first_u,
+                                          first_u + span_u - 1, first_v, first_v + span_v - 1)
+        cells = cell_u * shape[1] + cell_v
         order = np.argsort(cells, kind="stable")
         starts = np.zeros(shape[0] * shape[1] + 1, np.intp)
         np.cumsum(np.bincount(cells, minlength=shape[0] * shape[1]), out=starts[1:])
