@@ -127,11 +127,16 @@ class Aggregate:
 
     spheres, triangles: the scene's primitives (``core.arrays``); article: the article's hit
     rules; root_formula: 'textbook' or 'stable' (``ROOT_FORMULAS``); threads: how many
-    threads the tree may be built on (``BVH.build``: the same tree for any number).
+    threads the tree may be built on (``BVH.build``: the same tree for any number);
+    rays_per_origin: how many rays a frame traces from one shared origin (the eye, a light
+    sample), as far as the caller knows (``make_context``: the pixels; 0: unknown), which
+    decides whether a shared origin's depth-ordered or parallel bins pay
+    (DEPTH_RAYS_PER_PRIMITIVE, PARALLEL_RAYS_PER_PRIMITIVE).
     """
 
     def __init__(self, spheres: SphereArrays, triangles: TriangleArrays, dtype, *,
-                 article: bool, root_formula: str, threads: int = 1):
+                 article: bool, root_formula: str, threads: int = 1,
+                 rays_per_origin: int = 0):
         if root_formula not in ROOT_FORMULAS:
             raise ValueError(f"root_formula must be one of {ROOT_FORMULAS}, got {root_formula!r}")
         self.dtype = np.dtype(dtype)
@@ -195,10 +200,7 @@ class Aggregate:
         self._bins = {}     # origin (bytes) -> OriginBins, or None: the tree answers there
         self._parallel = {}     # a sun's direction (bytes) -> (ParallelBins, ids), or None
         self._bins_bytes = 0
-        #: How many rays a frame traces from one shared origin (the eye, a light sample), as
-        #: far as its context knows (``make_context``: the pixels); 0: unknown.  Decides
-        #: whether depth-ordered bins pay (DEPTH_RAYS_PER_PRIMITIVE).
-        self.rays_per_origin = 0
+        self.rays_per_origin = int(rays_per_origin)
         # (Guards what tiles running in threads build on first use: bins, leaf-ordered
         # spheres.)
         self._lazy_lock = threading.Lock()

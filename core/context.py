@@ -105,6 +105,12 @@ class TraceContext:
     path_gain_bound: float               # max colour one bounce can add per unit weight
     look: LookContext | None = None      # default semantics only
 
+    @property
+    def active_look(self) -> LookContext | None:
+        """Blender's look where it shades this frame (default semantics, something in the
+        scene physically based or a Blender light), else None: the article's model alone."""
+        return self.look if self.look is not None and self.look.active else None
+
     @functools.cached_property
     def light_terms(self) -> tuple:
         """Per point light, its Blinn-Phong factors per material (``LightTerms``), made from
@@ -136,11 +142,11 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
     article = settings.semantics == "article"
     if root_formula is None:
         root_formula = "textbook" if article else "stable"
+    # (Whether an origin's bins pay depends on how many rays leave it: about one a pixel
+    # for the eye and each light sample.)
     geometry = Aggregate(arrays.spheres, arrays.triangles, dtype, article=article,
-                         root_formula=root_formula, threads=threads)
-    # (Whether depth-ordered bins pay depends on how many rays leave an origin: about one
-    # a pixel for the eye and each light sample.)
-    geometry.rays_per_origin = scene.camera.width * scene.camera.height
+                         root_formula=root_formula, threads=threads,
+                         rays_per_origin=scene.camera.width * scene.camera.height)
     eye = eye_position(scene.camera)
     perspective = not (isinstance(scene.camera, BlenderCamera) and scene.camera.projection == "ORTHO")
     samples = []

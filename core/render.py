@@ -38,7 +38,7 @@ from .lights import SampleShares, pixel_shares
 from .precision import choose_precision
 from .scene import RenderSettings, Scene, SceneError
 from .shading import shares_matter, traces_from_points
-from .trace import trace_bundle
+from .trace import trace_bundle, traces_bounces
 from . import allocator, workers
 
 
@@ -529,7 +529,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     # once here on the render's threads: the eye's bins, the occlusion trails' tables.
     shared_eye = ctx.camera_origin is not None and not has_aperture(scene.camera)
     ctx.geometry.build_frame_tables(ctx.camera_origin.position if shared_eye else None,
-                                    bounces=settings.max_depth > 1,
+                                    bounces=traces_bounces(ctx),
                                     trails=traces_from_points(ctx), threads=threads)
     shape = (height, width, 4)
     stats = RayStats()

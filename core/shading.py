@@ -124,7 +124,7 @@ def traces_from_points(ctx: TraceContext) -> bool:
     a point, spot, sphere or area light sample's) leaves the light."""
     if ctx.article:
         return False
-    look = ctx.look if ctx.look is not None and ctx.look.active else None
+    look = ctx.active_look
     world = _traces_world(ctx) and bool(np.any(ctx.ambient))
     if look is not None and (world or any(light.kind == "sun" for light in look.lights)):
         return True
@@ -147,7 +147,7 @@ def shares_matter(ctx: TraceContext) -> bool:
     Where it cannot, a pixel's centre is its AA sample 0 (``core.render``)."""
     if ctx.article:
         return False
-    if ctx.look is not None and ctx.look.active:
+    if ctx.active_look is not None:
         return True
     return any(len(samples) > 1 for samples in ctx.lights.samples)
 
@@ -176,7 +176,7 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
         return _shade_article(ctx, points, normals, materials, stats)
     colour, goes_on, shadow_code = _shade_default(ctx, points, normals, directions, exclude,
                                                   materials, shares, stats, terminator)
-    if ctx.look is not None and ctx.look.active:
+    if ctx.active_look is not None:
         blender_colour, shadow_code = _shade_blender_lights(ctx, points, normals, directions,
                                                             materials, exclude, shadow_code,
                                                             shares, stats,

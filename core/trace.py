@@ -127,7 +127,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
     background = ctx.background.astype(dtype)[:, None]
     add_background = not ctx.article and background.any()
     reflection = ctx.materials.reflection
-    look = None if ctx.article or ctx.look is None or not ctx.look.active else ctx.look
+    look = ctx.active_look
     max_depth = ctx.settings.max_depth
     cutoff = ctx.settings.contribution_cutoff
 
@@ -239,6 +239,21 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
     # clipped to [0, 1] (as np.clip, without its Python wrapper's cost on every bundle)
     np.minimum(np.maximum(alpha, 0, out=alpha), 1, out=alpha)
     return BundleResult(colour, alpha, signature, primary, emission)
+
+
+def traces_bounces(ctx: TraceContext) -> bool:
+    """Whether the frame's rays may leave hit points as secondary rays (``trace_bundle``):
+    bounces allowed (max_depth > 1) and a material that sends rays on, a mirror weight
+    (the article's ``reflection``) or, with Blender's look, a mirror lobe, transmission or
+    transparency (``core.bsdf.scatter``'s branches)."""
+    if ctx.settings.max_depth <= 1:
+        return False
+    look = ctx.active_look
+    if look is None:
+        return bool(np.any(ctx.materials.reflection > 0))
+    surfaces = look.surfaces
+    return bool(np.any(surfaces.reflection > 0) or surfaces.mirror.any()
+                or surfaces.any_through)
 
 
 def _arrived_from(batch: RayBatch):

@@ -18,17 +18,19 @@ from core import aggregate, bins, bvh, workers
 from core.context import make_context
 from core.render import _tiles, render_tile
 from core.shading import traces_from_points
+from core.trace import traces_bounces
 from test_core_workers import small_renders_in_processes  # noqa: F401 (a fixture)
 
 
-def _cloud_scene(lights, count=3000, width=96, height=64):
+def _cloud_scene(lights, count=3000, width=96, height=64, reflection=0.5):
     """A dense cloud of overlapping spheres in front of the eye (a random line through the
     tree crosses about 44 leaf boxes: depth-ordered bins, once the frame has a ray per
-    sphere), reflective and not."""
+    sphere), reflective (``reflection``) and not."""
     rng = np.random.default_rng(7)
     centres = np.column_stack([rng.uniform(-3, 3, count), rng.uniform(-2, 2, count),
                                rng.uniform(-6, -3, count)])
-    materials = (core.Material(reflection=0.5), core.Material(diffuse=(0.8, 0.2, 0.1)))
+    materials = (core.Material(reflection=reflection),
+                 core.Material(diffuse=(0.8, 0.2, 0.1), reflection=reflection))
     cloud = core.SphereSet(centres, rng.uniform(0.2, 0.45, count),
                            rng.integers(0, 2, count), materials, name="cloud")
     return core.Scene(camera=core.ScreenCamera(width, height, eye=(0, 0, 2)),
@@ -127,23 +129,27 @@ def test_a_render_on_threads_builds_each_table_once(monkeypatch):
                       "leaf spheres": 1}
 
 
-@pytest.mark.parametrize("case", ["point light", "few pixels", "mirrors off", "sun"])
+@pytest.mark.parametrize("case", ["point light", "few pixels", "mirrors off", "matte",
+                                  "sun"])
 def test_a_frame_builds_only_the_tables_its_rays_use(case):
     """No trails' tables without occlusion rays leaving hit points (a point light's segments
     leave the light), no eye bins for a frame with fewer rays than the tree's primitives, no
-    leaf-ordered spheres where no ray leaves a sphere (depth 1, point light)."""
+    leaf-ordered spheres where no ray leaves a sphere (point light, and depth 1 or no
+    material that reflects)."""
     lights = SUN if case == "sun" else POINT
     pixels = (40, 30) if case == "few pixels" else (96, 64)
     settings = core.RenderSettings(max_depth=1 if case == "mirrors off" else 3)
-    ctx = make_context(_cloud_scene(lights, width=pixels[0], height=pixels[1]), settings,
-                       np.float64)
+    scene = _cloud_scene(lights, width=pixels[0], height=pixels[1],
+                         reflection=0.0 if case == "matte" else 0.5)
+    ctx = make_context(scene, settings, np.float64)
     geometry = ctx.geometry
-    geometry.build_frame_tables(ctx.camera_origin.position, bounces=settings.max_depth > 1,
+    assert traces_bounces(ctx) == (case not in ("mirrors off", "matte"))
+    geometry.build_frame_tables(ctx.camera_origin.position, bounces=traces_bounces(ctx),
                                 trails=traces_from_points(ctx), threads=2)
     tree = vars(geometry._tree)
     assert ("_trail_tables" in tree) == ("_sibling_tables" in tree) == (case == "sun")
     assert bool(geometry._bins) == (case != "few pixels")
-    assert (geometry._leaf_rows is not None) == (case != "mirrors off")
+    assert (geometry._leaf_rows is not None) == (case not in ("mirrors off", "matte"))
 
 
 def test_the_article_scene_builds_no_table():
@@ -171,3 +177,26 @@ def test_depth_bins_built_on_threads_are_one_threads(monkeypatch, count):
     assert one is not None and one.by_depth and one.entries > count
     for field in ("cells", "slots", "starts", "primitives", "near"):
         assert np.array_equal(getattr(one, field), getattr(two, field)), field
+
+
+@pytest.mark.parametrize("surface, bounces", [
+    (dict(roughness=0.5, specular_f0=(0.04,) * 3, specular_f90=(1.0,) * 3), False),
+    (dict(roughness=0.0, specular_f0=(0.04,) * 3, specular_f90=(1.0,) * 3), True),
+    (dict(roughness=0.5, transmission=(0.9,) * 3), True),
+    (dict(roughness=0.5, transparency=(0.5,) * 3), True)])
+def test_blenders_look_bounces_only_off_mirrors_and_through_surfaces(surface, bounces):
+    """With Blender's look, rays leave hit points only where ``bsdf.scatter`` makes branches:
+    a mirror lobe (roughness under ``MIRROR_ROUGHNESS``), transmission, transparency; a rough
+    glossy lobe reflects the world instead, and the frame then builds no leaf-ordered
+    spheres."""
+    scene = _cloud_scene(SUN)
+    cloud = scene.sphere_sets[0]
+    material = core.SurfaceMaterial(**surface)
+    scene = dataclasses.replace(scene, sphere_sets=(dataclasses.replace(
+        cloud, materials=(material, material)),))
+    ctx = make_context(scene, core.RenderSettings(max_depth=3), np.float64)
+    assert ctx.active_look is not None
+    assert traces_bounces(ctx) == bounces
+    ctx.geometry.build_frame_tables(ctx.camera_origin.position, bounces=traces_bounces(ctx),
+                                    trails=False, threads=1)
+    assert (ctx.geometry._leaf_rows is not None) == bounces
