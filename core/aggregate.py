@@ -40,7 +40,7 @@ from .intersect import (FewSpheres, OriginTerms, first_hit_distance, offset_disc
 from .rays import ARTICLE_OFFSET, Hits, RayBatch, RayStats, SharedOrigin, ray_offsets, timed
 from .terminator import TerminatorLift, smooth_surface_lift
 from .triangles import Shear, watertight, watertight_pairs
-from .vectors import dot, take
+from .vectors import dot, facing, take
 
 #: The two ways to compute ray/sphere roots (``core.intersect``).
 ROOT_FORMULAS = ("textbook", "stable")
@@ -371,8 +371,7 @@ class Aggregate:
         """The hits' ``TerminatorLift`` (``core.terminator``): the smooth-surface offsets
         of the hits ``tris`` on triangles ``triangle`` (k,), their corners, corner normals
         (3, k) each and barycentrics (k,) each; the other hits keep their origins."""
-        side = np.where(front, 1, -1).astype(self.dtype)
-        geometric, seen_shading = normals * side, shading * side
+        geometric, seen_shading = facing(normals, front), facing(shading, front)
         lift = np.zeros_like(normals)
         lift[:, tris] = smooth_surface_lift(corners, corner_normals, barycentrics,
                                             geometric[:, tris])

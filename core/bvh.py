@@ -1167,8 +1167,8 @@ class BVH:
                      any_hit=True, leaf_blocks=None, slot_visit=None):
         """Descends pairs (ray, child reference) (E,), grouped by ray, level by level,
         visiting the leaves each level reaches: for any hit (a blocked ray goes no deeper),
-        only their primitives whose own boxes the rays reach (``_visit_slots``) when the tree
-        has them; or (not any_hit) for nearest hits, told to ``accept`` (the hits found lower
+        only their primitives whose own boxes the rays reach (``_visit_boxed_leaves``) when
+        the tree has them; or (not any_hit) for nearest hits, told to ``accept`` (the hits found lower
         t_max, which prunes the levels below)."""
         while len(rays):
             leaf = refs < 0
@@ -1176,8 +1176,9 @@ class BVH:
             if len(at):
                 leaf_rays, leaves = rays.take(at), -2 - refs.take(at)
                 if any_hit and self._tests_slots:
-                    self._visit_slots(leaf_rays, leaves, rows, t_min, t_max, visit, found,
-                                      stats, leaf_blocks)
+                    self._visit_boxed_leaves(leaf_rays, leaves, rows, t_min, t_max, visit,
+                                             None, found, True, stats,
+                                             leaf_blocks=leaf_blocks)
                 else:
                     self._visit_leaves(leaf_rays, leaves, t_max, visit, accept, found,
                                        any_hit, slot_visit)
@@ -1191,23 +1192,6 @@ class BVH:
                     return
             rays, refs, _ = self._expand(rays, refs, *rows, t_min, t_max, stats,
                                          entries=False)
-
-    def _visit_slots(self, rays, leaves, rows, t_min, t_max, visit, found, stats,
-                     leaf_blocks=None):
-        """Any-hit visit of pairs (ray, leaf) (m,), grouped by ray: only the primitives whose
-        own boxes (``leaf_boxes``) the rays' segments reach (rows: the slab terms, spread for
-        MAX_LEAF slots), through ``visit``, or ``leaf_blocks`` (``traverse``) by slot."""
-        pair_slot = self._slots_reached(rays, leaves, rows, t_min, t_max, stats)
-        if len(pair_slot) == 0:
-            return
-        pair = pair_slot // MAX_LEAF
-        r = rays.take(pair)
-        if leaf_blocks is not None:
-            # (Slot pair_slot % MAX_LEAF of leaf leaves[pair], as an index of leaves.ravel().)
-            found[leaf_blocks(r, pair_slot + (leaves.take(pair) - pair) * MAX_LEAF)] = True
-            return
-        prims = self.leaves.take(leaves, axis=0).ravel().take(pair_slot)
-        found[r[visit(r, prims) < np.inf]] = True
 
     def _slots_reached(self, rays, leaves, rows, t_min, t_max, stats) -> np.ndarray:
         """(k,) the slots (flat indices into (m, MAX_LEAF)) of pairs (ray, leaf) (m,) whose
@@ -1303,22 +1287,27 @@ class BVH:
             size *= 2
 
     def _visit_boxed_leaves(self, r, leaf, rows, t_min, t_max, visit, accept, found, any_hit,
-                            stats, slot_visit=None):
+                            stats, slot_visit=None, leaf_blocks=None):
         """``_visit_leaves`` of pairs (ray, leaf) (m,), grouped by ray, for only the
         primitives whose own boxes (``leaf_boxes``) the rays' segments reach, up to their
         nearest hits so far: a leaf's slots cost a box test each, a fraction of a primitive
         test (a 10^6-sphere set at 960x540: 69 sphere tests a camera ray, most of them
         against spheres of a leaf whose box the ray crosses but whose own boxes it misses).
-        The boxes hold their primitives, so the hits (and ties) are the same.  With
-        ``slot_visit`` (``traverse``), the pairs go to it by slot."""
+        The boxes hold their primitives, so the hits (and ties) are the same.  The pairs go
+        by slot to ``slot_visit`` (nearest hits) or ``leaf_blocks`` (any hit), where
+        ``traverse`` was given one; else to ``visit`` by primitive."""
         pair_slot = self._slots_reached(r, leaf, rows, t_min, t_max, stats)
         if len(pair_slot) == 0:
             return
         pair = pair_slot // MAX_LEAF
         rays = r.take(pair)
-        if slot_visit is not None:
+        if slot_visit is not None or leaf_blocks is not None:
             # (Slot pair_slot % MAX_LEAF of leaf leaf[pair], as an index of leaves.ravel().)
-            kept, prims, t = slot_visit(rays, pair_slot + (leaf.take(pair) - pair) * MAX_LEAF)
+            slots = pair_slot + (leaf.take(pair) - pair) * MAX_LEAF
+            if leaf_blocks is not None:
+                found[leaf_blocks(rays, slots)] = True
+                return
+            kept, prims, t = slot_visit(rays, slots)
             if len(kept):
                 keep_nearest(rays.take(kept), prims, t, t_max, found, accept, any_hit)
             return

@@ -28,7 +28,7 @@ from .context import RayStats, TraceContext
 from .bsdf import scatter
 from .rays import RayBatch, SharedOrigin
 from .shading import shade, shade_translucent
-from .vectors import take
+from .vectors import facing, take
 
 _SIGNATURE_PRIME = np.uint64(1_000_003)
 
@@ -168,7 +168,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
         if not ctx.article and not front.all():
             # Shade the side the ray sees: inside a sphere, behind a triangle, the normal
             # faces the other way.
-            normals = normals * np.where(front, 1, -1).astype(dtype)
+            normals = facing(normals, front)
             cos_in = np.where(front, cos_in, -cos_in)
         if primary is not None and depth == 0:
             primary.t[path], primary.normal[:, path] = hits.t, normals

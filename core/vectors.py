@@ -46,3 +46,9 @@ def take(a, index):
     for row in range(3):
         a[row].take(index, out=out[row])
     return out
+
+
+def facing(vectors, front):
+    """(3, n) vectors turned to the viewer's side: kept where ``front`` (n,) (the ray met the
+    side they point to), negated elsewhere (inside a sphere, behind a triangle)."""
+    return vectors * np.where(front, 1, -1).astype(vectors.dtype)
