@@ -699,8 +699,19 @@ def _set_label(kind: str, name: str) -> str:
 def _frozen_array(where: str, field_name: str, value, dtype, shape: tuple) -> np.ndarray:
     """``value`` as a read-only C-contiguous copy of ``dtype`` whose shape matches ``shape``
     (None: any length).  Integer fields accept only integer arrays (no silent truncation)."""
+    array = _checked_array(where, field_name, value, dtype, shape, copy=True)
+    array.setflags(write=False)
+    return array
+
+
+def _checked_array(where: str, field_name: str, value, dtype, shape: tuple,
+                   copy: bool = False) -> np.ndarray:
+    """``value`` as a C-contiguous array of ``dtype``, checked as ``_frozen_array`` checks it;
+    copy=False: a copy only where a conversion needs one, and not frozen (it may be the
+    caller's array), for a field whose stored value is computed from it anew (the mesh's
+    normalised corner normals)."""
     try:
-        array = np.array(value, copy=True)
+        array = np.array(value, copy=copy)
     except (TypeError, ValueError):
         raise SceneError(f"{where}: {field_name} must be an array, got {value!r}") from None
     if np.issubdtype(dtype, np.integer):
@@ -715,9 +726,29 @@ def _frozen_array(where: str, field_name: str, value, dtype, shape: tuple) -> np
                                        for a, s in zip(array.shape, shape)):
         raise SceneError(f"{where}: {field_name} must have shape ({wanted}), "
                          f"got {array.shape}")
-    array = np.ascontiguousarray(array, dtype)
-    array.setflags(write=False)
-    return array
+    return np.ascontiguousarray(array, dtype)
+
+
+#: Rows per block of ``_unit_rows``: its temporaries stay a few MB, reused from malloc's heap,
+#: instead of whole-array ones (a million triangles: a copy and a square of the (T, 3, 3)
+#: normals and two (T, 3) arrays, about 0.2 GB of fresh pages).
+BLOCK_ROWS = 1 << 16
+
+
+def _unit_rows(where: str, field_name: str, vectors: np.ndarray) -> np.ndarray:
+    """(T, k, 3) ``vectors`` divided by their lengths, a new read-only array, block by
+    block (the same values as whole); SceneError naming the first zero vector."""
+    result = np.empty(vectors.shape, np.float64)
+    for start in range(0, len(vectors), BLOCK_ROWS):
+        block = vectors[start:start + BLOCK_ROWS]
+        lengths = np.sqrt((block * block).sum(axis=2))
+        bad = _first_bad(lengths <= 1e-30)
+        if bad is not None:
+            bad = (bad[0] + start, *bad[1:])
+            raise SceneError(f"{where}: {field_name}{_index_text(bad)} must not be zero")
+        np.divide(block, lengths[:, :, None], out=result[start:start + BLOCK_ROWS])
+    result.setflags(write=False)
+    return result
 
 
 def _first_bad(mask: np.ndarray):
@@ -852,14 +883,11 @@ class TriangleMesh:
                              f"part has no inverse)")
         normals = self.corner_normals
         if normals is not None:
-            normals = _frozen_array(where, "corner_normals", normals, np.float64, (count, 3, 3))
+            # Not copied first: the normalised normals are a new array anyway.
+            normals = _checked_array(where, "corner_normals", normals, np.float64,
+                                     (count, 3, 3))
             _require_finite(where, "corner_normals", normals)
-            lengths = np.sqrt((normals * normals).sum(axis=2))
-            bad = _first_bad(lengths <= 1e-30)
-            if bad is not None:
-                raise SceneError(f"{where}: corner_normals{_index_text(bad)} must not be zero")
-            normals = np.ascontiguousarray(normals / lengths[:, :, None])
-            normals.setflags(write=False)
+            normals = _unit_rows(where, "corner_normals", normals)
         for name, value in (("vertices", vertices), ("triangles", triangles),
                             ("corner_normals", normals), ("material_indices", indices),
                             ("materials", materials), ("transforms", transforms)):

@@ -619,3 +619,33 @@ def test_instances_of_a_hidden_instancer_are_not_exported(scene):
     exported, warnings = export()
 
     assert not exported.sphere_sets and not exported.meshes
+
+
+def test_read_mesh_block_helpers_give_the_whole_array_values():
+    """read_mesh works per block of BLOCK_TRIANGLES triangles (its temporaries stay small):
+    the area test, the normals' gather and the flat normals where Blender left a corner's zero
+    give the same bits as the whole-array formulas."""
+    from glint.addon.export import meshes as meshes_module
+
+    rng = np.random.default_rng(9)
+    count = 2 * meshes_module.BLOCK_TRIANGLES + 3
+    vertices = rng.normal(size=(500, 3))
+    triangles = rng.integers(0, 500, (count, 3))
+    degenerate = [5, meshes_module.BLOCK_TRIANGLES + 1, count - 1]
+    triangles[degenerate, 2] = triangles[degenerate, 0]                  # zero area
+    corners = vertices[triangles]
+    area = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    keep = meshes_module._nonzero_area(vertices, triangles)
+    assert np.array_equal(keep, area.any(axis=1)) and not keep[degenerate].any()
+
+    stored = rng.normal(size=(3 * count, 3)).astype(np.float32)
+    stored[[7, 40_000, 3 * count - 2]] = 0.0                              # left zero
+    loops = rng.permutation(3 * count).reshape(count, 3)
+    gathered = meshes_module._gathered(stored, loops, np.float64)
+    assert gathered.dtype == np.float64 and np.array_equal(gathered, stored[loops])
+
+    expected = stored[loops].astype(np.float64)
+    zero = ~expected.any(axis=2)
+    expected[zero] = np.repeat(area[:, None, :], 3, axis=1)[zero]
+    flat = meshes_module._flat_where_zero(gathered, vertices, triangles)
+    assert zero.sum() == 3 and np.array_equal(flat, expected)

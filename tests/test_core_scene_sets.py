@@ -146,3 +146,40 @@ def test_sphere_set_renders_like_the_same_spheres_listed_one_by_one():
         b = core.render(as_set, settings).image
         assert np.array_equal(a, b)
         assert (a[..., 3] == 1).sum() > 30
+
+
+def _mesh_of(corner_normals):
+    """A mesh of len(corner_normals) copies of one triangle, with those normals."""
+    count = len(corner_normals)
+    return core.TriangleMesh(vertices=np.eye(3), triangles=np.tile([0, 1, 2], (count, 1)),
+                             corner_normals=corner_normals,
+                             material_indices=np.zeros(count, np.int64), materials=(MATERIAL,),
+                             name="Blocks")
+
+
+def test_corner_normals_are_normalised_block_by_block_as_whole():
+    """Normalised in blocks of BLOCK_ROWS triangles (their temporaries stay small): the same
+    bits as the whole-array formula, a new read-only array, the caller's left as it was."""
+    from core.scene import BLOCK_ROWS
+
+    count = 2 * BLOCK_ROWS + 5
+    normals = np.random.default_rng(3).normal(size=(count, 3, 3))
+    given = normals.copy()
+    mesh = _mesh_of(normals)
+    whole = normals / np.sqrt((normals * normals).sum(axis=2))[:, :, None]
+    assert np.array_equal(mesh.corner_normals, whole)
+    assert not mesh.corner_normals.flags.writeable and not np.shares_memory(mesh.corner_normals,
+                                                                             normals)
+    assert np.array_equal(normals, given) and normals.flags.writeable
+
+
+def test_a_zero_corner_normal_past_the_first_block_is_named_by_its_own_index():
+    from core.scene import BLOCK_ROWS
+
+    normals = np.ones((BLOCK_ROWS + 10, 3, 3))
+    normals[BLOCK_ROWS + 7, 1] = 0.0
+    with pytest.raises(core.SceneError,
+                       match=rf"corner_normals\[{BLOCK_ROWS + 7}\]\[1\] must not be zero"):
+        _mesh_of(normals)
+    float32 = np.ones((4, 3, 3), np.float32)
+    assert _mesh_of(float32).corner_normals.dtype == np.float64  # converted, not refused

@@ -74,32 +74,71 @@ def face_slots(mesh, faces: np.ndarray) -> np.ndarray:
     return read_array(attribute.data, "value", 1, np.int64, stored=STORED_INT)[faces]
 
 
+#: Triangles per block of ``read_mesh``'s per-triangle arithmetic (the area test, the normals'
+#: gather): a block's temporaries (a few MB) are reused from malloc's heap block after block,
+#: where whole-mesh temporaries (a million triangles: the (T, 3, 3) corners and the float32
+#: normals, about 0.2 GB) were fresh pages from the kernel at every export.
+BLOCK_TRIANGLES = 1 << 16
+
+
+def _area_vectors(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """(n, 3) each triangle's edge cross product (twice its area along its normal)."""
+    corners = vertices[triangles]
+    return np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+
+
+def _nonzero_area(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """(T,) bool: the triangles whose area vector is not zero, block by block."""
+    keep = np.empty(len(triangles), bool)
+    for start in range(0, len(triangles), BLOCK_TRIANGLES):
+        block = slice(start, start + BLOCK_TRIANGLES)
+        keep[block] = _area_vectors(vertices, triangles[block]).any(axis=1)
+    return keep
+
+
+def _gathered(values: np.ndarray, index: np.ndarray, dtype) -> np.ndarray:
+    """``values[index].astype(dtype)``, block by block into the result."""
+    result = np.empty(index.shape + values.shape[1:], dtype)
+    for start in range(0, len(index), BLOCK_TRIANGLES):
+        block = slice(start, start + BLOCK_TRIANGLES)
+        result[block] = values[index[block]]
+    return result
+
+
+def _flat_where_zero(normals: np.ndarray, vertices: np.ndarray,
+                     triangles: np.ndarray) -> np.ndarray:
+    """``normals`` (T, 3, 3), where a corner's normal Blender left zero (a degenerate
+    neighbourhood) replaced, in place, by its triangle's area vector: it shades flat.  Area
+    vectors are worked out for those triangles only."""
+    zero = ~normals.any(axis=2)
+    rows = np.flatnonzero(zero.any(axis=1))
+    if len(rows):
+        flat = np.repeat(_area_vectors(vertices, triangles[rows])[:, None, :], 3, axis=1)
+        normals[rows] = np.where(zero[rows][:, :, None], flat, normals[rows])
+    return normals
+
+
 def read_mesh(mesh) -> MeshArrays:
     """The triangles of an evaluated bpy Mesh (module docstring), with ``foreach_get``:
     each triangle's corners (``loop_triangles.loops``, the one read Blender does not serve
     in bulk: 0.55 s for a million triangles), its vertices through the ``.corner_vert``
     attribute and its face (``loop_triangle_polygons``) and slot through the face's
     ``material_index``, so the same values as ``loop_triangles.vertices`` and
-    ``.material_index`` without their per-element reads (0.65 and 0.5 s more)."""
+    ``.material_index`` without their per-element reads (0.65 and 0.5 s more).  The
+    per-triangle arithmetic runs in blocks (``BLOCK_TRIANGLES``)."""
     vertices = read_array(mesh.vertices, "co", 3, stored=STORED_FLOAT)
     triangulation = mesh.loop_triangles
     loops = read_array(triangulation, "loops", 3, np.int64, stored=STORED_INT)
     triangles = corner_values(mesh, ".corner_vert", mesh.loops, "vertex_index")[loops]
     faces = read_array(mesh.loop_triangle_polygons, "value", 1, np.int64, stored=STORED_INT)
     slots = face_slots(mesh, faces)
-    corners = vertices[triangles]
-    area_vectors = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    keep = area_vectors.any(axis=1)
+    keep = _nonzero_area(vertices, triangles)
     normals = None
     if mesh.normals_domain != 'FACE':
-        # Gathered in Blender's float32 and widened after: half the memory traffic.
+        # Gathered from Blender's float32 and widened as they land: half the memory traffic.
         corner_normals = read_array(mesh.corner_normals, "vector", 3, STORED_FLOAT)
-        normals = corner_normals[loops].astype(np.float64)
-        # A corner whose normal Blender left zero (a degenerate neighbourhood) shades flat.
-        zero = ~normals.any(axis=2)
-        if zero.any():
-            flat = np.repeat(area_vectors[:, None, :], 3, axis=1)
-            normals[zero] = flat[zero]
+        normals = _flat_where_zero(_gathered(corner_normals, loops, np.float64), vertices,
+                                   triangles)
     if not keep.all():
         triangles, slots = triangles[keep], slots[keep]
         normals = normals[keep] if normals is not None else None
