@@ -40,6 +40,7 @@ find how much of the world a point sees, leave the points instead.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -382,36 +383,59 @@ class _ShadowRays:
     """k shadow rays of the default semantics, as a light's visibility traces them: either
     from one light sample's shared origin towards k points (``origin`` its SharedOrigin,
     ``directions`` (3, k) unit vectors from the light, ``reach`` (k,) the points' distances,
-    segments ending ``offsets`` short of them), or from k points (``starts`` (3, k)) along
-    unit ``directions`` towards a direction's light (a sun, the world: unbounded), leaving
-    ``offsets`` (k,) off them.  ``exclude`` (k,): the primitive each ray ignores."""
+    segments ending ``offsets`` short of them), the same from several light samples
+    (``lights`` (3, k) float64 each ray's sample, no shared origin: ``_blocked_each``), or
+    from k points (``starts`` (3, k)) along unit ``directions`` towards a direction's light
+    (a sun, the world: unbounded), leaving ``offsets`` (k,) off them.  ``exclude`` (k,):
+    the primitive each ray ignores."""
     directions: np.ndarray
     exclude: np.ndarray
     offsets: np.ndarray
     starts: np.ndarray = None
     origin: object = None
     reach: np.ndarray = None
+    lights: np.ndarray = None
+
+    @property
+    def from_light(self) -> bool:
+        """Whether the rays leave light samples (else the points)."""
+        return self.reach is not None
 
     @property
     def to_light(self) -> np.ndarray:
         """(3, k) unit directions from the points towards the light."""
-        return self.directions if self.origin is None else -self.directions
+        return -self.directions if self.from_light else self.directions
 
-    @property
-    def target(self):
-        """The light sample's position (3,), or None for a direction's light."""
-        return None if self.origin is None else self.origin.position
+    def targets(self, index, dtype) -> np.ndarray:
+        """The light samples' positions (3, 1) or (3, k') in ``dtype`` of rays ``index``
+        (k',), for rays leaving light samples."""
+        if self.origin is not None:
+            return np.asarray(self.origin.position, dtype)[:, None]
+        return take(self.lights, index).astype(dtype, copy=False)
 
     def blocked(self, ctx, stats, index=None) -> np.ndarray:
         """Whether rays ``index`` (k',) (None: all k) are blocked, traced as they are laid
-        out: from the light sample's shared origin, or from the points."""
+        out: from the light sample's shared origin, from the light samples, or from the
+        points."""
         if self.origin is not None:
             return light_blocked(ctx, self.origin, _cols(self.directions, index),
                                  _rows(self.reach, index), _rows(self.exclude, index), stats,
                                  end=_rows(self.offsets, index))
+        if self.lights is not None:
+            # (As ``light_blocked`` traces a sample's segments, each from its own sample.)
+            return ctx.geometry.occluded(
+                RayBatch(_cols(self.lights, index), _cols(self.directions, index), 0.0,
+                         _rows(self.reach, index) - _rows(self.offsets, index), None,
+                         _rows(self.exclude, index)), stats)
         return _rays_blocked(ctx, _cols(self.starts, index), _cols(self.directions, index),
                              _rows(self.offsets, index), np.inf, _rows(self.exclude, index),
                              stats)
+
+    def leaving_samples(self) -> "_ShadowRays":
+        """These rays from a shared origin, as rays that each leave their own sample."""
+        count = len(self.exclude)
+        return dataclasses.replace(self, origin=None, lights=np.repeat(
+            np.asarray(self.origin.position, np.float64)[:, None], count, axis=1))
 
 
 def _segments_blocked(ctx, terminator, points, rows, rays: _ShadowRays, stats):
@@ -433,13 +457,55 @@ def _segments_blocked(ctx, terminator, points, rows, rays: _ShadowRays, stats):
     stay = np.flatnonzero(stay)
     if len(stay):
         blocked[stay] = rays.blocked(ctx, stats, stay)
-    if rays.target is None:
-        along, reach = take(to_light, moved), np.inf
+    if rays.from_light:
+        along, reach = normalize(rays.targets(moved, origins.dtype) - origins)
     else:
-        along, reach = normalize(np.asarray(rays.target, origins.dtype)[:, None] - origins)
+        along, reach = take(to_light, moved), np.inf
     blocked[moved] = _rays_blocked(ctx, origins, along, ray_offsets(origins), reach, ignored,
                                    stats)
     return blocked
+
+
+def _blocked_each(ctx, terminator, points, batches: list, stats) -> list:
+    """Whether each ray of several batches of one shading call is blocked: batches
+    [(rows (k_i,) of ``points`` (3, m) or None, _ShadowRays)] -> [(k_i,) bool]
+    (``_segments_blocked``).  Each of the aggregate's traces has a fixed cost, which an
+    anti-aliasing round's share of one light sample or direction (a few hundred rays) does
+    not repay: the rays leaving the points go in one batch, and so do those leaving light
+    samples whose shared origin the aggregate would not use for them
+    (``Aggregate.segments_need_origin``: the answers are the same); the rest batch by
+    batch, from their shared origins."""
+    flags = [None] * len(batches)
+    groups = {False: [], True: []}    # from the points, from light samples
+    for i, (rows, rays) in enumerate(batches):
+        if rays.origin is not None and ctx.geometry.segments_need_origin(len(rays.exclude)):
+            flags[i] = _segments_blocked(ctx, terminator, points, rows, rays, stats)
+        else:
+            groups[rays.from_light].append(i)
+    for from_light, members in groups.items():
+        if not members:
+            continue
+        if len(members) == 1:
+            rows, rays = batches[members[0]]
+            flags[members[0]] = _segments_blocked(ctx, terminator, points, rows, rays, stats)
+            continue
+        parts = [batches[i][1] for i in members]
+        if from_light:
+            parts = [rays if rays.origin is None else rays.leaving_samples() for rays in parts]
+        every = np.arange(points.shape[1])
+        rows = _batched([every if batches[i][0] is None else batches[i][0] for i in members])
+        joined = _ShadowRays(
+            _batched([rays.directions for rays in parts]),
+            _batched([rays.exclude for rays in parts]),
+            _batched([rays.offsets for rays in parts]),
+            starts=None if from_light else _batched([rays.starts for rays in parts]),
+            reach=_batched([rays.reach for rays in parts]) if from_light else None,
+            lights=_batched([rays.lights for rays in parts]) if from_light else None)
+        blocked = _segments_blocked(ctx, terminator, points, rows, joined, stats)
+        ends = np.cumsum([len(rays.exclude) for rays in parts])
+        for i, part in zip(members, np.split(blocked, ends[:-1])):
+            flags[i] = part
+    return flags
 
 
 def _world_occlusion(ctx, points, normals, materials, offset, exclude, shares, stats,
@@ -468,35 +534,24 @@ def _world_occlusion(ctx, points, normals, materials, offset, exclude, shares, s
     origins = take(points, chosen)
     lift = None if terminator is None else terminator.take(chosen)
     shared = None if shares is None else share_weights(shares.take(chosen), len(directions))
-    # Every direction's rays in one batch (``_batched``): each of the aggregate's traces
-    # has a fixed cost, which an anti-aliasing round's share of one direction (a few
-    # hundred rays) did not repay.
-    parts = []     # per direction: (its index, the rows of ``origins`` tracing it or None)
-    rows, along = [], []
+    batches = []     # per direction traced: (its index, rows of ``origins`` or None, rays)
     for index, (x, y, z) in enumerate(directions):
         part = _subset(shared, index)
         if part is None:
-            rows.append(np.arange(len(chosen)))
-            along.append(x * first + y * second + z * n)
+            along, rows, starts = x * first + y * second + z * n, chosen, origins
         elif len(part) == 0:
             continue
         else:
-            rows.append(part)
-            along.append(x * take(first, part) + y * take(second, part) + z * take(n, part))
-        parts.append((index, part))
-    if not parts:
-        return hidden
-    every = _batched(rows)
-    traced = chosen[every]
-    blocked = _segments_blocked(ctx, lift, origins, every,
-                                _ShadowRays(_batched(along), exclude[traced], offset[traced],
-                                            take(origins, every)), stats)
-    ends = np.cumsum([len(r) for r in rows])
-    for (index, part), flags in zip(parts, np.split(blocked, ends[:-1])):
+            along = x * take(first, part) + y * take(second, part) + z * take(n, part)
+            rows, starts = chosen[part], take(origins, part)
+        batches.append((index, part, _ShadowRays(along, exclude[rows], offset[rows], starts)))
+    flags = _blocked_each(ctx, lift, origins, [(part, rays) for _, part, rays in batches],
+                          stats)
+    for (index, part, _), blocked in zip(batches, flags):
         if part is None:
-            hidden[chosen] += flags / len(directions)
+            hidden[chosen] += blocked / len(directions)
         else:
-            hidden[chosen[part]] += flags * (shared[index, part] / len(directions))
+            hidden[chosen[part]] += blocked * (shared[index, part] / len(directions))
     return hidden
 
 
@@ -550,6 +605,7 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
         if light.kind == "area":
             count = len(light.terms)
             shared = None if shares is None else share_weights(shares, count)
+            traced = []     # per sample traced: (sample, lit, local, towards, e, rays)
             for sample, origin in enumerate(light.terms):
                 part = _subset(shared, sample)
                 if part is None:
@@ -569,9 +625,12 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
                 local = lit if part is None else np.arange(len(lit))   # into towards, e
                 to_light, reach = take(towards, local), distance[local]
                 ignored, ends = exclude[lit], offset[lit]
-                blocked = _segments_blocked(
-                    ctx, terminator, points, lit,
-                    _ShadowRays(-to_light, ignored, ends, origin=origin, reach=reach), stats)
+                traced.append((sample, lit, local, towards, e,
+                               _ShadowRays(-to_light, ignored, ends, origin=origin,
+                                           reach=reach)))
+            flags = _blocked_each(ctx, terminator, points,
+                                  [(lit, rays) for _, lit, _, _, _, rays in traced], stats)
+            for (sample, lit, local, towards, e, _), blocked in zip(traced, flags):
                 seen, seen_local = lit[~blocked], local[~blocked]
                 visibility[seen] += (1 if shared is None else shared[sample, seen]) / count
                 colour[:, seen] += scale * light_response(
@@ -591,42 +650,43 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
                 shared = share_weights(shares.take(lit), len(light.samples))
                 if weights is not None:
                     weights, shared = weights * shared, None
+            # Per sample traced: (rows of lit_points or None, rays, and the visibility each
+            # open ray adds: an array, or None for 1 / the sample count).
+            traced = []
             for sample, position in enumerate(light.samples):
                 if weights is not None:
                     facing = np.flatnonzero(weights[sample] > 0)
                     from_sample, reach = normalize(take(lit_points, facing)
                                                    - _column(position, dtype))
                     ignored, ends = exclude[lit[facing]], offset[lit[facing]]
-                    blocked = _segments_blocked(
-                        ctx, lit_lift, lit_points, facing,
-                        _ShadowRays(from_sample, ignored, ends, origin=light.terms[sample],
-                                    reach=reach), stats)
-                    visibility[lit[facing]] += weights[sample, facing] * ~blocked
+                    traced.append((facing, _ShadowRays(from_sample, ignored, ends,
+                                                       origin=light.terms[sample], reach=reach),
+                                   weights[sample, facing]))
                     continue
                 if shared is not None:   # a sun's share of its directions
                     part = np.flatnonzero(shared[sample])
                     rows = lit[part]
                     along = np.repeat(position.astype(dtype)[:, None], len(part), axis=1)
                     starts, ignored, offsets = take(lit_points, part), exclude[rows], offset[rows]
-                    blocked = _segments_blocked(
-                        ctx, lit_lift, lit_points, part,
-                        _ShadowRays(along, ignored, offsets, starts), stats)
-                    visibility[rows] += (~blocked) * (shared[sample, part] / len(light.samples))
+                    traced.append((part, _ShadowRays(along, ignored, offsets, starts),
+                                   shared[sample, part] / len(light.samples)))
                     continue
                 ignored, ends = exclude[lit], offset[lit]
                 if light.kind == "sun":
                     along = (lit_towards if len(light.samples) == 1 else
                              np.repeat(position.astype(dtype)[:, None], len(lit), axis=1))
-                    blocked = _segments_blocked(
-                        ctx, lit_lift, lit_points, None,
-                        _ShadowRays(along, ignored, ends, lit_points), stats)
+                    rays = _ShadowRays(along, ignored, ends, lit_points)
                 else:
-                    reach = distance[lit]
-                    blocked = _segments_blocked(
-                        ctx, lit_lift, lit_points, None,
-                        _ShadowRays(-lit_towards, ignored, ends, origin=light.terms[sample],
-                                    reach=reach), stats)
-                visibility[lit] += (~blocked) / len(light.samples)
+                    rays = _ShadowRays(-lit_towards, ignored, ends, origin=light.terms[sample],
+                                       reach=distance[lit])
+                traced.append((None, rays, None))
+            flags = _blocked_each(ctx, lit_lift, lit_points,
+                                  [(rows, rays) for rows, rays, _ in traced], stats)
+            for (rows, _, adds), blocked in zip(traced, flags):
+                if adds is None:
+                    visibility[lit] += (~blocked) / len(light.samples)
+                else:
+                    visibility[lit[rows]] += (~blocked) * adds
             seen = lit[visibility[lit] > 0]
             colour[:, seen] += scale * visibility[seen] * light_response(
                 surfaces, materials[seen], take(normals, seen), take(to_view, seen),
