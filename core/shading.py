@@ -265,6 +265,7 @@ def _shade_default(ctx, points, normals, directions, exclude, materials, shares,
         shared = None
         if shares is not None and len(samples) > 1:
             shared = share_weights(shares if everywhere else shares.take(lit), len(samples))
+        traced = []     # per sample: (its index, rows of lit_points or None, rays)
         for index, (sample, origin) in enumerate(zip(samples, lights.origins[light])):
             part = _subset(shared, index)
             if len(samples) == 1:
@@ -275,9 +276,11 @@ def _shade_default(ctx, points, normals, directions, exclude, materials, shares,
                 towards, reach = normalize(take(lit_points, part) - _column(sample, dtype))
             ahead = (lambda a: a) if part is None else (lambda a: a[part])
             ignored, ends = ahead(pick_row(exclude)), ahead(pick_row(offset))
-            blocked = _segments_blocked(
-                ctx, lit_lift, lit_points, part,
-                _ShadowRays(towards, ignored, ends, origin=origin, reach=reach), stats)
+            traced.append((index, part, _ShadowRays(towards, ignored, ends, origin=origin,
+                                                    reach=reach)))
+        flags = _blocked_each(ctx, lit_lift, lit_points,
+                              [(part, rays) for _, part, rays in traced], stats)
+        for (index, part, _), blocked in zip(traced, flags):
             if part is None:
                 visibility -= blocked.astype(dtype) / len(samples)
             else:

@@ -42,6 +42,9 @@ LIGHTS = {
                            size_y=1.5, power=300.0),
     "sphere": core.SphereLight((1.0, 3.0, 1.0), power=500.0, radius=0.4),
     "sun": core.SunLight((-0.4, -1.0, -0.3), strength=3.0, angle=0.2),
+    # The article's kind of light with a radius (the default semantics' Blinn-Phong).
+    "point": core.PointLight((0.8, 3.0, 0.6), ambient=(0.0, 0.0, 0.0),
+                             diffuse=(0.6, 0.6, 0.6), specular=(0.3, 0.3, 0.3), radius=0.4),
 }
 
 
