@@ -2,8 +2,9 @@
 
 ``render(scene, settings, passes=True)`` fills a ``PrimaryPasses`` beside the image, tile by
 tile (each tile writes only its own slice, like the image).  The values come from one extra
-trace of the tile's pixel centres at depth 1 (``trace_bundle(record_primary=True)``, which
-reads t, the sphere and the normal at the bounce loop's first hit): passes are per pixel
+trace of the tile's pixel centres to their first hits (``trace_bundle(record_primary=True,
+primary_only=True)``, which reads t, the primitive and the normal at the bounce loop's first
+hit and shades nothing): passes are per pixel
 centre, not averaged over anti-aliasing samples, as depth, normals and indices cannot be
 meaningfully averaged across an edge anyway.
 
@@ -31,7 +32,6 @@ mapped back to world units here.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,9 +87,10 @@ def fill_tile_passes(passes: PrimaryPasses, ctx, camera, tile, stats, world=None
     rows, cols = rows.ravel(), cols.ravel()
     rays = camera_rays(camera, cols + 0.5, rows + 0.5, ctx.dtype)
     emission = passes.emission is not None
-    if not emission:  # the first hit is all the other passes need
-        ctx = dataclasses.replace(ctx, settings=dataclasses.replace(ctx.settings, max_depth=1))
-    traced = trace_bundle(ctx, rays, stats, record_primary=True, record_emission=emission)
+    # The first hit is all the other passes need, not its shading (its shadow rays and the
+    # world's cost a supersampled corpus scene 0.8 s of 3.8); emission follows the path.
+    traced = trace_bundle(ctx, rays, stats, record_primary=True, record_emission=emission,
+                          primary_only=not emission)
     hits = traced.primary
     hit = hits.primitive >= 0
     t = np.where(hit, hits.t, 0.0).astype(np.float64)

@@ -106,14 +106,17 @@ def _mean_channel(weight):
 
 
 def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
-                 record_primary: bool = False, record_emission: bool = False) -> BundleResult:
+                 record_primary: bool = False, record_emission: bool = False,
+                 primary_only: bool = False) -> BundleResult:
     """Follow the bundle: article semantics as the article does (one mirror ray per hit, a
     scalar weight); default semantics with Blender's look (``ctx.look``) with colour weights
     and, where ``core.bsdf`` says so, several secondary rays per hit (mirror, refraction,
     straight through).  record_emission: also sum, into ``BundleResult.emission``, the
     emission the camera's path meets (module docstring: the camera ray and what it sees
     straight through Transparent BSDFs, weighted; not what mirrors or refraction show), as
-    Cycles' Emission pass does."""
+    Cycles' Emission pass does.  primary_only (with record_primary): stop at the first
+    hits, recorded and not shaded (the render passes' depth, normals and indices need
+    nothing more; the colour is then left black)."""
     dtype = ctx.dtype
     geometry = ctx.geometry
     n = rays.directions.shape[1]
@@ -173,6 +176,8 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
         if primary is not None and depth == 0:
             primary.t[path], primary.normal[:, path] = hits.t, normals
             primary.primitive[path], primary.material[path] = primitive, hits.material
+            if primary_only:
+                break
         exclude = None if ctx.article else geometry.exclusions(primitive, front)
         point_shares = None if shares is None else shares.take(path)
         illumination, goes_on, shadow_code = shade(ctx, points, normals, directions,
