@@ -512,10 +512,14 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
             per_pixel += PrimaryPasses.EMISSION_BYTES_PER_PIXEL
         reserve_bytes += per_pixel * width * height
     tiles = _tiles(width, height, settings.tile_size)
-    # Passes are filled beside each tile in this process (``work``), so they keep tiles here.
+    # Passes are filled in this process, beside each tile (``work``) or, where the tiles go
+    # to worker processes, as each lands (``land``): their trace stops at the first hits,
+    # a small part of a tile's work.  The Emission pass follows whole camera paths, so it
+    # keeps the tiles here.
+    emission_pass = isinstance(passes, PrimaryPasses) and passes.emission is not None
     tree = builds_tree(scene.sphere_count, scene.triangle_count)
-    in_processes = not passes and _in_processes(settings, width * height, len(tiles),
-                                                    threads, tree)
+    in_processes = not emission_pass and _in_processes(settings, width * height, len(tiles),
+                                                       threads, tree)
     memory_plan = memory.plan(scene, settings, image_dtype, threads, reserve_bytes)
     if in_processes:  # plus the workers' interpreters and the scene's shared copy
         memory_plan = dataclasses.replace(memory_plan, other=memory_plan.other + workers.
@@ -547,14 +551,22 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
             fill_tile_passes(primary, ctx, camera, tile, tile_stats, world)
         return rgba, tile_stats
 
-    def land(tile, pixels, tile_stats, done, finite):
+    def fill_passes(tile, tile_stats):
+        """A tile's passes, filled here as the tile lands from a worker process."""
+        if primary is not None:
+            fill_tile_passes(primary, ctx, scene.camera, tile, tile_stats, world)
+
+    def land(tile, pixels, tile_stats, done, finite, worker_tile=False):
         """A finished tile: pixels its (h, w, 4) view of the image, finite whether the
         values it was made from are all finite (workers check their own tiles, sparing this
-        process a pass over the image)."""
+        process a pass over the image); worker_tile: rendered by ``core.workers`` (its
+        passes are not filled yet)."""
         if not finite:  # never a silently wrong picture, even from a bug
             y0, y1, x0, x1 = tile
             raise RenderError(f"pixels {x0}-{x1 - 1} x {y0}-{y1 - 1} came out NaN or "
                               f"infinite; please report this scene")
+        if worker_tile:
+            fill_passes(tile, tile_stats)
         stats.add(tile_stats)
         if on_tile is not None:
             on_tile(tile, pixels)
@@ -577,15 +589,15 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
         try:
             # The workers write their tiles straight into the image they share with this
             # process, which is the result (core.workers: no copy of any tile here).
-            image, unavailable = workers.render_tiles(ctx, scene.camera, tiles, shape,
-                                                      image_dtype, threads, land,
-                                                      should_cancel)
+            image, unavailable = workers.render_tiles(
+                ctx, scene.camera, tiles, shape, image_dtype, threads,
+                functools.partial(land, worker_tile=True), should_cancel)
             if unavailable is not None:  # the workers failed after some tiles landed
                 return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
                                     settings.semantics, parallelism="threads",
-                                    fallback=_fallback_line(unavailable))
+                                    passes=primary, fallback=_fallback_line(unavailable))
             return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
-                                settings.semantics, parallelism="processes")
+                                settings.semantics, parallelism="processes", passes=primary)
         except workers.WorkersBusy:
             pass  # another render (a viewport) has them: threads, without a word
         except workers.ProcessesUnavailable as error:

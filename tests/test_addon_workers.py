@@ -97,6 +97,27 @@ def test_f12_in_processes_gives_the_threads_image_with_progress_for_every_tile(
         assert fractions[-1] == 1.0
 
 
+def test_f12_with_passes_in_processes_gives_the_threads_passes(
+        tmp_path, small_renders_in_processes, small_tiles):
+    """Render passes (old files keep Blender's former default Z pass on) no longer keep the
+    tiles on threads: this process fills a tile's passes as it lands from a worker, the same
+    values as beside each tile on threads."""
+    frames = {}
+    for parallelism, count in (('THREADS', 1), ('PROCESSES', 2)):
+        scene = tiled_scene(parallelism, count)
+        layer = scene.view_layers[0]
+        for flag in ("use_pass_z", "use_pass_normal", "use_pass_object_index",
+                     "use_pass_material_index"):
+            setattr(layer, flag, True)
+        frames[parallelism] = f12(scene, tmp_path / f"{parallelism}.png", FrameRequest())[1]
+    threads, processes = frames['THREADS'], frames['PROCESSES']
+    assert (threads.parallelism, processes.parallelism) == ("threads", "processes")
+    assert np.array_equal(processes.image, threads.image)
+    for name in ("depth", "position", "normal", "primitive", "material"):
+        assert np.array_equal(getattr(processes.passes, name), getattr(threads.passes, name))
+    assert (threads.passes.primitive >= 0).any() and (threads.passes.primitive < 0).any()
+
+
 def test_a_cancelled_f12_in_processes_stops_within_the_tiles_in_flight(
         tmp_path, small_renders_in_processes, small_tiles):
     scene = tiled_scene('PROCESSES', 2)
