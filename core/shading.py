@@ -30,7 +30,9 @@ pixel of S samples traces about max(F, S) shadow rays per light of F samples, no
 
 Shadow rays are traced from the light towards the points: every shadow ray of a light then
 shares one origin, so the geometry's terms are computed once per light, not once per ray.
-Visibility is asked of the scene's aggregate (``ctx.geometry.occluded``), segment by segment.
+Visibility is asked of the scene's aggregate (``ctx.geometry.occluded``), segment by segment,
+a shading call's batches joined where the answers allow (``_blocked_each``: each trace has a
+fixed cost, and an anti-aliasing round's share of one light sample is a few hundred rays).
 
 Default semantics also shades Blender's lights in Cycles' units (``_shade_blender_lights``:
 samples and irradiance from ``core.lights``, the surface's answer from ``core.bsdf``), for
