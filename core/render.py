@@ -545,16 +545,16 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     else:
         primary = PrimaryPasses.empty(width, height) if passes else None
 
-    def work(ctx, camera, tile, stop=None):
-        rgba, tile_stats = render_tile(ctx, camera, tile, stop)
-        if primary is not None:
-            fill_tile_passes(primary, ctx, camera, tile, tile_stats, world)
-        return rgba, tile_stats
-
     def fill_passes(tile, tile_stats):
-        """A tile's passes, filled here as the tile lands from a worker process."""
+        """A tile's passes, if asked for: beside the tile on a thread, or here as it lands
+        from a worker process."""
         if primary is not None:
             fill_tile_passes(primary, ctx, scene.camera, tile, tile_stats, world)
+
+    def work(ctx, camera, tile, stop=None):
+        rgba, tile_stats = render_tile(ctx, camera, tile, stop)
+        fill_passes(tile, tile_stats)
+        return rgba, tile_stats
 
     def land(tile, pixels, tile_stats, done, finite, worker_tile=False):
         """A finished tile: pixels its (h, w, 4) view of the image, finite whether the
