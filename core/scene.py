@@ -729,24 +729,30 @@ def _checked_array(where: str, field_name: str, value, dtype, shape: tuple,
     return np.ascontiguousarray(array, dtype)
 
 
-#: Rows per block of ``_unit_rows``: its temporaries stay a few MB, reused from malloc's heap,
-#: instead of whole-array ones (a million triangles: a copy and a square of the (T, 3, 3)
-#: normals and two (T, 3) arrays, about 0.2 GB of fresh pages).
+#: Rows (a mesh's triangles) per block of whole-mesh arithmetic (``row_blocks``: here the
+#: corner normals' normalisation, and the export's ``read_mesh``): a block's temporaries stay
+#: a few MB, reused from malloc's heap, instead of whole-array ones (a million triangles:
+#: about 0.2 GB of fresh pages in each of the two, at every export).
 BLOCK_ROWS = 1 << 16
+
+
+def row_blocks(count: int):
+    """Slices of BLOCK_ROWS consecutive rows covering ``count`` rows."""
+    return (slice(start, start + BLOCK_ROWS) for start in range(0, count, BLOCK_ROWS))
 
 
 def _unit_rows(where: str, field_name: str, vectors: np.ndarray) -> np.ndarray:
     """(T, k, 3) ``vectors`` divided by their lengths, a new read-only array, block by
     block (the same values as whole); SceneError naming the first zero vector."""
     result = np.empty(vectors.shape, np.float64)
-    for start in range(0, len(vectors), BLOCK_ROWS):
-        block = vectors[start:start + BLOCK_ROWS]
+    for rows in row_blocks(len(vectors)):
+        block = vectors[rows]
         lengths = np.sqrt((block * block).sum(axis=2))
         bad = _first_bad(lengths <= 1e-30)
         if bad is not None:
-            bad = (bad[0] + start, *bad[1:])
+            bad = (bad[0] + rows.start, *bad[1:])
             raise SceneError(f"{where}: {field_name}{_index_text(bad)} must not be zero")
-        np.divide(block, lengths[:, :, None], out=result[start:start + BLOCK_ROWS])
+        np.divide(block, lengths[:, :, None], out=result[rows])
     result.setflags(write=False)
     return result
 

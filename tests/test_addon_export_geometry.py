@@ -622,16 +622,17 @@ def test_instances_of_a_hidden_instancer_are_not_exported(scene):
 
 
 def test_read_mesh_block_helpers_give_the_whole_array_values():
-    """read_mesh works per block of BLOCK_TRIANGLES triangles (its temporaries stay small):
+    """read_mesh works per block of BLOCK_ROWS triangles (its temporaries stay small):
     the area test, the normals' gather and the flat normals where Blender left a corner's zero
     give the same bits as the whole-array formulas."""
     from glint.addon.export import meshes as meshes_module
+    from glint.core.scene import BLOCK_ROWS
 
     rng = np.random.default_rng(9)
-    count = 2 * meshes_module.BLOCK_TRIANGLES + 3
+    count = 2 * BLOCK_ROWS + 3
     vertices = rng.normal(size=(500, 3))
     triangles = rng.integers(0, 500, (count, 3))
-    degenerate = [5, meshes_module.BLOCK_TRIANGLES + 1, count - 1]
+    degenerate = [5, BLOCK_ROWS + 1, count - 1]
     triangles[degenerate, 2] = triangles[degenerate, 0]                  # zero area
     corners = vertices[triangles]
     area = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])

@@ -34,6 +34,7 @@ from typing import Optional
 import numpy as np
 
 from ...core import SceneError, Sphere, SphereSet, TriangleMesh
+from ...core.scene import row_blocks
 from ...core.terminator import DEFAULT_GEOMETRY_OFFSET
 from .context import instance_name
 from .errors import ExportError
@@ -74,13 +75,6 @@ def face_slots(mesh, faces: np.ndarray) -> np.ndarray:
     return read_array(attribute.data, "value", 1, np.int64, stored=STORED_INT)[faces]
 
 
-#: Triangles per block of ``read_mesh``'s per-triangle arithmetic (the area test, the normals'
-#: gather): a block's temporaries (a few MB) are reused from malloc's heap block after block,
-#: where whole-mesh temporaries (a million triangles: the (T, 3, 3) corners and the float32
-#: normals, about 0.2 GB) were fresh pages from the kernel at every export.
-BLOCK_TRIANGLES = 1 << 16
-
-
 def _area_vectors(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """(n, 3) each triangle's edge cross product (twice its area along its normal)."""
     corners = vertices[triangles]
@@ -90,8 +84,7 @@ def _area_vectors(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
 def _nonzero_area(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """(T,) bool: the triangles whose area vector is not zero, block by block."""
     keep = np.empty(len(triangles), bool)
-    for start in range(0, len(triangles), BLOCK_TRIANGLES):
-        block = slice(start, start + BLOCK_TRIANGLES)
+    for block in row_blocks(len(triangles)):
         keep[block] = _area_vectors(vertices, triangles[block]).any(axis=1)
     return keep
 
@@ -99,8 +92,7 @@ def _nonzero_area(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
 def _gathered(values: np.ndarray, index: np.ndarray, dtype) -> np.ndarray:
     """``values[index].astype(dtype)``, block by block into the result."""
     result = np.empty(index.shape + values.shape[1:], dtype)
-    for start in range(0, len(index), BLOCK_TRIANGLES):
-        block = slice(start, start + BLOCK_TRIANGLES)
+    for block in row_blocks(len(index)):
         result[block] = values[index[block]]
     return result
 
@@ -125,7 +117,8 @@ def read_mesh(mesh) -> MeshArrays:
     attribute and its face (``loop_triangle_polygons``) and slot through the face's
     ``material_index``, so the same values as ``loop_triangles.vertices`` and
     ``.material_index`` without their per-element reads (0.65 and 0.5 s more).  The
-    per-triangle arithmetic runs in blocks (``BLOCK_TRIANGLES``)."""
+    per-triangle arithmetic runs in blocks (``core.scene.row_blocks``: whole-mesh
+    temporaries were fresh pages at every export)."""
     vertices = read_array(mesh.vertices, "co", 3, stored=STORED_FLOAT)
     triangulation = mesh.loop_triangles
     loops = read_array(triangulation, "loops", 3, np.int64, stored=STORED_INT)
