@@ -429,7 +429,26 @@ def curve_exponents(bench: Bench, curve: str) -> list[str]:
             lines.append(f"- {contender} at {width}x{height}{what}: time ~ spheres^k with k = "
                          f"{fitted_exponent(counts, seconds):.2f} over {int(counts[0]):,} to "
                          f"{int(counts[-1]):,}{tail_text}")
+        if all(p.rays for p in points):
+            lines.append(_per_ray_line(contender, width, height, points, counts))
     return lines + ([""] if lines else [])
+
+
+def _per_ray_line(contender, width, height, points, counts) -> str:
+    """A curve's time split into the rays the scene makes (camera, shadow and reflection
+    rays a pixel: more spheres, more of the frame hit) and the cost of each: the render's
+    time a ray (the median's wall time: the tiles' own timers are summed over threads, and
+    a thread waiting for the GIL or for a table another builds counts its wait), fitted as
+    the time is, and the box and primitive tests a ray at each point (a logarithmic
+    structure adds about as many per decade)."""
+    per_ray = np.array([p.seconds / p.rays for p in points])
+    per_pixel = [p.rays / p.pixels for p in points]
+    tests = ", ".join(f"{p.tests / p.rays:.1f} at {p.spheres:,}" for p in points)
+    return (f"- {contender} at {width}x{height}, per traced ray ({min(per_pixel):.2f}-"
+            f"{max(per_pixel):.2f} rays a pixel): the render's time a ray ~ spheres^k with k = "
+            f"{fitted_exponent(counts, per_ray):.2f} over {int(counts[0]):,} to "
+            f"{int(counts[-1]):,} ({1e6 * per_ray[0]:.2f} to {1e6 * per_ray[-1]:.2f} us); "
+            f"box and primitive tests a ray: {tests}")
 
 
 def phase_table(bench: Bench) -> list[str]:

@@ -244,6 +244,11 @@ class CurvePoint:
     #: the tracing, without the frame's set-up (the tree's build, the context); None for the
     #: baseline.
     tile_seconds: Optional[float] = None
+    #: Glint's rays traced (camera, shadow and reflection rays) and the box and primitive
+    #: tests they made (``RayStats``), which split a curve's time into the rays a scene
+    #: makes and the cost of each; None for the baseline.
+    rays: Optional[int] = None
+    tests: Optional[int] = None
 
     @property
     def pixels(self) -> int:
@@ -280,7 +285,7 @@ class Bench:
         self._blender_error: Optional[str] = None
         self._blender_results = {}   # BlenderJob -> (Timing, image)
         self._timings = {}           # (scene key, contender key) -> (Timing, image bytes)
-        self._tile_seconds = {}      # (scene key, contender key) -> a render's tiles' seconds
+        self._tile_stats = {}        # (scene key, contender key) -> a render's RayStats
         self._floor_bands = {}       # size -> bool mask
         self.phases: list[tuple] = []  # (workload title, contender, RayStats) per-phase timers
         self.scale_results: list[dict] = []  # bench.scale's JSON result per scale case
@@ -679,7 +684,7 @@ class Bench:
     # Cost curves
 
     def _curve_point(self, curve, scene_key, scene, contender) -> None:
-        tile_seconds = None
+        stats = None
         if contender == "baseline":
             label = BASELINE_LABEL
             _, timing, image_bytes = self.measure_baseline(scene_key, scene)
@@ -687,11 +692,15 @@ class Bench:
             label = contender.label
             result, timing, image_bytes = self.measure_glint(scene_key, scene, contender)
             if result is not None:   # the warm-up's; a reused measurement keeps its own
-                self._tile_seconds[scene_key, contender] = result.stats.seconds_tiles
-            tile_seconds = self._tile_seconds.get((scene_key, contender))
+                self._tile_stats[scene_key, contender] = result.stats
+            stats = self._tile_stats.get((scene_key, contender))
+        traced = None if stats is None else dict(
+            tile_seconds=stats.seconds_tiles,
+            rays=stats.camera_rays + stats.shadow_rays + stats.reflection_rays,
+            tests=stats.node_tests + stats.sphere_tests + stats.triangle_tests)
         self.curve_points.append(CurvePoint(
             curve, label, scene.camera.width, scene.camera.height, scene.sphere_count,
-            timing.median, len(timing.runs), timing.peak_bytes, image_bytes, tile_seconds))
+            timing.median, len(timing.runs), timing.peak_bytes, image_bytes, **(traced or {})))
 
     def pixel_curve(self) -> None:
         for width, height in self.plan.pixel_curve:
