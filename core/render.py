@@ -520,15 +520,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     tree = builds_tree(scene.sphere_count, scene.triangle_count)
     in_processes = not emission_pass and _in_processes(settings, width * height, len(tiles),
                                                        threads, tree)
-    # Tiles rendered in this process under 'auto' run on one thread: a pool of them holds
-    # the GIL in turn and gained nothing on 2 cores (through 'auto', the article scene at
-    # 640x360 and 320x180 took 0.61-0.78x the two threads' time, two area-lit scenes
-    # 0.91-1.07x; RenderSettings.parallelism).
-    # The tree and the frame's tables are still built on ``threads``, and the tiles run on
-    # a pool thread, so that a cancel is still polled while one runs.
-    tile_threads = 1 if settings.parallelism == "auto" else threads
-    memory_plan = memory.plan(scene, settings, image_dtype,
-                              threads if in_processes else tile_threads, reserve_bytes)
+    memory_plan = memory.plan(scene, settings, image_dtype, threads, reserve_bytes)
     if in_processes:  # plus the workers' interpreters and the scene's shared copy
         memory_plan = dataclasses.replace(memory_plan, other=memory_plan.other + workers.
                                           planned_bytes(threads, memory_plan.scene))
@@ -623,14 +615,14 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
                             settings.semantics, passes=primary, fallback=fallback)
 
     stop = threading.Event()
-    with ThreadPoolExecutor(max_workers=tile_threads) as pool:
+    with ThreadPoolExecutor(max_workers=threads) as pool:
         pending = {}
         queue = iter(tiles)
         done = 0
         try:
             while True:
                 # Keep only a few tiles in flight so a cancel is honoured promptly.
-                while len(pending) < 2 * tile_threads:
+                while len(pending) < 2 * threads:
                     tile = next(queue, None)
                     if tile is None:
                         break

@@ -995,11 +995,10 @@ class RenderSettings:
         why).  'auto' takes processes where 'processes' would and ``threads`` is more than
         one (one worker only moves the work), except in a process that renders once
         (``python -m core``, render.py for one frame), where a cold start must pay:
-        workers already running, or ``core.workers.COLD_MIN_SAMPLES`` camera samples;
-        the tiles 'auto' keeps in this process run one at a time (the tree is still built
-        on ``threads``).  Measured on 2 cores, two threads render the article's 1080p
-        frame 0.91x as fast as one (the GIL), two warm processes 1.75x (README: "Worker
-        processes and malloc settings").  Results never depend on it.
+        workers already running, or ``core.workers.COLD_MIN_SAMPLES`` camera samples.
+        Measured on 2 cores, two threads render the article's 1080p frame 0.91x as fast as
+        one (the GIL), two warm processes 1.75x (README: "Worker processes and malloc
+        settings").  Results never depend on it.
     film: the image's alpha and background (default semantics; ``core.choices.FILM_CHOICES``):
         'coverage' (the core's own image): the background where camera rays escape, alpha =
         1 - transparency, the share of the pixel's samples that escaped (directly or straight

@@ -142,8 +142,7 @@ def test_soft_lights_with_adaptive_aa_do_not_depend_on_tiles_or_threads():
                                core.SunLight((-0.3, 0.2, -1), strength=2.0, angle=0.2)),
                        background=(0.1, 0.1, 0.2), ambient=(0.1, 0.1, 0.2))
     images = [core.render(scene, core.RenderSettings(anti_aliasing=aa, samples=8,
-                                                     tile_size=tile, threads=threads,
-                                                     parallelism="threads")).image
+                                                     tile_size=tile, threads=threads)).image
               for aa in ("adaptive", "fixed") for tile, threads in ((8, 1), (128, 1), (16, 2))]
     for first in (0, 3):
         for other in (1, 2):

@@ -128,12 +128,11 @@ def test_on_a_dense_field_staged_samples_cost_fewer_rays_for_the_same_error(monk
 
 def test_staged_samples_do_not_depend_on_tiles_or_threads():
     scene = _field(size=(40, 30), count=600)
-    images = [_adaptive(scene, tile_size=tile, threads=threads, parallelism="threads").image
+    images = [_adaptive(scene, tile_size=tile, threads=threads).image
               for tile, threads in ((128, 1), (8, 1), (16, 2), (12, 2))]
     for image in images[1:]:
         assert np.array_equal(images[0], image)
-    default = [_adaptive(scene, semantics="default", tile_size=tile, threads=threads,
-                         parallelism="threads").image
+    default = [_adaptive(scene, semantics="default", tile_size=tile, threads=threads).image
                for tile, threads in ((128, 1), (8, 2))]
     assert np.array_equal(*default)
 

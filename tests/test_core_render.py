@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import sys
-import threading
-import time
 import tracemalloc
 
 import numpy as np
@@ -90,8 +87,7 @@ def test_culling_skips_spheres_a_tile_cannot_see():
 def test_result_does_not_depend_on_threads(mode):
     scene = core.article_scene(150, 100)
     images = [core.render(scene, core.RenderSettings(threads=threads, tile_size=32,
-                                                     anti_aliasing=mode, samples=4,
-                                                     parallelism="threads")).image
+                                                     anti_aliasing=mode, samples=4)).image
               for threads in (1, 2, 3)]
     assert np.array_equal(images[0], images[1]) and np.array_equal(images[0], images[2])
 
@@ -139,8 +135,7 @@ def test_sample_offsets_start_at_the_centre_and_stay_in_the_pixel():
 
 def test_progress_reports_and_cancel_stops_between_tiles():
     seen = []
-    core.render(core.article_scene(64, 64),
-                core.RenderSettings(tile_size=16, threads=2, parallelism="threads"),
+    core.render(core.article_scene(64, 64), core.RenderSettings(tile_size=16, threads=2),
                 progress=seen.append)
     assert len(seen) == 16 and seen[-1] == 1.0 and seen == sorted(seen)
     calls = []
@@ -150,50 +145,8 @@ def test_progress_reports_and_cancel_stops_between_tiles():
         return len(calls) > 3
 
     with pytest.raises(core.RenderCancelled):
-        core.render(core.article_scene(64, 64),
-                    core.RenderSettings(tile_size=16, threads=2, parallelism="threads"),
+        core.render(core.article_scene(64, 64), core.RenderSettings(tile_size=16, threads=2),
                     should_cancel=cancel_after_three)
-
-
-def _tiles_at_once(monkeypatch, settings, scene, **render):
-    """(result, most tiles running at once, threads the tiles ran on) of a render whose
-    tiles each linger a little, so that a pool of two would overlap them."""
-    render_module = sys.modules["core.render"]
-    tile = render_module.render_tile
-    lock, running, most, threads = threading.Lock(), [0], [0], set()
-
-    def lingering(*args, **kwargs):
-        with lock:
-            running[0] += 1
-            most[0] = max(most[0], running[0])
-            threads.add(threading.get_ident())
-        try:
-            time.sleep(0.02)
-            return tile(*args, **kwargs)
-        finally:
-            with lock:
-                running[0] -= 1
-
-    monkeypatch.setattr(render_module, "render_tile", lingering)
-    return core.render(scene, settings, **render), most[0], threads
-
-
-def test_auto_renders_the_tiles_it_keeps_here_on_one_thread(monkeypatch):
-    """'auto' runs the tiles that stay in this process one at a time (threads under the GIL
-    gained nothing), on a thread of their own, so a cancel is still polled while one runs;
-    'threads' keeps its pool of ``threads``; the image is the same."""
-    scene = core.article_scene(64, 64)
-    auto, most, threads = _tiles_at_once(
-        monkeypatch, core.RenderSettings(tile_size=16, threads=2), scene)
-    assert auto.parallelism == "threads" and most == 1
-    assert threading.get_ident() not in threads
-    pool, most, threads = _tiles_at_once(
-        monkeypatch, core.RenderSettings(tile_size=16, threads=2, parallelism="threads"), scene)
-    assert most == 2 and len(threads) == 2
-    assert np.array_equal(auto.image, pool.image)
-    with pytest.raises(core.RenderCancelled):
-        _tiles_at_once(monkeypatch, core.RenderSettings(tile_size=16, threads=2), scene,
-                       should_cancel=lambda: True)
 
 
 def test_8k_render_working_memory_stays_under_300_mb():
