@@ -33,6 +33,7 @@ def _contexts(scene, monkeypatch, dtype=np.float64):
     tree = make_context(scene, core.RenderSettings(), dtype)
     monkeypatch.setattr(aggregate, "BVH_MIN_SPHERES", 10 ** 9)
     monkeypatch.setattr(aggregate, "BVH_MIN_TRIANGLES", 10 ** 9)
+    monkeypatch.setattr(aggregate, "TREE_SAVED_TESTS", np.inf)
     flat = make_context(scene, core.RenderSettings(), dtype)
     assert tree.geometry._tree is not None and flat.geometry._tree is None
     return tree, flat
@@ -117,10 +118,62 @@ def test_small_scenes_build_no_tree():
     assert stats.node_tests == 0
 
 
+def _quads(*quads):
+    """One flat grey mesh of quads, each four corners (counter-clockwise)."""
+    vertices = np.array([corner for quad in quads for corner in quad], float)
+    first = 4 * np.arange(len(quads))[:, None]
+    triangles = np.concatenate([first + [0, 1, 2], first + [0, 2, 3]])
+    return core.TriangleMesh(vertices, triangles, None, np.zeros(len(triangles), np.intp),
+                             (core.SurfaceMaterial(diffuse=(0.8, 0.8, 0.8)),))
+
+
+def _cube(half=1.0):
+    c = [[x, y, z] for x in (-half, half) for y in (-half, half) for z in (-half, half)]
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    return _quads(*[[c[i] for i in face] for face in faces])
+
+
+def _floor(z=-1.0, half=10.0):
+    return [[-half, -half, z], [half, -half, z], [half, half, z], [-half, half, z]]
+
+
+@pytest.mark.parametrize("meshes, tree", [
+    ((_cube(), _quads(_floor())), True),        # Blender's default cube over a plane
+    ((_quads(_floor(), [[-10, 10, -1], [10, 10, -1], [10, 10, 9], [-10, 10, 9]],
+             [[-10, -10, -1], [-10, 10, -1], [-10, 10, 9], [-10, -10, 9]]),), False),  # a room
+    ((_quads(_floor()),), False)])
+def test_a_few_compact_triangles_get_a_tree_and_the_same_image(monkeypatch, meshes, tree):
+    """At most BVH_MIN_TRIANGLES triangles get a tree where it saves a ray TREE_SAVED_TESTS
+    tests (a cube's faces are small beside the floor they stand on: 12.2 of 14 saved),
+    not where every triangle spans the scene (a room's floor and walls, a lone floor), and
+    the image (under a soft sun and the world's occlusion rays) is the flat test's."""
+    scene = core.Scene(camera=core.BlenderCamera(
+        matrix_world=((0.6859, -0.324, 0.6516, 7.3589), (0.7277, 0.3054, -0.6142, -6.9258),
+                      (0.0, 0.8953, 0.4452, 4.9583), (0, 0, 0, 1)),
+        resolution_x=48, resolution_y=27), meshes=meshes,
+        spheres=(core.Sphere((2.5, 1.5, 0.0), 1.0, core.SurfaceMaterial()),),
+        lights=(core.SunLight((-0.3, 0.4, -0.85), strength=3.0, angle=0.2),),
+        ambient=(0.05, 0.05, 0.05))
+    settings = core.RenderSettings(anti_aliasing="adaptive", samples=4)
+    ctx = make_context(scene, settings, np.float64)
+    t = ctx.geometry.triangles
+    saved = aggregate.small_mesh_saved_tests(t.v0, t.v1, t.v2)
+    assert (saved >= aggregate.TREE_SAVED_TESTS) == tree
+    assert (ctx.geometry._tree is not None) == tree == aggregate.builds_tree(
+        0, scene.triangle_count, saved)
+    chosen = core.render(scene, settings)
+    monkeypatch.setattr(aggregate, "TREE_SAVED_TESTS", np.inf)
+    assert make_context(scene, settings, np.float64).geometry._tree is None
+    flat = core.render(scene, settings)
+    assert np.array_equal(chosen.image, flat.image)
+    assert (chosen.stats.triangle_tests < 0.5 * flat.stats.triangle_tests) == tree
+
+
 @pytest.mark.parametrize("spheres, triangles", [(500, 0), (501, 0), (0, 16), (0, 17),
                                                 (400, 10)])
 def test_builds_tree_says_what_the_aggregate_builds(spheres, triangles):
-    """The worker-process rule weighs scenes by ``builds_tree``: it must be the truth."""
+    """The worker-process rule weighs scenes by ``builds_tree``'s counts: with a few
+    triangles' saved tests it is the truth."""
     from core.aggregate import builds_tree
     rng = np.random.default_rng(2)
     sets = (core.SphereSet(rng.uniform(-3, 3, (spheres, 3)), rng.uniform(0.01, 0.05, spheres),
@@ -132,8 +185,11 @@ def test_builds_tree_says_what_the_aggregate_builds(spheres, triangles):
     scene = core.Scene(camera=core.ScreenCamera(16, 16, eye=(0, 0, 12)), sphere_sets=sets,
                        meshes=meshes, lights=(core.PointLight((3, 20, 8)),))
     ctx = make_context(scene, core.RenderSettings(), np.float64)
+    t = ctx.geometry.triangles
+    saved = aggregate.small_mesh_saved_tests(t.v0, t.v1, t.v2) if triangles else 0.0
     assert (ctx.geometry._tree is not None) == builds_tree(scene.sphere_count,
-                                                            scene.triangle_count)
+                                                            scene.triangle_count, saved)
+    # By counts alone (what the rule weighs): a few triangles never make a scene heavy.
     assert builds_tree(scene.sphere_count, scene.triangle_count) == (spheres > 500
                                                                      or triangles > 16)
 
