@@ -55,12 +55,14 @@ BVH_MIN_SPHERES = 500
 BVH_MIN_TRIANGLES = 16
 #: A few triangles get a tree where it saves a ray at least this many of the flat test's
 #: triangle tests (about 120 ns each, every ray against every triangle its bundle's cone
-#: reaches), against a tree's fixed cost a batch.  One thread, same images: a cube over a
-#: floor plane (14 triangles, saves 12.2) rendered in 0.43-0.81x the flat time at 320x180
-#: (adaptive) and 640x360 (AA off) under a soft point light and soft and hard suns; the cube
-#: alone (saves 8.0) in 0.52-0.77x but for one case at 1.23x; a room's floor, walls and
-#: ceiling (4-8 triangles spanning the scene, saving 2.5-5) at 0.99-1.74x, and a floor
-#: plane under a sphere (saves 0) at 1.6-2.2x, stay flat.
+#: reaches), against a tree's fixed cost a batch; the tree answers only rays leaving points
+#: (``_tree_answers``).  Same images; a cube over a floor plane (14 triangles, saves 12.2)
+#: and the cube alone (saves 8.0), at 320x180 (adaptive) and 640x360 (AA off), under a soft
+#: point light and soft and hard suns with the world's occlusion rays: 0.32-0.71x the flat
+#: time on one thread, 0.54-1.01x on two (the soft light's samples gain most from the
+#: flat kernels' threads).  A room's floor, walls and ceiling (4-8 triangles spanning the
+#: scene, saving 2.5-5: a tree took 0.99-1.74x their flat time) and a floor plane under a
+#: sphere (saves 0; 1.6-2.2x) stay flat.
 TREE_SAVED_TESTS = 8.0
 #: A sphere whose radius exceeds this multiple of the median stays out of the tree (the
 #: article's floor, radius 9000, would make the root's box that size: every ray would
@@ -170,6 +172,7 @@ class Aggregate:
         self._clusters = cluster_spheres(self._flat_centers, self._flat_radii)
         tree_triangles = np.zeros(0, np.intp)
         self._flat_triangles = np.arange(self.triangle_count)
+        self._small_tree = False
         if self.triangle_count:
             t = triangles
             # The corners as rows (9, T) for the tree's pair kernel; _v are views of them.
@@ -190,11 +193,16 @@ class Aggregate:
             self._tri_radii = reach * (1 + 1e-9) + 1e-12 * (1 + np.abs(centre).max(axis=0))
             self._tri_material = t.material
             # Every triangle goes into the tree once there are enough (the SAH build puts
-            # large ones, a backdrop, in their own subtrees), or where a few are compact
-            # enough for a tree to pay.
-            if builds_tree(0, self.triangle_count, small_mesh_saved_tests(t.v0, t.v1, t.v2)):
+            # large ones, a backdrop, in their own subtrees).  A few compact ones beside
+            # flat spheres get a tree of their own and stay flat as well (``_small_tree``:
+            # ``_tree_answers``).
+            if builds_tree(0, self.triangle_count):
                 self._flat_triangles, tree_triangles = (np.zeros(0, np.intp),
                                                         np.arange(self.triangle_count))
+            elif len(tree_spheres) == 0 and builds_tree(
+                    0, self.triangle_count, small_mesh_saved_tests(t.v0, t.v1, t.v2)):
+                self._small_tree = True
+                tree_triangles = np.arange(self.triangle_count)
         # One tree over the rest, spheres and triangles together (global ids).
         self._tree = None
         self._tree_boxes = None
@@ -307,6 +315,22 @@ class Aggregate:
             return True
         return self._tree is not None and not self._too_few_for_bins(count)
 
+    def _tree_answers(self, rays: RayBatch) -> bool:
+        """Whether the tree answers this batch.  A tree of a few triangles
+        (``small_mesh_saved_tests``, which are kept flat as well) answers only rays that do
+        not share an origin (rays leaving points: a sun's, the world's, reflections), whose
+        occlusion trails start beside their own triangle; batches from one origin (the
+        eye, a light sample) test the flat triangles, whose whole-array kernels run well
+        on threads (two threads, a soft point light's samples over a cube and a plane: the
+        tree 1.08-1.47x the flat test's time; the corpus' area lamp 1.2x; the suns and the
+        world's rays 0.66-0.85x).  The same hits either way."""
+        return self._tree is not None and not (self._small_tree and rays.shared is not None)
+
+    def _flat_answers(self, rays: RayBatch) -> bool:
+        """Whether the flat triangles answer this batch (``_tree_answers``)."""
+        return bool(len(self._flat_triangles)) and not (self._small_tree
+                                                         and rays.shared is None)
+
     def _too_few_for_bins(self, count: int) -> bool:
         """Whether a batch of ``count`` rays from one origin is too small for id-ordered
         direction bins (BINS_PRIMITIVES_PER_RAY), or the tree too large for any."""
@@ -322,9 +346,9 @@ class Aggregate:
         barycentrics = None
         if self.triangle_count:
             barycentrics = tuple(np.zeros(len(rays), self.dtype) for _ in range(3))
-        if self._tree is not None:
+        if self._tree_answers(rays):
             self._nearest_in_tree(rays, t, primitive, barycentrics, stats)
-        if len(self._flat_triangles):
+        if self._flat_answers(rays):
             t_tri, triangle, flat_bary = self._nearest_triangles(rays, t, stats)
             better = t_tri < t
             t = np.where(better, t_tri, t)
@@ -1111,8 +1135,8 @@ class Aggregate:
         stats.shadow_rays += n
         if self._flat_count:
             blocked |= self._sphere_occlusion(segments, stats)
-        for occlusion in (self._occluded_in_tree if self._tree is not None else None,
-                          self._triangle_occlusion if len(self._flat_triangles) else None):
+        for occlusion in (self._occluded_in_tree if self._tree_answers(segments) else None,
+                          self._triangle_occlusion if self._flat_answers(segments) else None):
             if occlusion is None or blocked.all():
                 continue
             open_ = np.flatnonzero(~blocked)

@@ -145,23 +145,33 @@ def _floor(z=-1.0, half=10.0):
 def test_a_few_compact_triangles_get_a_tree_and_the_same_image(monkeypatch, meshes, tree):
     """At most BVH_MIN_TRIANGLES triangles get a tree where it saves a ray TREE_SAVED_TESTS
     tests (a cube's faces are small beside the floor they stand on: 12.2 of 14 saved),
-    not where every triangle spans the scene (a room's floor and walls, a lone floor), and
-    the image (under a soft sun and the world's occlusion rays) is the flat test's."""
+    not where every triangle spans the scene (a room's floor and walls, a lone floor); the
+    tree answers only rays that leave points (the suns', the world's), batches from one
+    origin (the eye, a soft point light's samples) test the flat triangles, and the image
+    is the flat test's."""
     scene = core.Scene(camera=core.BlenderCamera(
         matrix_world=((0.6859, -0.324, 0.6516, 7.3589), (0.7277, 0.3054, -0.6142, -6.9258),
                       (0.0, 0.8953, 0.4452, 4.9583), (0, 0, 0, 1)),
         resolution_x=48, resolution_y=27), meshes=meshes,
         spheres=(core.Sphere((2.5, 1.5, 0.0), 1.0, core.SurfaceMaterial()),),
-        lights=(core.SunLight((-0.3, 0.4, -0.85), strength=3.0, angle=0.2),),
+        lights=(core.SunLight((-0.3, 0.4, -0.85), strength=3.0, angle=0.2),
+                core.SphereLight((4.08, 1.0, 5.9), power=1000.0, radius=0.1)),
         ambient=(0.05, 0.05, 0.05))
-    settings = core.RenderSettings(anti_aliasing="adaptive", samples=4)
+    settings = core.RenderSettings(anti_aliasing="adaptive", samples=4, light_samples=4)
     ctx = make_context(scene, settings, np.float64)
     t = ctx.geometry.triangles
     saved = aggregate.small_mesh_saved_tests(t.v0, t.v1, t.v2)
     assert (saved >= aggregate.TREE_SAVED_TESTS) == tree
     assert (ctx.geometry._tree is not None) == tree == aggregate.builds_tree(
         0, scene.triangle_count, saved)
+    through_tree = []     # (whether the batch shares an origin) of each batch in the tree
+    for name in ("_nearest_in_tree", "_occluded_in_tree"):
+        method = getattr(aggregate.Aggregate, name)
+        monkeypatch.setattr(aggregate.Aggregate, name,
+                            lambda self, rays, *rest, method=method: through_tree.append(
+                                rays.shared is not None) or method(self, rays, *rest))
     chosen = core.render(scene, settings)
+    assert (len(through_tree) > 0) == tree and not any(through_tree)
     monkeypatch.setattr(aggregate, "TREE_SAVED_TESTS", np.inf)
     assert make_context(scene, settings, np.float64).geometry._tree is None
     flat = core.render(scene, settings)
