@@ -46,10 +46,16 @@ from .vectors import dot, facing, take
 ROOT_FORMULAS = ("textbook", "stable")
 #: Upper bound on (ray, triangle) pairs intersected at once; bounds the (k, n) temporaries.
 TRIANGLE_BLOCK_PAIRS = 1 << 18
-#: Scenes with at most this many spheres cull them flat (``core.cull``), with no tree
-#: (measured at 320x180 over the floor: flat 0.30 s vs tree 0.56 s at 250 spheres, 1.56 s
-#: vs 0.87 s at 1,000).
-BVH_MIN_SPHERES = 500
+#: Scenes with at most this many spheres cull them flat (``core.cull``), with no tree.
+#: Measured at stop 24 on ``bench.scenes.random_sphere_set_scene`` (its floor beside the
+#: tree), one thread, the tree against flat culling in article semantics and in default
+#: semantics under a sun with and without the world's occlusion rays and under a hard
+#: point light, same images: at 320x180 with adaptive AA 1.59-2.43x at 3-5 spheres,
+#: 1.05-1.32x at 8-10, 0.81-0.97x at 16, 0.72-0.77x at 24, 0.66-0.67x at 50 and
+#: 0.14-0.21x at 250; at 640x360 without AA 1.07-1.23x at 10, 1.02-1.05x at 16, 0.91-0.94x
+#: at 32 and 0.57-0.62x at 100.  (Until stop 24 this was 500, from a measurement before
+#: the occlusion trails and the bins: flat 0.30 s against the tree's 0.56 s at 250.)
+BVH_MIN_SPHERES = 24
 #: Meshes with at most this many triangles in all are tested flat, with no tree, unless a
 #: tree of them saves a ray TREE_SAVED_TESTS triangle tests (``small_mesh_saved_tests``).
 BVH_MIN_TRIANGLES = 16

@@ -179,8 +179,8 @@ def test_a_few_compact_triangles_get_a_tree_and_the_same_image(monkeypatch, mesh
     assert (chosen.stats.triangle_tests < 0.5 * flat.stats.triangle_tests) == tree
 
 
-@pytest.mark.parametrize("spheres, triangles", [(500, 0), (501, 0), (0, 16), (0, 17),
-                                                (400, 10)])
+@pytest.mark.parametrize("spheres, triangles", [(24, 0), (25, 0), (0, 16), (0, 17),
+                                                (20, 10), (400, 10)])
 def test_builds_tree_says_what_the_aggregate_builds(spheres, triangles):
     """The worker-process rule weighs scenes by ``builds_tree``'s counts: with a few
     triangles' saved tests it is the truth."""
@@ -200,7 +200,7 @@ def test_builds_tree_says_what_the_aggregate_builds(spheres, triangles):
     assert (ctx.geometry._tree is not None) == builds_tree(scene.sphere_count,
                                                             scene.triangle_count, saved)
     # By counts alone (what the rule weighs): a few triangles never make a scene heavy.
-    assert builds_tree(scene.sphere_count, scene.triangle_count) == (spheres > 500
+    assert builds_tree(scene.sphere_count, scene.triangle_count) == (spheres > 24
                                                                      or triangles > 16)
 
 
