@@ -39,7 +39,7 @@ from .intersect import (FewSpheres, OriginTerms, first_hit_distance, offset_disc
                         offset_press_roots, offset_roots, origin_roots)
 from .rays import ARTICLE_OFFSET, Hits, RayBatch, RayStats, SharedOrigin, ray_offsets, timed
 from .terminator import TerminatorLift, smooth_surface_lift
-from .triangles import Shear, watertight, watertight_pairs
+from .triangles import Shear, watertight_axes, watertight_pairs
 from .vectors import dot, facing, take
 
 #: The two ways to compute ray/sphere roots (``core.intersect``).
@@ -512,7 +512,11 @@ class Aggregate:
                               axis, half, reach)]
 
     def _triangle_blocks(self, rays: RayBatch, t_max, stats):
-        """Yields (triangles (k,), t, b0, b1, b2, valid (k, n)) over candidate triangles."""
+        """Yields (triangles (k,), rays (r,) of the batch, t, b0, b1, b2, valid (k, r)) over
+        candidate triangles, the rays in groups of one shear's axes (``watertight_axes``:
+        at most six, by the direction's largest axis and its sign), each ray's triangles in
+        candidate order.  t_max: scalar or (n,), read again for every block (a nearest-hit
+        search lowers it as hits are found)."""
         n = len(rays)
         reach = _per_ray(t_max, n)
         finite = reach[np.isfinite(reach)]
@@ -521,23 +525,33 @@ class Aggregate:
         if len(candidates) == 0 or n == 0:
             return
         shear = Shear.of(rays.directions)
-        rows = (shear.x[:, None, :], shear.y[:, None, :], shear.z[:, None, :])
-        origins = rays.origins.astype(self.dtype, copy=False)[:, None, :]
+        kx, ky, kz = shear.axes
+        key = 3 * kz + kx                     # (kz, kx) fixes the permutation
+        order = np.argsort(key, kind="stable")
+        bounds = np.flatnonzero(np.diff(key.take(order))) + 1
+        shared = rays.origins.shape[1] == 1
+        origins = rays.origins.astype(self.dtype, copy=False)
         t_min = np.asarray(rays.t_min, self.dtype)
-        t_min = t_min[None, :] if t_min.ndim else t_min
-        chunk = max(1, TRIANGLE_BLOCK_PAIRS // n)
-        for first in range(0, len(candidates), chunk):
-            triangles = candidates[first:first + chunk]
-            if stats is not None:
-                stats.triangle_tests += n * len(triangles)
-            v0, v1, v2 = (v[:, triangles][:, :, None] for v in self._v)
-            limit_now = np.asarray(t_max, self.dtype)
-            limit_now = limit_now[None, :] if limit_now.ndim else limit_now
-            t, b0, b1, b2, valid = watertight(v0, v1, v2, origins, Shear(*rows), t_min,
-                                              limit_now)
-            if rays.exclude is not None:
-                valid &= (triangles + self.sphere_count)[:, None] != rays.exclude[None, :]
-            yield triangles, t, b0, b1, b2, valid
+        for group in np.split(order, bounds):
+            first = group[0]
+            axes = (int(kx[first]), int(ky[first]), int(kz[first]))
+            factors = take(shear.factors, group)
+            starts = origins[:, None, :] if shared else take(origins, group)[:, None, :]
+            low = t_min.take(group)[None, :] if t_min.ndim else t_min
+            chunk = max(1, TRIANGLE_BLOCK_PAIRS // len(group))
+            for start in range(0, len(candidates), chunk):
+                triangles = candidates[start:start + chunk]
+                if stats is not None:
+                    stats.triangle_tests += len(group) * len(triangles)
+                v0, v1, v2 = (v[:, triangles][:, :, None] for v in self._v)
+                high = np.asarray(t_max, self.dtype)
+                high = high.take(group)[None, :] if high.ndim else high
+                t, b0, b1, b2, valid = watertight_axes(v0, v1, v2, starts, axes, factors,
+                                                       low, high)
+                if rays.exclude is not None:
+                    valid &= ((triangles + self.sphere_count)[:, None]
+                              != rays.exclude.take(group)[None, :])
+                yield triangles, group, t, b0, b1, b2, valid
 
     def _nearest_triangles(self, rays: RayBatch, t_max_now, stats):
         """(t (n,), triangle (n,) local index or -1, (b0, b1, b2) (n,) each) of the nearest
@@ -548,17 +562,18 @@ class Aggregate:
         found_t = np.full(n, np.inf, self.dtype)
         best = np.full(n, -1, np.intp)
         bary = [np.zeros(n, self.dtype) for _ in range(3)]
-        columns = np.arange(n)
-        for triangles, t, b0, b1, b2, valid in self._triangle_blocks(rays, limit, stats):
+        for triangles, group, t, b0, b1, b2, valid in self._triangle_blocks(rays, limit, stats):
             t = np.where(valid, t, np.inf)
             row = np.argmin(t, axis=0)
+            columns = np.arange(len(group))
             nearest = t[row, columns]
-            better = nearest < limit
-            found_t[better] = nearest[better]
-            best[better] = triangles[row[better]]
+            better = np.flatnonzero(nearest < limit.take(group))
+            rays_better = group.take(better)
+            found_t[rays_better] = nearest.take(better)
+            best[rays_better] = triangles.take(row.take(better))
             for store, b in zip(bary, (b0, b1, b2)):
-                store[better] = b[row[better], columns[better]]
-            np.minimum(limit, found_t, out=limit)
+                store[rays_better] = b[row.take(better), better]
+            limit[rays_better] = np.minimum(limit.take(rays_better), found_t.take(rays_better))
         return found_t, best, tuple(bary)
 
     # ---- the tree -----------------------------------------------------------------------
@@ -1152,9 +1167,9 @@ class Aggregate:
 
     def _triangle_occlusion(self, segments: RayBatch, stats):
         blocked = np.zeros(len(segments), bool)
-        for triangles, t, b0, b1, b2, valid in self._triangle_blocks(segments, segments.t_max,
-                                                                     stats):
-            blocked |= valid.any(axis=0)
+        for triangles, group, t, b0, b1, b2, valid in self._triangle_blocks(
+                segments, segments.t_max, stats):
+            blocked[group] |= valid.any(axis=0)
         return blocked
 
     def _sphere_occlusion(self, segments: RayBatch, stats):

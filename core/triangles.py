@@ -12,8 +12,14 @@ at least one of them, never none (no cracks).  An edge function that rounds to e
 zero is recomputed in extended precision (the paper's double-precision fallback), so a
 ray grazing an edge is not decided by rounding alone.
 
-The shear is kept as three rows of a per-ray 3 x 3 matrix (``Shear``): a row's dot product
-with p multiplies by 1, 0 and -S, so it rounds exactly like the paper's formula.
+The shear is kept as each ray's axes (kx, ky, kz) and factors (-Sx, -Sy, Sz) (``Shear``),
+and a sheared corner is computed as the formula reads, ``p[kx] + (-Sx) p[kz]`` and so on:
+for rays that share their axes, a block of (triangle, ray) pairs at once
+(``watertight_axes``; a batch is cut into at most six such groups), or for explicit pairs,
+gathering each pair's axes (``watertight_pairs``).  Both round alike, so a ray's hits do not
+depend on which kernel found them.  (Until stop 24 the shear was three rows of a 3 x 3
+matrix, each corner's coordinate a dot product with a row: the same values, as the products
+by 1 and 0 are exact, at twice the cost.)
 """
 
 from __future__ import annotations
@@ -27,46 +33,49 @@ from .vectors import take
 
 @dataclass(frozen=True)
 class Shear:
-    """Per-ray shear rows: x, y, z (3, n) each, so that sheared p = (x.p, y.p, z.p); and the
-    same shear as axes and factors for explicit (ray, triangle) pairs (``watertight_pairs``):
-    axes (3, n) kx, ky, kz; factors (3, n) x[kz], y[kz], z[kz] (the rows' other entries
-    are 1 at kx of x, 1 at ky of y, and 0)."""
+    """Each ray's shear: axes (3, n) kx, ky, kz and factors (3, n) -Sx, -Sy, Sz, so that a
+    point p relative to the ray's origin shears to (p[kx] - Sx p[kz], p[ky] - Sy p[kz],
+    Sz p[kz])."""
 
-    x: np.ndarray
-    y: np.ndarray
-    z: np.ndarray
-    axes: np.ndarray | None = None
-    factors: np.ndarray | None = None
+    axes: np.ndarray
+    factors: np.ndarray
 
     @classmethod
     def of(cls, directions: np.ndarray) -> "Shear":
         """The shear of each unit direction (3, n)."""
-        n = directions.shape[1]
-        columns = np.arange(n)
+        columns = np.arange(directions.shape[1])
         kz = np.argmax(np.abs(directions), axis=0)
         kx = (kz + 1) % 3
         ky = (kx + 1) % 3
         flip = directions[kz, columns] < 0
         kx, ky = np.where(flip, ky, kx), np.where(flip, kx, ky)
         along = directions[kz, columns]
-        x = np.zeros((3, n), directions.dtype)
-        y = np.zeros((3, n), directions.dtype)
-        z = np.zeros((3, n), directions.dtype)
         factors = np.stack([-(directions[kx, columns] / along),
                             -(directions[ky, columns] / along), 1 / along])
-        x[kx, columns] = 1
-        y[ky, columns] = 1
-        x[kz, columns], y[kz, columns], z[kz, columns] = factors
-        return cls(x, y, z, np.stack([kx, ky, kz]), factors)
+        return cls(np.stack([kx, ky, kz]), factors)
 
-    def take(self, index) -> "Shear":
-        return Shear(take(self.x, index), take(self.y, index), take(self.z, index))
+
+def watertight_axes(v0, v1, v2, origins, axes, factors, t_min, t_max):
+    """(t, b0, b1, b2, valid) (k, r) each, of k triangles against r rays that share their
+    shear's axes ``axes`` (kx, ky, kz) (ints).
+
+    v0, v1, v2: (3, k, 1) corners; origins: (3, 1, r), or (3, 1, 1) for rays sharing their
+    origin; factors (3, r): the rays' ``Shear.factors``; t_min, t_max: scalars or (1, r).
+    b0, b1, b2 are the barycentric weights of v0, v1, v2 at the hit (they sum to 1).  A hit
+    needs t_min < t < t_max; both faces count (no culling); a degenerate triangle (zero
+    area seen along the ray) never hits."""
+    kx, ky, kz = axes
+    fx, fy, fz = (f[None, :] for f in factors)
+    sheared = []
+    for v in (v0, v1, v2):
+        p = v - origins
+        sheared += [p[kx] + fx * p[kz], p[ky] + fy * p[kz], fz * p[kz]]
+    return _hit(*sheared, t_min, t_max)
 
 
 def watertight_pairs(corners, triangle, origins, shear: Shear, rays, t_min, t_max):
-    """``watertight`` for E explicit (ray, triangle) pairs, with the same rounding (a shear
-    row's product with p is p[kx] + x[kz] p[kz] once its 1 and 0 entries are multiplied
-    out), by gathering each pair's sheared axes instead of multiplying by whole rows.
+    """``watertight_axes`` for E explicit (ray, triangle) pairs, with the same rounding, by
+    gathering each pair's sheared axes.
 
     corners (9, T): corner j's axis k of every triangle in row 3 j + k; triangle, rays (E,);
     origins (3, 1) or (3, n); shear: the rays' ``Shear``; t_min, t_max scalars or (E,).
@@ -88,27 +97,8 @@ def watertight_pairs(corners, triangle, origins, shear: Shear, rays, t_min, t_ma
     return _hit(*sheared, t_min, t_max)
 
 
-def _apply(row, p):
-    return row[0] * p[0] + row[1] * p[1] + row[2] * p[2]
-
-
 def _edges(ax, ay, bx, by, cx, cy):
     return cx * by - cy * bx, ax * cy - ay * cx, bx * ay - by * ax
-
-
-def watertight(v0, v1, v2, origins, shear: Shear, t_min, t_max):
-    """(t, b0, b1, b2, valid) in the broadcast shape of the inputs.
-
-    v0, v1, v2: (3, ...) corners; origins: (3, ...) ray origins; shear: the rays' ``Shear``
-    with rows (3, ...) broadcasting likewise; t_min, t_max: scalars or broadcastable arrays.
-    b0, b1, b2 are the barycentric weights of v0, v1, v2 at the hit (they sum to 1).  A hit
-    needs t_min < t < t_max; both faces count (no culling); a degenerate triangle (zero
-    area seen along the ray) never hits.
-    """
-    a, b, c = v0 - origins, v1 - origins, v2 - origins
-    return _hit(_apply(shear.x, a), _apply(shear.y, a), _apply(shear.z, a),
-                _apply(shear.x, b), _apply(shear.y, b), _apply(shear.z, b),
-                _apply(shear.x, c), _apply(shear.y, c), _apply(shear.z, c), t_min, t_max)
 
 
 def _hit(ax, ay, az, bx, by, bz, cx, cy, cz, t_min, t_max):

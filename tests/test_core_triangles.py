@@ -137,6 +137,55 @@ def test_ray_through_shared_edge_of_two_triangles_hits_exactly_one_or_both_never
 
 # ---- an independent oracle -------------------------------------------------------------------
 
+@pytest.mark.parametrize("dtype", DTYPES)
+@pytest.mark.parametrize("shared_origin", [True, False])
+def test_both_kernels_shear_as_the_papers_matrix_rows_do_bit_for_bit(dtype, shared_origin):
+    """The block kernel (rays grouped by their shear's axes) and the pair kernel compute a
+    sheared corner as p[kx] - Sx p[kz]; the paper's per-ray 3 x 3 shear, a dot product with
+    each row (entries 1, 0 and -S), rounds alike, as its products by 1 and 0 are exact: the
+    same t, barycentrics and verdicts from all three, for every axis permutation."""
+    from core.triangles import Shear, _hit, watertight_axes, watertight_pairs
+
+    rng = np.random.default_rng(4)
+    k, n = 9, 600
+    corners = [rng.uniform(-3, 3, (3, k)).astype(dtype) for _ in range(3)]
+    directions = rng.normal(size=(3, n))
+    directions = (directions / np.linalg.norm(directions, axis=0)).astype(dtype)
+    origins = (rng.uniform(-1, 1, (3, 1 if shared_origin else n)) * 5).astype(dtype)
+    shear = Shear.of(directions)
+    rows = np.zeros((3, 3, n), dtype)          # rows[r, axis, ray] of the paper's matrix
+    columns = np.arange(n)
+    for row in range(3):
+        rows[row, shear.axes[2], columns] = shear.factors[row]
+    rows[0, shear.axes[0], columns] = 1
+    rows[1, shear.axes[1], columns] = 1
+    sheared = []
+    for v in corners:
+        p = v[:, :, None] - origins[:, None, :]
+        sheared += [rows[r, 0] * p[0] + rows[r, 1] * p[1] + rows[r, 2] * p[2] for r in range(3)]
+    reference = _hit(*sheared, 0.0, np.inf)
+    assert reference[4].sum() > 50
+    key = 3 * shear.axes[2] + shear.axes[0]
+    assert len(np.unique(key)) == 6
+    blocks = [np.zeros((k, n), a.dtype) for a in reference]
+    for value in np.unique(key):
+        group = np.flatnonzero(key == value)
+        start = origins if shared_origin else origins[:, group]
+        found = watertight_axes(*(v[:, :, None] for v in corners), start[:, None, :],
+                                tuple(int(a) for a in shear.axes[:, group[0]]),
+                                shear.factors[:, group], 0.0, np.inf)
+        for store, part in zip(blocks, found):
+            store[:, group] = part
+    triangle, ray = (a.ravel() for a in np.meshgrid(np.arange(k), columns, indexing="ij"))
+    pairs = watertight_pairs(np.concatenate(corners), triangle, origins, shear, ray, 0.0,
+                             np.inf)
+    valid = reference[4]
+    for made in (blocks, [a.reshape(k, n) for a in pairs]):
+        assert np.array_equal(made[4], valid)
+        for expected, got in zip(reference[:4], made[:4]):
+            assert np.array_equal(expected[valid], got[valid])
+
+
 def test_triangle_hits_agree_with_a_linear_solve_oracle():
     """Random triangles and rays: hit or miss and distance agree with solving
     o + t d = v0 + u (v1 - v0) + v (v2 - v0) by numpy.linalg.solve, except where the oracle's
