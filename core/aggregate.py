@@ -573,7 +573,7 @@ class Aggregate:
             best[rays_better] = triangles.take(row.take(better))
             for store, b in zip(bary, (b0, b1, b2)):
                 store[rays_better] = b[row.take(better), better]
-            limit[rays_better] = np.minimum(limit.take(rays_better), found_t.take(rays_better))
+            limit[rays_better] = found_t.take(rays_better)   # (each below its limit)
         return found_t, best, tuple(bary)
 
     # ---- the tree -----------------------------------------------------------------------
