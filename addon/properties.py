@@ -37,6 +37,12 @@ class GlintRenderSettings(bpy.types.PropertyGroup):
     light_samples: IntProperty(
         name="Light Samples", default=16, min=1, soft_max=256, max=MAX_LIGHT_SAMPLES,
         description="Shadow rays per light with a radius (soft shadows, default semantics)")
+    world_samples: IntProperty(
+        name="World Samples", default=RenderSettings.world_samples, min=0, soft_max=64,
+        max=MAX_LIGHT_SAMPLES,
+        description="Rays per point towards the world, whose light they occlude (contact "
+                    "shadows, default semantics); rounded up to a square, 0 leaves the "
+                    "world unoccluded")
     precision: EnumProperty(
         name="Precision", default='AUTO', items=enum_items(PRECISION_CHOICES))
     semantics: EnumProperty(

@@ -28,6 +28,9 @@ def draw_render_settings(layout, scene) -> None:
     row = column.row()
     row.active = settings.semantics == 'DEFAULT'
     row.prop(settings, "light_samples")
+    row = column.row()
+    row.active = settings.semantics == 'DEFAULT'
+    row.prop(settings, "world_samples")
 
     layout.prop(scene.render, "film_transparent", text="Transparent Film")
     layout.prop(settings, "image_name")

@@ -11,8 +11,8 @@ import bpy
 import numpy as np
 import pytest
 
-from addon_support import (RENDER_SCRIPT, REPOSITORY, add_sphere, depsgraph, glint, link,
-                           prepare_job, read_image, read_png, simple_scene, to_rgba8)
+from addon_support import (RENDER_SCRIPT, REPOSITORY, add_sphere, add_world, depsgraph, glint,
+                           link, prepare_job, read_image, read_png, simple_scene, to_rgba8)
 from glint.addon.engine.final import compatible_panels
 
 
@@ -86,6 +86,32 @@ def test_blenders_thread_setting_reaches_the_core():
     assert prepare_job(depsgraph()).settings.threads is None      # Auto-detect: every core
     scene.render.threads_mode, scene.render.threads = 'FIXED', 3
     assert prepare_job(depsgraph()).settings.threads == 3
+
+
+def test_world_samples_reach_the_core_and_0_leaves_the_world_unoccluded():
+    from glint.core import RenderSettings
+
+    scene = simple_scene()
+    add_world("grey", (0.5, 0.5, 0.5))
+    scene.render.resolution_x, scene.render.resolution_y = 96, 64
+    scene.glint.anti_aliasing = 'OFF'
+    assert scene.glint.world_samples == RenderSettings.world_samples
+    occluded = prepare_job(depsgraph()).run().image
+    # (A script's change to an add-on's property reaches the evaluated scene once the scene
+    # is tagged, for Cycles' settings as for Glint's.)
+    scene.glint.world_samples = 4
+    scene.update_tag()
+    assert prepare_job(depsgraph()).settings.world_samples == 4
+    scene.glint.world_samples = 0
+    scene.update_tag()
+    job = prepare_job(depsgraph())
+    assert job.settings.world_samples == 0
+    open_sky = job.run().image
+    # The small sphere hides part of the big one's sky: only there does the image change, and
+    # only by getting brighter.
+    change = open_sky[..., :3] - occluded[..., :3]
+    assert change.min() >= -1e-6
+    assert 0 < np.count_nonzero(change.max(axis=-1) > 1e-3) < change.shape[0] * change.shape[1] / 2
 
 
 def test_scene_settings_glint_ignores_are_named_in_one_warning():

@@ -552,7 +552,8 @@ def test_panels_draw_the_settings_and_the_render_button():
     layout = RecordingLayout()
     glint.addon.ui.draw_render_settings(layout, scene)
     assert {"semantics", "precision", "max_depth", "anti_aliasing", "samples",
-            "film_transparent", "image_name"} <= set(layout.drawn)
+            "light_samples", "world_samples", "film_transparent",
+            "image_name"} <= set(layout.drawn)
     assert layout.operators == ["glint.render"]
 
     material = bpy.data.materials.new("m")

@@ -202,6 +202,7 @@ def test_the_settings_hard_maximums_are_the_cores_limits():
     render = GlintRenderSettings.bl_rna.properties
     assert render["samples"].hard_max == limits.MAX_SAMPLES
     assert render["light_samples"].hard_max == limits.MAX_LIGHT_SAMPLES
+    assert render["world_samples"].hard_max == limits.MAX_LIGHT_SAMPLES
     assert render["max_depth"].hard_max == limits.MAX_DEPTH
     material = GlintMaterialSettings.bl_rna.properties
     assert material["shininess"].hard_max == limits.MAX_SHININESS

@@ -57,6 +57,7 @@ def render_settings(settings, render=None) -> RenderSettings:
         anti_aliasing=settings.anti_aliasing.lower(),
         samples=settings.samples,
         light_samples=settings.light_samples,
+        world_samples=settings.world_samples,
         threads=threads,
         film=film,
         parallelism=settings.parallelism.lower(),
