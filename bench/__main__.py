@@ -83,7 +83,10 @@ def plan_lines(plan, quick: bool) -> list[str]:
         f"at {size(plan.sphere_set_hd[0])}.",
         f"Scale cases (bench.scale, KIND:COUNT:WIDTHxHEIGHT): "
         f"{'; '.join(', '.join(cases) for cases in plan.scale_cases.values())}; export of "
-        f"{', '.join(f'{c:,}' for c in plan.scale_export_counts)} instances.",
+        f"{', '.join(f'{c:,}' for c in plan.scale_export_counts)} instances; noise "
+        f"(bench.noise) on {plan.noise_case[0]}: Glint at {plan.noise_case[1]} world samples "
+        f"against {plan.noise_case[2]}, Cycles at {plan.noise_case[3]} spp against "
+        f"{plan.noise_case[4]}.",
         "Threads: Glint one per core; baseline and per-pixel program one (NumPy); Cycles all "
         "cores.  Memory: tracemalloc peak of the warm-up run (Python/NumPy contenders), "
         "resident-set growth of one render in a child process (Blender, marked RSS).",

@@ -366,6 +366,19 @@ def target_scale_export(bench: Bench) -> Target:
         f"{r['count']:,} {r['case']}: export_scene {r['export_s']:.3g} s" for r in results))
 
 
+def target_scale_noise(bench: Bench) -> Target:
+    name = ("(scale 5) instanced spheres at equal noise: Glint's F12 at each world-sample "
+            "count against Cycles' time to the same noise (bench.noise; no time target)")
+    results = [r for r in bench.scale_results if r["kind"] == "noise"]
+    if not results:
+        return _missing(name, "the scale-noise workload")
+    from .noise import summary
+
+    result = results[-1]
+    return Target(name, "MEASURED", f"{result['title']}: " + "; ".join(
+        summary(result)[:len(result["glint"])]))
+
+
 def targets(bench: Bench) -> list[Target]:
     return [target_accurate_speed(bench), target_default_semantics(bench),
             target_two_workers(bench), target_spread(bench),
@@ -375,7 +388,7 @@ def targets(bench: Bench) -> list[Target]:
 
 def scale_targets(bench: Bench) -> list[Target]:
     return [target_scale_points(bench), target_scale_instances(bench),
-            target_scale_suzanne(bench), target_scale_export(bench)]
+            target_scale_suzanne(bench), target_scale_export(bench), target_scale_noise(bench)]
 
 
 # --------------------------------------------------------------------------------------------

@@ -30,6 +30,9 @@ Workloads (``--only NAME``):
   instances, vertex instances and linked duplicates; Suzanne subdivided to 1,007,616
   triangles over a floor at 1920x1080), Glint's F12 (export + render, AA off) against
   Cycles' F12 at 1 spp, both in one child process per case, with their similarity.
+* scale-noise: speed against noise (``bench.noise``): Glint's F12 at several world-sample
+  counts and Cycles' at several sample counts on the instances scene, each image's noise
+  against its own engine's converged image, and Cycles' time at Glint's noise.
 * scale-export: ``export_scene`` alone on 100,000 and 1,000,000 instances, read in bulk and
   walked one by one, and on a million points (``bench.export_scale``).
 
@@ -109,6 +112,9 @@ class Plan:
     # counts of scale-export's bench.export_scale cases.
     scale_cases: dict = field(default_factory=dict)
     scale_export_counts: tuple = ()
+    # scale-noise's bench.noise case: (spec, Glint's world samples, Glint's reference count,
+    # Cycles' samples, Cycles' reference count).
+    noise_case: tuple = ()
 
 
 FULL = Plan(
@@ -149,13 +155,16 @@ FULL = replace(FULL, scale_cases={
     "scale-points": ("points:1000000:640x360",),
     "scale-instances": ("instances:100000:640x360", "vertex-instances:100000:640x360",
                         "duplicates:100000:640x360"),
-    "scale-suzanne": ("suzanne:5:1920x1080",)}, scale_export_counts=(100_000, 1_000_000))
+    "scale-suzanne": ("suzanne:5:1920x1080",)}, scale_export_counts=(100_000, 1_000_000),
+    noise_case=("instances:100000:640x360", (1, 4, 9, 16), 256, (1, 2, 4, 8, 16, 32), 1024))
 QUICK = replace(QUICK, scale_cases={
     "scale-points": ("points:1000:160x90",),
     "scale-instances": ("instances:1000:160x90", "vertex-instances:1000:160x90",
                         "duplicates:300:160x90"),
-    "scale-suzanne": ("suzanne:2:320x180",)}, scale_export_counts=(10_000,))
-SCALE_WORKLOADS = ("scale-points", "scale-instances", "scale-suzanne", "scale-export")
+    "scale-suzanne": ("suzanne:2:320x180",)}, scale_export_counts=(10_000,),
+    noise_case=("instances:1000:160x90", (1, 4, 9), 64, (1, 4, 16), 256))
+SCALE_WORKLOADS = ("scale-points", "scale-instances", "scale-suzanne", "scale-noise",
+                   "scale-export")
 
 SCENE_WORKLOADS = ("article-small", "article-hd", "article-uhd", "spheres", "spheres-nofloor")
 AA_WORKLOADS = ("aa-adaptive", "aa-fixed16", "aa-dense")
@@ -467,6 +476,8 @@ class Bench:
                 self.malloc_workload(name)
             elif name == "scale-export":
                 self.scale_export_workload(name)
+            elif name == "scale-noise":
+                self.noise_workload(name)
             elif name in SCALE_WORKLOADS:
                 self.scale_workload(name)
             else:
@@ -841,6 +852,24 @@ class Bench:
             self.scale_results.append(result)
             self.rows.extend(scale_rows(name, result))
 
+    def noise_workload(self, name: str) -> None:
+        """Glint's world samples against Cycles' samples, time and noise (``bench.noise``),
+        in one child process."""
+        from . import noise, scale
+
+        if not self.use_blender:
+            self.notes.append(f"{name}: not run (--no-blender; both contenders are Blender "
+                              f"renders)")
+            return
+        spec, glint_counts, glint_reference, cycles_counts, cycles_reference = \
+            self.plan.noise_case
+        case = scale.Case.parse(spec)
+        log(f"{case.title}: noise against samples, Glint and Cycles (bench.noise child)")
+        result = noise.run(case, glint_counts, glint_reference, cycles_counts,
+                           cycles_reference, self.plan.repeats, self.plan.budget, self.out_dir)
+        self.scale_results.append(dict(result, kind="noise"))
+        self.rows.extend(noise_rows(name, result))
+
     def scale_export_workload(self, name: str) -> None:
         """export_scene alone on a million points and instances (``bench.export_scale``'s
         cases: in bulk from Geometry Nodes, and walked one by one)."""
@@ -887,6 +916,31 @@ def scale_rows(name: str, result: dict) -> list:
                 memory_kind="rss", notes=glint_notes),
             Row(name, result["title"], SCALE_CYCLES_LABEL, "cycles", Timing(cycles["runs"]),
                 cycles["median_s"], memory_kind="rss", notes=cycles_notes)]
+
+
+def noise_rows(name: str, result: dict) -> list:
+    """A row per Glint world-sample count and per Cycles sample count of a ``bench.noise``
+    result, each noting its noise against its own engine's converged image."""
+    from .noise import BOX
+
+    matched = {m["world_samples"]: m for m in result["equal_noise"]}
+    rows = []
+    for engine, label, kind in (("glint", "Glint default/auto, AA off, {} world samples, F12",
+                                 "glint"), ("cycles", "Cycles CPU, {} spp, F12", "cycles")):
+        reference = result[engine + "_reference"]["samples"]
+        for entry in result[engine]:
+            notes = [f"noise against the same engine at {reference}: RMS {entry['rms']:.3g} "
+                     f"steps a pixel, {entry['box_rms']:.2g} in {BOX}x{BOX} boxes"]
+            match = matched.get(entry["samples"]) if engine == "glint" else None
+            if match is not None:
+                how = "extrapolated" if match["extrapolated"] else "interpolated"
+                notes.append(f"Cycles at the same noise: {match['seconds']:.3g} s "
+                             f"(~{match['samples']:.3g} spp, {how})")
+            rows.append(Row(name, result["title"] + ", noise", label.format(entry["samples"]),
+                            kind, Timing(entry["runs"]), entry["median_s"],
+                            semantics="default" if kind == "glint" else None,
+                            memory_kind="rss", notes=notes))
+    return rows
 
 
 def _largest_phase(glint: dict) -> str:
