@@ -23,6 +23,8 @@ edges' sampling as well.
 per-pixel RMS: interpolated in log-log between the two Cycles counts that bracket it, or,
 when Glint's image is less noisy than every Cycles image measured, extrapolated (and flagged
 so): the samples from the two least noisy counts' noise, the time affine in the samples.
+It writes ``OUT/noise-KIND-COUNT.png``: the image's central quarter, Glint on the left and
+Cycles on the right, at the fewest samples timed, the most and the reference, top to bottom.
 """
 
 from __future__ import annotations
@@ -91,6 +93,14 @@ def equal_noise(rms: float, points: list) -> dict:
     return {"samples": samples, "seconds": float(seconds), "extrapolated": extrapolated}
 
 
+def _crops(images: list) -> np.ndarray:
+    """The central quarter of each (H, W, 4) image, one above the other."""
+    height, width = images[0].shape[:2]
+    rows, columns = slice(height // 4, height // 4 + max(height // 2, 1)), \
+        slice(width // 4, width // 4 + max(width // 2, 1))
+    return np.concatenate([image[rows, columns] for image in images], axis=0)
+
+
 def _counts(text: str) -> tuple:
     try:
         counts = tuple(int(v) for v in text.split(","))
@@ -109,6 +119,7 @@ def measure_case(case: scale.Case, glint_counts, glint_reference: int, cycles_co
     scale.build(case)
     scene = bpy.context.scene
     result = {"case": case.spec, "title": case.title}
+    strips = {}
     for engine, counts, reference in (("GLINT", glint_counts, glint_reference),
                                       ("CYCLES", cycles_counts, cycles_reference)):
         scene.render.engine = engine
@@ -136,6 +147,10 @@ def measure_case(case: scale.Case, glint_counts, glint_reference: int, cycles_co
             entry.update(noise(images[entry["samples"]], images[reference]))
         result[engine.lower()] = entries[:-1]
         result[engine.lower() + "_reference"] = entries[-1]
+        strips[engine] = _crops([images[counts[0]], images[counts[-1]], images[reference]])
+    picture = os.path.join(out, f"noise-{case.kind}-{case.count}.png")
+    scale._save_side_by_side(picture, strips["GLINT"], strips["CYCLES"])
+    result["picture"] = picture
     cycles = [(e["samples"], e["median_s"], e["rms"]) for e in result["cycles"]]
     result["equal_noise"] = [dict(equal_noise(e["rms"], cycles), world_samples=e["samples"])
                              for e in result["glint"]] if len(cycles) >= 2 else []

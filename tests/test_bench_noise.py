@@ -2,6 +2,7 @@
 run of both engines through F12."""
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -54,6 +55,7 @@ def test_a_tiny_case_renders_both_engines_at_every_count(tmp_path):
     assert [m["world_samples"] for m in result["equal_noise"]] == [1, 4]
     assert all(m["seconds"] > 0 for m in result["equal_noise"])
     assert len(noise.summary(result)) == 4
+    assert os.path.exists(result["picture"])
 
     # The bench's rows (one per count) and its report's line for the workload.
     from bench import report
