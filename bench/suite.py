@@ -836,14 +836,20 @@ class Bench:
     # ---------------------------------------------------------------------------------------
     # Issue 9's scale rows
 
+    def skipped_without_blender(self, name: str) -> bool:
+        """True (and a note) when --no-blender leaves out a workload whose contenders are
+        all Blender renders."""
+        if not self.use_blender:
+            self.notes.append(f"{name}: not run (--no-blender; both contenders are Blender "
+                              f"renders)")
+        return not self.use_blender
+
     def scale_workload(self, name: str) -> None:
         """Glint (F12: export + render) and Cycles at 1 spp on each of the workload's
         ``bench.scale`` cases, both in one child process per case."""
         from . import scale
 
-        if not self.use_blender:
-            self.notes.append(f"{name}: not run (--no-blender; both contenders are Blender "
-                              f"renders)")
+        if self.skipped_without_blender(name):
             return
         for spec in self.plan.scale_cases[name]:
             case = scale.Case.parse(spec)
@@ -857,9 +863,7 @@ class Bench:
         in one child process."""
         from . import noise, scale
 
-        if not self.use_blender:
-            self.notes.append(f"{name}: not run (--no-blender; both contenders are Blender "
-                              f"renders)")
+        if self.skipped_without_blender(name):
             return
         spec, glint_counts, glint_reference, cycles_counts, cycles_reference = \
             self.plan.noise_case

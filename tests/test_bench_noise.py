@@ -70,3 +70,13 @@ def test_a_tiny_case_renders_both_engines_at_every_count(tmp_path):
     assert all("Cycles at the same noise" in row.notes[-1] for row in rows[:2])
     (target,) = [t for t in report.scale_targets(bench) if t.name.startswith("(scale 5)")]
     assert target.status == "MEASURED" and "4 world samples" in target.details
+
+
+def test_without_blender_the_workload_is_left_out_with_a_note(tmp_path):
+    from bench.suite import QUICK, Bench
+
+    bench = Bench(QUICK, str(tmp_path), use_blender=False)
+    bench.noise_workload("scale-noise")
+    bench.scale_workload("scale-points")
+    assert not bench.rows and not bench.scale_results
+    assert [note.split(":")[0] for note in bench.notes] == ["scale-noise", "scale-points"]
