@@ -224,8 +224,7 @@ def export_scene(depsgraph, camera_override=None, *, view_camera=None
         # Nothing but bulk-read instancers makes instances: the objects themselves suffice.
         for obj in objects:
             entry = _ObjectEntry(obj)
-            if obj.modifiers:   # (a bulk instancer has a Geometry Nodes modifier)
-                bulk.export_instancer(entry, obj)
+            bulk.export_instancer(entry, obj)
             _export_entry(context, meshes, entry, visible)
     else:
         walk = InstanceWalk(bulk, meshes, visible,
