@@ -129,11 +129,7 @@ def measure_case(case: scale.Case, glint_counts, glint_reference: int, cycles_co
                 scene.glint.world_samples = count
             else:
                 scene.cycles.samples = count
-
-            def work():
-                done = bpy.ops.render.render(scene=scene.name)
-                if 'FINISHED' not in done:
-                    raise RuntimeError(f"{engine} render of {case.spec} did not finish: {done}")
+            work = scale.f12(scene, engine, case.spec)
             if count == reference:          # a reference is rendered once, not timed
                 start = time.perf_counter()
                 work()
@@ -161,20 +157,12 @@ def run(case: scale.Case, glint_counts, glint_reference: int, cycles_counts,
         cycles_reference: int, repeats: int, budget: float, out: str,
         timeout: float = 7200) -> dict:
     """``measure_case`` in a child process of its own (as bench.scale runs its cases)."""
-    import subprocess
-
-    command = [sys.executable, "-m", "bench.noise", case.spec,
-               "--glint", ",".join(map(str, glint_counts)),
-               "--glint-reference", str(glint_reference),
-               "--cycles", ",".join(map(str, cycles_counts)),
-               "--cycles-reference", str(cycles_reference),
-               "--repeats", str(repeats), "--budget", str(budget), "--out", out]
-    done = subprocess.run(command, cwd=scale.REPOSITORY, capture_output=True, text=True,
-                          timeout=timeout)
-    lines = [line for line in done.stdout.splitlines() if line.startswith("{")]
-    if done.returncode != 0 or not lines:
-        raise RuntimeError(f"{' '.join(command)} failed: {done.stderr.strip()[-800:]}")
-    return json.loads(lines[-1])
+    return scale.child_result(
+        [sys.executable, "-m", "bench.noise", case.spec,
+         "--glint", ",".join(map(str, glint_counts)), "--glint-reference", str(glint_reference),
+         "--cycles", ",".join(map(str, cycles_counts)),
+         "--cycles-reference", str(cycles_reference),
+         "--repeats", str(repeats), "--budget", str(budget), "--out", out], timeout)
 
 
 def summary(result: dict) -> list[str]:
@@ -218,15 +206,9 @@ def main(argv=None) -> int:
                                     ("cycles", args.cycles, args.cycles_reference)):
         if reference <= max(counts):
             parser.error(f"--{name}-reference must exceed every --{name} count")
-    sys.path.insert(0, scale.REPOSITORY)
-    import bpy  # noqa: F401 - first: it makes Blender's own modules importable
-
-    import render as render_script
     from .blender import quiet_output
 
-    with quiet_output():
-        render_script.register_glint(render_script.import_glint())
-    os.makedirs(args.out, exist_ok=True)
+    scale.start_blender(args.out)
     with quiet_output():
         result = measure_case(case, args.glint, args.glint_reference, args.cycles,
                               args.cycles_reference, args.repeats, args.budget, args.out)

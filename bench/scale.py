@@ -415,6 +415,18 @@ def measure_render(work, repeats: int, budget: float) -> tuple[list, float]:
     return timed_runs(work, run_count(repeats, first, budget)), first
 
 
+def f12(scene, engine: str, spec: str):
+    """A callable that renders ``scene`` through F12 with its current engine and raises
+    unless Blender reports it finished (``engine`` and ``spec`` name it in the message)."""
+    import bpy
+
+    def work():
+        done = bpy.ops.render.render(scene=scene.name)
+        if 'FINISHED' not in done:
+            raise RuntimeError(f"{engine} render of {spec} did not finish: {done}")
+    return work
+
+
 def run_case(case: Case, repeats: int, budget: float, out: str, split: GlintSplit) -> dict:
     """Build, render with both engines (Glint's F12 split by ``split``); the case's JSON
     result."""
@@ -431,12 +443,7 @@ def run_case(case: Case, repeats: int, budget: float, out: str, split: GlintSpli
         scene.render.engine = engine
         split.export.clear()
         split.core.clear()
-
-        def work():
-            done = bpy.ops.render.render(scene=scene.name)
-            if 'FINISHED' not in done:
-                raise RuntimeError(f"{engine} render of {case.spec} did not finish: {done}")
-        runs, first = measure_render(work, repeats, budget)
+        runs, first = measure_render(f12(scene, engine, case.spec), repeats, budget)
         entry = result[engine.lower()] = {"runs": runs, "median_s": statistics.median(runs),
                                           "first_s": first, "first_counted": runs == [first]}
         if engine == "GLINT":
@@ -458,7 +465,8 @@ def run_case(case: Case, repeats: int, budget: float, out: str, split: GlintSpli
     return result
 
 
-def _child(specs, repeats: int, budget: float, out: str) -> None:
+def start_blender(out: str) -> None:
+    """In a bench child: bpy imported, the add-on registered (quietly), ``out`` made."""
     sys.path.insert(0, REPOSITORY)
     import bpy  # noqa: F401 - first: it makes Blender's own modules importable
 
@@ -468,6 +476,25 @@ def _child(specs, repeats: int, budget: float, out: str) -> None:
     with quiet_output():
         render_script.register_glint(render_script.import_glint())
     os.makedirs(out, exist_ok=True)
+
+
+def child_result(command: list, timeout: float) -> dict:
+    """Run a bench child (``command``, from the repository) and return the last JSON line it
+    printed; a failure raises with the end of its stderr."""
+    import subprocess
+
+    done = subprocess.run(command, cwd=REPOSITORY, capture_output=True, text=True,
+                          timeout=timeout)
+    lines = [line for line in done.stdout.splitlines() if line.startswith("{")]
+    if done.returncode != 0 or not lines:
+        raise RuntimeError(f"{' '.join(command)} failed: {done.stderr.strip()[-800:]}")
+    return json.loads(lines[-1])
+
+
+def _child(specs, repeats: int, budget: float, out: str) -> None:
+    from .blender import quiet_output
+
+    start_blender(out)
     split = GlintSplit()
     for spec in specs:
         case = Case.parse(spec)
@@ -479,19 +506,9 @@ def _child(specs, repeats: int, budget: float, out: str) -> None:
 def run(cases, repeats: int, budget: float, out: str, timeout: float = 3600) -> list[dict]:
     """Each case in a child process of its own (a million objects' memory stays there); the
     child's JSON results."""
-    import subprocess
-
-    results = []
-    for case in cases:
-        command = [sys.executable, "-m", "bench.scale", case.spec, "--repeats", str(repeats),
-                   "--budget", str(budget), "--out", out]
-        done = subprocess.run(command, cwd=REPOSITORY, capture_output=True, text=True,
-                              timeout=timeout)
-        lines = [line for line in done.stdout.splitlines() if line.startswith("{")]
-        if done.returncode != 0 or not lines:
-            raise RuntimeError(f"{' '.join(command)} failed: {done.stderr.strip()[-800:]}")
-        results.append(json.loads(lines[-1]))
-    return results
+    return [child_result([sys.executable, "-m", "bench.scale", case.spec, "--repeats",
+                          str(repeats), "--budget", str(budget), "--out", out], timeout)
+            for case in cases]
 
 
 def main(argv=None) -> int:
