@@ -66,6 +66,9 @@ class CameraRays:
     shares: which share of the soft lights' samples each ray's path traces, for
         anti-aliasing samples (``core.lights.SampleShares``, set by ``core.render``); None:
         pixel centres, which trace all of them.
+    world_shift: (n, 2) in [0, 1)^2, how each ray's pixel shifts the grid of the world's
+        occlusion directions (``core.lights.shifted_cosine_direction``, set by
+        ``core.render`` where the world's occlusion is traced), or None: the unshifted grid.
     """
 
     origins: np.ndarray
@@ -73,6 +76,7 @@ class CameraRays:
     t_min: np.ndarray | float
     t_max: np.ndarray | float
     shares: object = None
+    world_shift: np.ndarray | None = None
 
     @property
     def shared_origin(self) -> bool:

@@ -68,6 +68,7 @@ AA, adaptive AA's first pass) have no shares: every point traces every sample.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -141,15 +142,39 @@ def pixel_shares(cols, rows, count: int) -> SampleShares | None:
     one sample per pixel: it traces every light sample, as a pixel centre does."""
     if count <= 1:
         return None
+    shift = (_pixel_hash(cols, rows) % np.uint64(count)).astype(np.intp)
+    slot = (progressive_order(count)[None, :] + shift[:, None]) % count
+    return SampleShares(slot.ravel(), count)
+
+
+def pixel_shifts(cols, rows) -> np.ndarray:
+    """(n, 2) a point of [0, 1)^2 for each pixel (cols, rows) (n,), from a hash of its
+    position: the Cranley-Patterson rotation by which the world's grid of occlusion
+    directions differs from pixel to pixel (``shifted_cosine_direction``).  White noise
+    rather than a low-discrepancy sequence over the pixels: an additive recurrence over
+    the pixels' indices (the R2 sequence) drew a regular hatching where the world is
+    partly hidden.  Deterministic, so the same for any tiling, bundle or thread."""
+    h = _pixel_hash(cols, rows)
+    h ^= h >> np.uint64(31)              # splitmix64's finaliser: bits apart from the slots'
+    h *= np.uint64(0xBF58476D1CE4E5B9)
+    h ^= h >> np.uint64(27)
+    h *= np.uint64(0x94D049BB133111EB)
+    h ^= h >> np.uint64(31)
+    scale = 1.0 / (1 << 24)
+    return np.stack([(h >> np.uint64(40)).astype(np.float64) * scale,
+                     ((h >> np.uint64(16)) & np.uint64(0xFFFFFF)).astype(np.float64) * scale],
+                    axis=1)
+
+
+def _pixel_hash(cols, rows) -> np.ndarray:
+    """(n,) uint64 an integer hash of each pixel's position (cols, rows) (n,)."""
     x = np.asarray(cols, np.int64).astype(np.uint64)
     y = np.asarray(rows, np.int64).astype(np.uint64)
     h = x * np.uint64(0x9E3779B1) ^ y * np.uint64(0x85EBCA77)
     h ^= h >> np.uint64(15)
     h *= np.uint64(0x2C1B3C6D)
     h ^= h >> np.uint64(12)
-    shift = (h % np.uint64(count)).astype(np.intp)
-    slot = (progressive_order(count)[None, :] + shift[:, None]) % count
-    return SampleShares(slot.ravel(), count)
+    return h
 
 
 def share_weights(shares: SampleShares, count: int) -> np.ndarray:
@@ -294,6 +319,30 @@ def cosine_directions(count: int) -> np.ndarray:
     """(k^2, 3) directions over the hemisphere around +Z, k = ceil(sqrt(count)), spread with
     density cos(theta) / pi (Malley's method: a stratified disc lifted onto the hemisphere),
     so that their plain mean of visibility is the cosine-weighted share of the sky seen."""
-    disk = concentric_disk(_grid(count))
+    return _lifted(concentric_disk(_grid(count)))
+
+
+def shifted_cosine_direction(count: int, sample: int, shift: np.ndarray) -> np.ndarray:
+    """(3, m) direction ``sample`` of ``cosine_directions(count)`` for m points, each moved
+    within its cell of the k x k grid by its point's ``shift`` (m, 2) in [0, 1)^2 (0.5, 0.5:
+    the cell's centre, the unshifted direction).  Every point's k^2 directions are then a
+    grid shifted as a whole (a Cranley-Patterson rotation, ``pixel_shifts``): still one in
+    every cell, with density cos(theta) / pi over the shifts, but not the same k^2 lines
+    for every point of a flat surface, whose occluders would cast k^2 sharp copies of
+    their shadows there."""
+    grid = _shared_grid(count)
+    side = math.isqrt(len(grid))
+    return _lifted(concentric_disk(grid[sample] + (shift - 0.5) * (2.0 / side))).T
+
+
+@functools.lru_cache(maxsize=16)
+def _shared_grid(count: int) -> np.ndarray:
+    grid = _grid(count)
+    grid.flags.writeable = False
+    return grid
+
+
+def _lifted(disk: np.ndarray) -> np.ndarray:
+    """(n, 3) points of the unit disk (n, 2) lifted onto the hemisphere around +Z."""
     z = np.sqrt(np.maximum(1 - (disk ** 2).sum(axis=1), 0))
     return np.concatenate([disk, z[:, None]], axis=1)

@@ -37,7 +37,13 @@ fixed cost, and an anti-aliasing round's share of one light sample is a few hund
 Default semantics also shades Blender's lights in Cycles' units (``_shade_blender_lights``:
 samples and irradiance from ``core.lights``, the surface's answer from ``core.bsdf``), for
 SurfaceMaterials and the article's Materials alike; a sun's shadow rays, and the rays that
-find how much of the world a point sees, leave the points instead.
+find how much of the world a point sees, leave the points instead.  Those are a stratified
+grid of cosine-weighted directions in the point's normal frame, the grid shifted per pixel
+(``core.lights.shifted_cosine_direction``, ``pixel_shifts``): one grid for every point made
+an occluder cast k^2 sharp copies of its shadow on a flat surface and made a smooth mesh's
+facets step, an error that stays where it is however large the area; shifted, the same rays
+give noise, which averages out over neighbouring pixels and samples.  Adaptive
+anti-aliasing allows for that noise where it looks for edges (``world_noise``).
 """
 
 from __future__ import annotations
@@ -50,7 +56,7 @@ import numpy as np
 from .bsdf import diffuse_seen, environment, light_response
 from .context import TraceContext
 from .lights import (SampleShares, area_sample_irradiance, centre_irradiance,
-                     cosine_directions, share_weights)
+                     cosine_directions, share_weights, shifted_cosine_direction)
 from .rays import ARTICLE_OFFSET, RayBatch, RayStats, ray_offsets, timed
 from .terminator import TerminatorLift
 from .vectors import dot, length, normalize, normalize_in_place, take
@@ -128,11 +134,19 @@ def traces_from_points(ctx: TraceContext) -> bool:
     if ctx.article:
         return False
     look = ctx.active_look
-    world = _traces_world(ctx) and bool(np.any(ctx.ambient))
+    world = traces_world_occlusion(ctx)
     if look is not None and (world or any(light.kind == "sun" for light in look.lights)):
         return True
     lit = len(ctx.lights) > 0 or (look is not None and bool(look.lights))
     return ctx.geometry.lifts_terminator and lit
+
+
+def traces_world_occlusion(ctx: TraceContext) -> bool:
+    """Whether the shading may trace the world's occlusion rays (``_world_occlusion``): the
+    default semantics with Blender's look, a world that is not black, and ``_traces_world``
+    (so whether camera rays need their pixels' ``world_shift``)."""
+    return (not ctx.article and ctx.active_look is not None and _traces_world(ctx)
+            and bool(np.any(ctx.ambient)))
 
 
 def _traces_world(ctx: TraceContext) -> bool:
@@ -158,7 +172,8 @@ def shares_matter(ctx: TraceContext) -> bool:
 @timed("seconds_shading")
 def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
           stats: RayStats, *, shares: SampleShares | None = None,
-          terminator: TerminatorLift | None = None):
+          terminator: TerminatorLift | None = None, world_shift: np.ndarray | None = None,
+          world_noise: np.ndarray | None = None):
     """(colour (3, m), goes_on (m,), shadow_code (m,) uint64) at m hit points.
 
     goes_on: whether the path continues (article shadows end it).  shadow_code: which lights
@@ -172,7 +187,13 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
     light's samples (and of the world's directions) each point traces, for points reached by
     anti-aliasing samples (``core.lights.SampleShares``, m slots); None: all of them.
     terminator: where the points' shadow rays leave (``Hits.terminator``: points on smooth
-    triangles leave from the smooth surface), None: from the points.
+    triangles leave from the smooth surface), None: from the points.  world_shift: (m, 2)
+    how each point's pixel shifts the grid of the world's occlusion directions
+    (``core.camera.CameraRays``), None: unshifted.  world_noise: (3, m) to add into, at
+    points tracing every direction (``shares`` None), the standard deviation of their
+    colour's estimate of the world's occlusion (binomial: the unoccluded term times
+    sqrt(h' (1 - h') / k), h' about the share hidden, k the directions), which adaptive
+    anti-aliasing's edge test allows for (``core.render``); or None.
     (Light through translucent surfaces: ``shade_translucent``.)
     """
     if ctx.article:
@@ -183,14 +204,18 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
         blender_colour, shadow_code = _shade_blender_lights(ctx, points, normals, directions,
                                                             materials, exclude, shadow_code,
                                                             shares, stats,
-                                                            terminator=terminator)
+                                                            terminator=terminator,
+                                                            world_shift=world_shift,
+                                                            world_noise=world_noise)
         colour += blender_colour
     return colour, goes_on, shadow_code
 
 
 @timed("seconds_shading")
 def shade_translucent(ctx: TraceContext, points, normals, directions, materials,
-                      exclude_back, stats: RayStats, *, shares: SampleShares | None = None):
+                      exclude_back, stats: RayStats, *, shares: SampleShares | None = None,
+                      world_shift: np.ndarray | None = None,
+                      world_noise: np.ndarray | None = None):
     """(radiance (3, m), shadow_code (m,) uint64) the translucent points pass through from
     their back hemisphere (default semantics, ``ctx.look.translucent`` set; arguments as for
     ``shade``, with exclude_back the primitive each segment reaching a point through its
@@ -208,6 +233,7 @@ def shade_translucent(ctx: TraceContext, points, normals, directions, materials,
     where, back = take(points, chosen), -take(normals, chosen)
     material, exclude = materials[chosen], exclude_back[chosen]
     shares = None if shares is None else shares.take(chosen)
+    world_shift = None if world_shift is None else world_shift[chosen]
     light, shadow_code[chosen] = _shade_blender_lights(
         ctx, where, back, take(directions, chosen), material, exclude,
         np.zeros(len(chosen), np.uint64), shares, stats, surfaces=view, world_terms=False)
@@ -215,8 +241,11 @@ def shade_translucent(ctx: TraceContext, points, normals, directions, materials,
     if world.any():
         seen = 1.0
         if ctx.settings.world_samples:
+            spread = None if world_noise is None else np.zeros(len(chosen), points.dtype)
             seen = 1 - _world_occlusion(ctx, where, back, material, ray_offsets(where), exclude,
-                                        shares, stats)
+                                        shares, stats, world_shift=world_shift, spread=spread)
+            if spread is not None:
+                world_noise[:, chosen] += take(view.diffuse, material) * world * spread
         light += take(view.diffuse, material) * world * seen
     colour[:, chosen] = light
     return colour, shadow_code
@@ -533,12 +562,16 @@ def _joined_blocked(ctx, terminator, points, batches: list, from_light: bool, st
 
 
 def _world_occlusion(ctx, points, normals, materials, offset, exclude, shares, stats,
-                     terminator=None):
+                     terminator=None, world_shift=None, spread=None):
     """(m,) the cosine-weighted share of the world hidden from each point (0 for the
-    article's Materials), from ``world_samples`` fixed directions turned into each point's
-    normal frame.  The ambient term (``_shade_default``) adds diffuse x world unoccluded;
-    this share of it is taken back.  With ``shares`` (anti-aliasing samples of S per pixel)
-    the directions are max(world_samples, S), each point tracing its share of them."""
+    article's Materials), from ``world_samples`` directions of a stratified grid turned into
+    each point's normal frame, the grid shifted by the point's pixel (``world_shift`` (m, 2),
+    ``core.lights.shifted_cosine_direction``; None: unshifted).  The ambient term
+    (``_shade_default``) adds diffuse x world unoccluded; this share of it is taken back.
+    With ``shares`` (anti-aliasing samples of S per pixel) the directions are
+    max(world_samples, S), each point tracing its share of them.  spread: (m,) to fill, for
+    points tracing every direction, with the share's binomial standard deviation
+    sqrt(h' (1 - h') / k), h' = (k h + 1) / (k + 2) (``shade``'s world_noise)."""
     physical = ctx.look.surfaces.physical[materials]
     hidden = np.zeros(points.shape[1], points.dtype)
     chosen = np.flatnonzero(physical)
@@ -555,16 +588,20 @@ def _world_occlusion(ctx, points, normals, materials, offset, exclude, shares, s
     if shares is not None:
         count = max(count, shares.count)
     directions = cosine_directions(count).astype(points.dtype)
+    shift = None if world_shift is None else world_shift[chosen]
     origins = take(points, chosen)
     lift = None if terminator is None else terminator.take(chosen)
     shared = None if shares is None else share_weights(shares.take(chosen), len(directions))
     batches = []     # per direction traced: (its index, rows of ``origins`` or None, rays)
     for index, (x, y, z) in enumerate(directions):
         part = _subset(shared, index)
+        if part is not None and len(part) == 0:
+            continue
+        if shift is not None:
+            x, y, z = shifted_cosine_direction(
+                count, index, shift if part is None else shift[part]).astype(points.dtype)
         if part is None:
             along, rows, starts = x * first + y * second + z * n, chosen, origins
-        elif len(part) == 0:
-            continue
         else:
             along = x * take(first, part) + y * take(second, part) + z * take(n, part)
             rows, starts = chosen[part], take(origins, part)
@@ -576,6 +613,13 @@ def _world_occlusion(ctx, points, normals, materials, offset, exclude, shares, s
             hidden[chosen] += blocked / len(directions)
         else:
             hidden[chosen[part]] += blocked * (shared[index, part] / len(directions))
+    if spread is not None and shared is None:
+        # The share's standard deviation from its own estimate, as if one more ray each way
+        # had been traced (Laplace's rule): a point none of whose k rays were blocked can
+        # still be partly hidden, and its neighbour's one blocked ray is no edge.
+        k = len(directions)
+        share = (hidden[chosen] * k + 1) / (k + 2)
+        spread[chosen] = np.sqrt(share * (1 - share) / k)
     return hidden
 
 
@@ -598,7 +642,8 @@ def _sphere_sample_weights(light, towards):
 
 
 def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, shadow_code,
-                          shares, stats, surfaces=None, world_terms=True, terminator=None):
+                          shares, stats, surfaces=None, world_terms=True, terminator=None,
+                          world_shift=None, world_noise=None):
     """(radiance (3, m), shadow_code) from Blender's lights (``core.lights``) and the world's
     glossy, emitted and occluded terms (``core.bsdf``) at m points, default semantics.
 
@@ -607,7 +652,8 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
     blocked, partly visible or visible.  (Not quarters of visibility as for the article's
     lights: an area light's penumbra changes smoothly from pixel to pixel, and every pixel of
     it would count as an edge.)  surfaces: the lobes to shade with (default: the look's);
-    world_terms: False leaves the world's terms out; terminator: as for ``shade``."""
+    world_terms: False leaves the world's terms out; terminator, world_shift, world_noise:
+    as for ``shade``."""
     look = ctx.look
     surfaces = look.surfaces if surfaces is None else surfaces
     dtype = points.dtype
@@ -619,8 +665,11 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
     offset = ray_offsets(points)
     if world.any() and _traces_world(ctx):
         seen_diffuse = diffuse_seen(surfaces, materials, np.clip(dot(normals, to_view), 0, 1))
+        spread = None if world_noise is None else np.zeros(m, dtype)
         colour -= _world_occlusion(ctx, points, normals, materials, offset, exclude, shares,
-                                   stats, terminator) * (seen_diffuse * world)
+                                   stats, terminator, world_shift, spread) * (seen_diffuse * world)
+        if spread is not None:
+            world_noise += spread * (seen_diffuse * world)
     for light in look.lights:
         scale = _column(light.scale, dtype)
         shadow_code = shadow_code * np.uint64(_CODE_BASE)

@@ -56,13 +56,18 @@ class BundleResult:
     0 where the camera ray escaped or met a full holdout, 1 where it hit something opaque);
     signature (n,) uint64 hash of what the path hit (spheres and shadowing at every bounce):
     neighbours with different signatures straddle an edge; None unless adaptive AA asks.
-    primary: PrimaryHits when asked for (``trace_bundle(record_primary=True)``), else None."""
+    primary: PrimaryHits when asked for (``trace_bundle(record_primary=True)``), else None.
+    world_noise: (3, n) the standard deviation of the colour's estimate of the world's
+    occlusion along each path (``shade``'s world_noise, weighted as the colour; summed over
+    the bounces, an upper bound), for pixel centres where adaptive AA asks and the world's
+    occlusion is traced; else None."""
 
     colour: np.ndarray
     alpha: np.ndarray
     signature: np.ndarray | None
     primary: PrimaryHits | None = None
     emission: np.ndarray | None = None   # (3, n) record_emission: see trace_bundle
+    world_noise: np.ndarray | None = None   # (3, n) see the docstring
 
 
 def nearest_sphere(ctx: TraceContext, origins, directions, t_min, t_max, exclude,
@@ -136,6 +141,11 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
 
     path = np.arange(n)
     shares = None if ctx.article else rays.shares   # the article's lights are points
+    world_shift = None if ctx.article else rays.world_shift
+    # How noisy each centre's world occlusion is (``BundleResult.world_noise``), for adaptive
+    # AA's edge test.
+    world_noise = (np.zeros((3, n), dtype) if signature is not None and world_shift is not None
+                   and shares is None else None)
     unique = True   # every path index appears once (until rays split)
     camera_path = np.ones(n, bool)   # per ray of the batch: the camera's view (docstring)
     holdouts = look is not None and look.surfaces.any_holdout
@@ -180,14 +190,19 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
                 break
         exclude = None if ctx.article else geometry.exclusions(primitive, front)
         point_shares = None if shares is None else shares.take(path)
+        point_shift = None if world_shift is None else world_shift[path]
+        noise = None if world_noise is None else np.zeros_like(points)
         illumination, goes_on, shadow_code = shade(ctx, points, normals, directions,
                                                    hits.material, exclude, stats,
                                                    shares=point_shares,
-                                                   terminator=hits.terminator)
+                                                   terminator=hits.terminator,
+                                                   world_shift=point_shift,
+                                                   world_noise=noise)
         if look is not None and look.translucent is not None:
             through, code = shade_translucent(ctx, points, normals, directions, hits.material,
                                               geometry.exclusions(primitive, ~front), stats,
-                                              shares=point_shares)
+                                              shares=point_shares, world_shift=point_shift,
+                                              world_noise=noise)
             illumination += through
             shadow_code = shadow_code * _SIGNATURE_PRIME + code  # edges of light shone through
         illumination *= weight
@@ -197,6 +212,8 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
                                     transparency, unique)
             if held_object is not None:
                 illumination[:, held_object] = 0
+                if noise is not None:
+                    noise[:, held_object] = 0
         if emission is not None and look is not None and look.surfaces.any_emission:
             seen = np.flatnonzero(camera_path)
             if held_object is not None:
@@ -204,6 +221,8 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
             _accumulate(emission, path[seen], take(look.surfaces.emission, hits.material[seen])
                         * weight[:, seen], unique, False)
         _accumulate(colour, path, illumination, unique, depth == 0 and len(path) == n)
+        if noise is not None:
+            _accumulate(world_noise, path, noise * weight, unique, False)
         if signature is not None:
             signature[path] = signature[path] * _SIGNATURE_PRIME + shadow_code
 
@@ -243,7 +262,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
     alpha = np.subtract(1, transparency, out=transparency)
     # clipped to [0, 1] (as np.clip, without its Python wrapper's cost on every bundle)
     np.minimum(np.maximum(alpha, 0, out=alpha), 1, out=alpha)
-    return BundleResult(colour, alpha, signature, primary, emission)
+    return BundleResult(colour, alpha, signature, primary, emission, world_noise)
 
 
 def traces_bounces(ctx: TraceContext) -> bool:
