@@ -35,16 +35,32 @@ def test_an_unshifted_grid_is_the_cell_centres_and_any_shift_keeps_the_cosine_sp
     assert abs(directions[0].mean()) < 5e-3 and abs(directions[1].mean()) < 5e-3
 
 
+def _square_of(direction):
+    """The point of [-1, 1]^2 that Shirley & Chiu's concentric map and the lift onto the
+    hemisphere take to unit ``direction`` (3, m): that map undone."""
+    x, y = direction[0], direction[1]
+    r = np.hypot(x, y)
+    phi = np.arctan2(y, x)
+    phi = np.where(phi < -np.pi / 4, phi + 2 * np.pi, phi)
+    quarter = np.pi / 4
+    a = np.select([phi < quarter, phi < 3 * quarter, phi < 5 * quarter],
+                  [r, (np.pi / 2 - phi) * r / quarter, -r], (phi - 3 * np.pi / 2) * r / quarter)
+    b = np.select([phi < quarter, phi < 3 * quarter, phi < 5 * quarter],
+                  [phi * r / quarter, r, -(phi - np.pi) * r / quarter], -r)
+    return np.stack([a, b])
+
+
 def test_one_shift_moves_every_direction_within_its_own_cell():
-    # The k x k directions of one point stay one in each cell of the grid: their polar
-    # angles under the concentric map stay in the cells' rings and sectors, so a shifted
-    # grid is as stratified as the centred one (checked in the square, before the map).
-    from core.lights import _shared_grid
-    grid = _shared_grid(9)
-    shift = np.array([[0.93, 0.07]])
-    squares = grid + (shift - 0.5) * (2.0 / 3)
-    cells = np.floor((squares + 1) / (2.0 / 3)).astype(int)
-    assert len({tuple(c) for c in cells}) == 9
+    # A point's k x k directions stay one in each cell of the grid, each in the cell of its
+    # unshifted direction, so a shifted grid is as stratified as the centred one (checked
+    # in the square, the concentric map undone).
+    shifts = np.random.default_rng(3).random((500, 2))
+    cell = lambda square: np.floor((square + 1) * 1.5).astype(int).clip(0, 2)   # 3 x 3 cells
+    centres = _square_of(cosine_directions(9).T)
+    for sample in range(9):
+        moved = _square_of(shifted_cosine_direction(9, sample, shifts))
+        assert (cell(moved) == cell(centres[:, sample:sample + 1])).all()
+    assert len({tuple(c) for c in cell(centres).T}) == 9
 
 
 def test_pixel_shifts_are_deterministic_spread_and_unrelated_between_neighbours():
