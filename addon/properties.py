@@ -8,8 +8,8 @@ from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorPro
                        IntProperty, PointerProperty, StringProperty)
 
 from ..core import Material, RenderSettings
-from ..core.choices import (ANTI_ALIASING_CHOICES, PARALLELISM_CHOICES, PRECISION_CHOICES,
-                            SEMANTICS_CHOICES)
+from ..core.choices import (ANTI_ALIASING_CHOICES, INTEGRATOR_CHOICES, PARALLELISM_CHOICES,
+                            PRECISION_CHOICES, SEMANTICS_CHOICES)
 from ..core.scene import (MAX_COLOUR, MAX_DEPTH, MAX_LIGHT_SAMPLES, MAX_SAMPLES,
                           MAX_SHININESS)
 
@@ -25,6 +25,34 @@ def enum_items(choices) -> list[tuple[str, str, str]]:
 
 
 class GlintRenderSettings(bpy.types.PropertyGroup):
+    integrator: EnumProperty(
+        name="Integrator", default=RenderSettings.integrator.upper(),
+        items=enum_items(INTEGRATOR_CHOICES),
+        description="How light is followed; Path Tracing follows the scene's Light Paths "
+                    "(Cycles' settings)")
+    use_adaptive_sampling: BoolProperty(
+        name="Noise Threshold", default=True,
+        description="Stop sampling a pixel once its noise is below the threshold, as Cycles' "
+                    "adaptive sampling does")
+    noise_threshold: FloatProperty(
+        name="Noise Threshold", default=0.01, min=0.001, max=1.0, precision=3,
+        description="Noise level at which a pixel stops taking samples (Cycles' meaning)")
+    adaptive_min_samples: IntProperty(
+        name="Min Samples", default=0, min=0, max=MAX_SAMPLES,
+        description="Samples every pixel takes before the noise threshold may stop it; 0 "
+                    "chooses from the threshold")
+    time_limit: FloatProperty(
+        name="Time Limit", default=0.0, min=0.0, subtype='TIME_ABSOLUTE', unit='TIME_ABSOLUTE',
+        description="Stop adding samples after this many seconds (0: no limit)")
+    use_denoising: BoolProperty(
+        name="Denoise", default=True,
+        description="Denoise the final image with Open Image Denoise (Blender's own library), "
+                    "guided by the first hits' albedo and normal")
+    viewport_samples: IntProperty(
+        name="Viewport Samples", default=16, min=1, soft_max=256, max=MAX_SAMPLES,
+        description="Samples per pixel the viewport refines to")
+    seed: IntProperty(
+        name="Seed", default=0, min=0, description="Seed of the sampling pattern")
     max_depth: IntProperty(
         name="Max Depth", default=3, min=1, soft_max=16, max=MAX_DEPTH,
         description="Bounces per path; the camera ray's hit counts as the first (the article "

@@ -47,6 +47,23 @@ FILM_CHOICES = (
 )
 
 
+#: How light is followed (default semantics): a path tracer in Cycles' units, or the
+#: Whitted tracer the article's semantics always uses.
+INTEGRATOR_CHOICES = (
+    ("path", "Path Tracing", "Light that bounces, as Cycles traces it: every light and the "
+                             "world sampled at every bounce, Light Paths limits"),
+    ("whitted", "Direct", "Direct light with mirrors and glass traced exactly and the world's "
+                          "occlusion; no bounced light"),
+)
+
+#: Cycles' pixel filters (Film > Pixel Filter).
+PIXEL_FILTER_CHOICES = (
+    ("BLACKMAN_HARRIS", "Blackman-Harris", "Cycles' default: sharp, little ringing"),
+    ("GAUSSIAN", "Gaussian", "Softer"),
+    ("BOX", "Box", "Each sample counts only inside its pixel"),
+)
+
+
 def help_text(choices) -> str:
     """A command-line option's help: each value with its description."""
     return "; ".join(f"{value}: {description}" for value, _, description in choices)
@@ -62,3 +79,5 @@ PRECISIONS = values(PRECISION_CHOICES)
 ANTI_ALIASING = values(ANTI_ALIASING_CHOICES)
 PARALLELISM = values(PARALLELISM_CHOICES)
 FILMS = values(FILM_CHOICES)
+INTEGRATORS = values(INTEGRATOR_CHOICES)
+PIXEL_FILTERS = values(PIXEL_FILTER_CHOICES)

@@ -104,6 +104,7 @@ class TraceContext:
     ambient: np.ndarray                  # (3,) float64 scene ambient (default semantics)
     path_gain_bound: float               # max colour one bounce can add per unit weight
     look: LookContext | None = None      # default semantics only
+    paths: object = None                 # core.path.PathSetup: the path integrator's frame
 
     @property
     def active_look(self) -> LookContext | None:
@@ -164,6 +165,7 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
     else:
         gain = float(arrays.background.max())
     look = None
+    paths = None
     if not article:
         surfaces = surface_arrays(table.entries, dtype)
         blender_lights = tuple(prepare_light(light, settings.light_samples, geometry)
@@ -175,6 +177,8 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
             # Blender's lights have no bound on what a bounce adds (watts, not the article's
             # unit intensities): paths then stop only where their weight is zero.
             gain = np.inf
+            if settings.integrator == "path":
+                paths = _path_setup(scene, settings, arrays, surfaces)
     cast = lambda a: np.ascontiguousarray(a, dtype)  # noqa: E731
     materials = Materials(cast(table.ambient.T), cast(table.diffuse.T), cast(table.specular.T),
                           cast(table.exponent), cast(table.reflection))
@@ -185,5 +189,17 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
         materials=materials,
         eye=eye, camera_origin=geometry.shared_origin(eye) if perspective else None,
         background=arrays.background, ambient=arrays.ambient, path_gain_bound=gain,
-        look=look,
+        look=look, paths=paths,
     )
+
+
+def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces):
+    """The path integrator's frame (``core.path.PathSetup``): Blender's lights, the
+    emitting triangles, the world's radiance."""
+    from .emitters import mesh_lights, prepare_lights
+    from .path import path_setup
+    lights = prepare_lights(scene.lights, scene_radius=1.0)
+    mesh = mesh_lights(arrays.triangles, len(arrays.spheres),
+                       surfaces.emission.astype(np.float64))
+    return path_setup(settings, lights, mesh, arrays.background,
+                      any_holdout=surfaces.any_holdout)

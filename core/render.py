@@ -31,6 +31,7 @@ from .camera import camera_rays, has_aperture
 from .colour import linear_to_srgb
 from .context import RayStats, TraceContext, make_context
 from .passes import PrimaryPasses, fill_tile_passes
+from .path import render_path_tile
 from .cull import PACKET_SIZE
 from . import memory
 from .frame import canonical_scene, scene_frame
@@ -415,6 +416,8 @@ def render_tile(ctx: TraceContext, camera, tile, stop: Optional[threading.Event]
     """(rgba (h, w, 4), stats) for tile (y0, y1, x0, x1) of the image.  stop: once set, the
     tile raises RenderCancelled at its next bundle of rays (a cancel need not wait for whole
     supersampled tiles)."""
+    if ctx.paths is not None:
+        return render_path_tile(ctx, camera, tile, stop)
     start = time.perf_counter()
     y0, y1, x0, x1 = tile
     h, w = y1 - y0, x1 - x0

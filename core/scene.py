@@ -27,8 +27,8 @@ from typing import Literal, Sequence, Union
 
 import numpy as np
 
-from .choices import (ANTI_ALIASING, FILMS, PARALLELISM, PRECISIONS,  # noqa: F401
-                      SEMANTICS)                                # (defined once there)
+from .choices import (ANTI_ALIASING, FILMS, INTEGRATORS, PARALLELISM,  # noqa: F401
+                      PIXEL_FILTERS, PRECISIONS, SEMANTICS)   # (defined once there)
 from .terminator import DEFAULT_GEOMETRY_OFFSET
 
 Vec3 = tuple[float, float, float]
@@ -1020,6 +1020,23 @@ class RenderSettings:
     threads: int | None = None
     parallelism: Literal["auto", "threads", "processes"] = "auto"
     film: Literal["coverage", "opaque", "transparent"] = "coverage"
+    integrator: Literal["path", "whitted"] = "path"
+    max_bounces: int = 12
+    diffuse_bounces: int = 4
+    glossy_bounces: int = 4
+    transmission_bounces: int = 12
+    transparent_bounces: int = 8
+    clamp_direct: float = 0.0
+    clamp_indirect: float = 10.0
+    caustics_reflective: bool = True
+    caustics_refractive: bool = True
+    filter_glossy: float = 1.0
+    noise_threshold: float = 0.0
+    min_samples: int = 0
+    time_limit: float = 0.0
+    filter_type: Literal["BOX", "GAUSSIAN", "BLACKMAN_HARRIS"] = "BLACKMAN_HARRIS"
+    filter_width: float = 1.5
+    seed: int = 0
 
     def __post_init__(self):
         _choice("settings.semantics", self.semantics, SEMANTICS)
@@ -1037,3 +1054,22 @@ class RenderSettings:
             _count("settings.threads", self.threads, maximum=MAX_THREADS)
         _set(self, "contribution_cutoff",
              _non_negative("settings.contribution_cutoff", self.contribution_cutoff))
+        _choice("settings.integrator", self.integrator, INTEGRATORS)
+        _choice("settings.filter_type", self.filter_type, PIXEL_FILTERS)
+        for name in ("max_bounces", "diffuse_bounces", "glossy_bounces",
+                     "transmission_bounces", "transparent_bounces"):
+            _count(f"settings.{name}", getattr(self, name), minimum=0, maximum=MAX_DEPTH)
+        _count("settings.min_samples", self.min_samples, minimum=0, maximum=MAX_SAMPLES)
+        _count("settings.seed", self.seed, minimum=0, maximum=2 ** 31 - 1)
+        for name in ("clamp_direct", "clamp_indirect", "filter_glossy", "noise_threshold",
+                     "time_limit"):
+            _set(self, name, _non_negative(f"settings.{name}", getattr(self, name)))
+        _set(self, "filter_width", _finite("settings.filter_width", self.filter_width))
+        if not 0.01 <= self.filter_width <= 10.0:
+            raise SceneError(f"settings.filter_width must be in [0.01, 10] pixels, got "
+                             f"{self.filter_width!r}")
+        for name in ("caustics_reflective", "caustics_refractive"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise SceneError(f"settings.{name} must be True or False, got "
+                                 f"{getattr(self, name)!r}")
+            _set(self, name, bool(getattr(self, name)))

@@ -39,18 +39,53 @@ from ..utils.colour import render_result_pixels
 DEBUG_VARIABLE = "GLINT_DEBUG"
 
 
-def render_settings(settings, render=None) -> RenderSettings:
+#: Cycles' Light Paths and Film settings (``Scene.cycles``) the path integrator follows:
+#: (Cycles' property, RenderSettings' field).
+CYCLES_SETTINGS = (
+    ("max_bounces", "max_bounces"), ("diffuse_bounces", "diffuse_bounces"),
+    ("glossy_bounces", "glossy_bounces"), ("transmission_bounces", "transmission_bounces"),
+    ("transparent_max_bounces", "transparent_bounces"),
+    ("sample_clamp_direct", "clamp_direct"), ("sample_clamp_indirect", "clamp_indirect"),
+    ("caustics_reflective", "caustics_reflective"),
+    ("caustics_refractive", "caustics_refractive"), ("blur_glossy", "filter_glossy"),
+    ("pixel_filter_type", "filter_type"), ("filter_width", "filter_width"),
+)
+
+
+def cycles_settings(scene) -> dict:
+    """The scene's Light Paths and pixel filter as RenderSettings fields, read from Cycles'
+    own settings (``Scene.cycles``) so that a file renders with the bounces its author set;
+    a Blender without Cycles' add-on has none, and Cycles' defaults apply."""
+    cycles = getattr(scene, "cycles", None)
+    if cycles is None:
+        return {}
+    values = {}
+    for blender_name, field_name in CYCLES_SETTINGS:
+        if hasattr(cycles, blender_name):
+            values[field_name] = getattr(cycles, blender_name)
+    return values
+
+
+def render_settings(settings, render=None, scene=None) -> RenderSettings:
     """``Scene.glint`` (a GlintRenderSettings) -> core RenderSettings; ``render`` (the scene's
     RenderSettings), if given, sets the threads: Blender's Performance > Threads, so a farm
     node running several jobs is not oversubscribed (Auto-detect: one per core), and the film
-    (Film > Transparent; without ``render``, the core's own 'coverage')."""
+    (Film > Transparent; without ``render``, the core's own 'coverage'); ``scene``, if given,
+    the Light Paths and pixel filter (``cycles_settings``)."""
     threads = None
     film = "coverage"
     if render is not None:
         film = "transparent" if render.film_transparent else "opaque"
         if render.threads_mode == 'FIXED':
             threads = render.threads
+    light_paths = cycles_settings(scene) if scene is not None else {}
     return RenderSettings(
+        **light_paths,
+        integrator=settings.integrator.lower(),
+        noise_threshold=settings.noise_threshold if settings.use_adaptive_sampling else 0.0,
+        min_samples=settings.adaptive_min_samples,
+        time_limit=settings.time_limit,
+        seed=settings.seed,
         semantics=settings.semantics.lower(),
         precision=settings.precision.lower(),
         max_depth=settings.max_depth,
@@ -154,7 +189,8 @@ def prepare_job(depsgraph, camera_override=None) -> RenderJob:
     warnings += ignored_settings_warning(depsgraph, camera_override)
     blender_scene = depsgraph.scene_eval
     return RenderJob(scene=scene,
-                     settings=render_settings(blender_scene.glint, blender_scene.render),
+                     settings=render_settings(blender_scene.glint, blender_scene.render,
+                                              blender_scene),
                      warnings=warnings)
 
 

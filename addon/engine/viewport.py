@@ -430,7 +430,7 @@ def export_viewport_scene(depsgraph, preferences=None, view: Optional[ViewportVi
     scene, warnings = export_scene(depsgraph, view_camera=camera)
     warnings += ignored_settings_warning(depsgraph)
     blender_scene = depsgraph.scene_eval
-    return (scene, render_settings(blender_scene.glint, blender_scene.render),
+    return (scene, render_settings(blender_scene.glint, blender_scene.render, blender_scene),
             pixel_size(blender_scene.render, preferences), warnings)
 
 

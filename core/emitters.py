@@ -1,0 +1,360 @@
+"""Where light comes from, for a path tracer: Blender's lights, emitting triangles and the
+world, each sampled from a shading point (next-event estimation) and found by rays that
+BSDF sampling sends their way, with both densities in solid angle for multiple importance
+sampling.  Units are Cycles' (``core.lights``'s module docstring derives them):
+
+* point light, power P, colour c, radius r: Cycles' default soft-falloff point light is a
+  disc of radius r facing the shading point, of radiance P c / (4 pi) / (pi r^2); r = 0 is
+  a point of intensity P c / (4 pi) (a delta light: no density);
+* spot light: the point light times the spot's smoothstep mask;
+* sun of strength S: a cone of directions of half-angle angle / 2, radiance
+  S c / (pi sin^2(angle / 2)) (so that a surface facing it receives S); angle 0 is a delta;
+* area light: a one-sided Lambertian rectangle or ellipse of radiance P c / (pi A);
+* emitting triangles: their material's emission, on both sides (Cycles' Emission closure);
+* the world: a constant radiance (found by escaping rays only: for a constant world,
+  cosine-weighted BSDF samples are the better estimator, and no shadow ray is spent on it).
+
+Next-event estimation samples every light source at every vertex where there are few
+(``SAMPLED_EACH``), else one chosen in proportion to an estimate of its power.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .scene import AreaLight, PointLight, SphereLight, SpotLight, SunLight
+from .vectors import dot, normalize
+
+#: Up to this many light sources, every vertex samples each of them.
+SAMPLED_EACH = 8
+#: A point light's power that the article's PointLight of unit intensity stands for.
+ARTICLE_LIGHT_POWER = PointLight.REFERENCE_POWER_W
+
+
+@dataclass(frozen=True, eq=False)
+class Light:
+    """One of Blender's lights, float64 (module docstring).
+
+    kind: 'point', 'sun' or 'area' (a spot is a point with a cone: ``axis`` not None).
+    radiance: (3,) the emitted radiance (point with radius, sun with angle, area), or the
+        intensity (point of radius 0, W/sr) or irradiance (sun of angle 0, W/m^2).
+    position: (3,) centre; direction: (3,) the sun's travel, the area light's emitting
+        normal, or the spot's axis.  radius: point light radius.  cos_half, one_minus_cos:
+        the sun's cone.  axis_x, axis_y, size_x, size_y, disk: the area light's extent.
+    power: an estimate of the power it brings a scene, for choosing among many.
+    """
+
+    kind: str
+    radiance: np.ndarray
+    position: np.ndarray
+    direction: np.ndarray
+    power: float
+    radius: float = 0.0
+    axis: np.ndarray | None = None
+    spot_cos_half: float = -1.0
+    spot_blend: float = 0.0
+    one_minus_cos: float = 0.0
+    axis_x: np.ndarray | None = None
+    axis_y: np.ndarray | None = None
+    size_x: float = 0.0
+    size_y: float = 0.0
+    disk: bool = False
+
+    @property
+    def delta(self) -> bool:
+        """A point light of radius 0 or a sun of angle 0: no BSDF sample finds it."""
+        if self.kind == "point":
+            return self.radius <= 0
+        return self.kind == "sun" and self.one_minus_cos <= 0
+
+    @property
+    def area(self) -> float:
+        full = self.size_x * self.size_y
+        return full * math.pi / 4 if self.disk else full
+
+
+def prepare_lights(lights, scene_radius: float) -> tuple[Light, ...]:
+    """The scene's lights as ``Light``s; scene_radius: how far the scene reaches from its
+    centre (a sun's power estimate)."""
+    prepared = []
+    for light in lights:
+        if isinstance(light, PointLight):
+            light = SphereLight(light.position, light.diffuse,
+                                ARTICLE_LIGHT_POWER, light.radius, light.name)
+        colour = np.asarray(light.colour, np.float64)
+        if isinstance(light, SunLight):
+            half = light.angle / 2
+            direction = np.asarray(light.direction, np.float64)
+            one_minus = 2 * math.sin(half / 2) ** 2
+            radiance = colour * light.strength
+            if half > 0:
+                radiance = radiance / (math.pi * math.sin(half) ** 2)
+            prepared.append(Light("sun", radiance, np.zeros(3), direction,
+                                  light.strength * float(colour.mean()) * math.pi
+                                  * scene_radius ** 2, one_minus_cos=one_minus))
+        elif isinstance(light, AreaLight):
+            disk = light.shape in ("DISK", "ELLIPSE")
+            area = light.area
+            prepared.append(Light(
+                "area", colour * light.power / (math.pi * area),
+                np.asarray(light.position, np.float64),
+                np.asarray(light.direction, np.float64), light.power * float(colour.mean()),
+                axis_x=np.asarray(light.axis_x, np.float64),
+                axis_y=np.asarray(light.axis_y, np.float64), size_x=light.size_x,
+                size_y=light.size_y, disk=disk))
+        elif isinstance(light, (SphereLight, SpotLight)):
+            intensity = colour * light.power / (4 * math.pi)
+            radiance = (intensity / (math.pi * light.radius ** 2) if light.radius > 0
+                        else intensity)
+            spot = {}
+            if isinstance(light, SpotLight):
+                spot = dict(axis=np.asarray(light.direction, np.float64),
+                            spot_cos_half=math.cos(light.spot_size / 2),
+                            spot_blend=light.spot_blend)
+            prepared.append(Light("point", radiance, np.asarray(light.position, np.float64),
+                                  np.zeros(3), light.power * float(colour.mean()),
+                                  radius=light.radius, **spot))
+        else:
+            raise TypeError(f"not a light: {type(light).__name__}")
+    return tuple(prepared)
+
+
+def _spot_mask(light: Light, from_light):
+    """(k,) Cycles' spot smoothstep for unit directions (3, k) from the light."""
+    cos_angle = dot(from_light, light.axis[:, None].astype(from_light.dtype))
+    if light.spot_blend <= 0:
+        return (cos_angle > light.spot_cos_half).astype(from_light.dtype)
+    x = np.clip((cos_angle - light.spot_cos_half)
+                / ((1.0 - light.spot_cos_half) * light.spot_blend), 0, 1)
+    return x * x * (3 - 2 * x)
+
+
+def _tangents(normal):
+    """Two unit vectors (3, k) each completing unit normals (3, k) to a frame."""
+    helper = np.where(np.abs(normal[0]) < 0.9, 1.0, 0.0)
+    other = np.stack([helper, 1 - helper, np.zeros_like(helper)]).astype(normal.dtype)
+    first, _ = normalize(np.stack([normal[1] * other[2] - normal[2] * other[1],
+                                   normal[2] * other[0] - normal[0] * other[2],
+                                   normal[0] * other[1] - normal[1] * other[0]]))
+    second = np.stack([normal[1] * first[2] - normal[2] * first[1],
+                       normal[2] * first[0] - normal[0] * first[2],
+                       normal[0] * first[1] - normal[1] * first[0]])
+    return first, second
+
+
+def _disk(u1, u2):
+    """Shirley & Chiu's concentric map of (k,) pairs in [0, 1)^2 onto the unit disk."""
+    a, b = 2 * u1 - 1, 2 * u2 - 1
+    first = np.abs(a) > np.abs(b)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(first, a, b)
+        phi = np.where(first, (math.pi / 4) * b / a, math.pi / 2 - (math.pi / 4) * a / b)
+    phi = np.where((a == 0) & (b == 0), 0.0, phi)
+    return r * np.cos(phi), r * np.sin(phi)
+
+
+@dataclass
+class LightSample:
+    """Samples of one light from k points: unit ``towards`` (3, k), ``distance`` (k,)
+    (inf for a sun), ``radiance`` (3, k) the light's radiance arriving (0 where it sends
+    none), ``pdf`` (k,) the sample's density in solid angle (inf for a delta light), and
+    ``over_pdf`` (3, k) radiance / pdf (what a delta light brings as is)."""
+
+    towards: np.ndarray
+    distance: np.ndarray
+    radiance: np.ndarray
+    pdf: np.ndarray
+    over_pdf: np.ndarray
+
+
+def sample_light(light: Light, points, u1, u2) -> LightSample:
+    """A sample of ``light`` from each of k points (3, k) (module docstring)."""
+    dtype = points.dtype
+    k = points.shape[1]
+    col = light.radiance.astype(dtype)[:, None]
+    if light.kind == "sun":
+        towards_centre = -light.direction.astype(dtype)[:, None]
+        if light.delta:
+            towards = np.repeat(towards_centre, k, axis=1)
+            over = np.repeat(col, k, axis=1)
+            return LightSample(towards, np.full(k, np.inf, dtype), over,
+                               np.full(k, np.inf, dtype), over)
+        cos_theta = 1 - u1 * light.one_minus_cos
+        sin_theta = np.sqrt(np.maximum(1 - cos_theta * cos_theta, 0))
+        phi = 2 * np.pi * u2
+        first, second = _tangents(np.repeat(towards_centre, k, axis=1))
+        towards = (sin_theta * np.cos(phi) * first + sin_theta * np.sin(phi) * second
+                   + cos_theta * towards_centre)
+        pdf = np.full(k, 1 / (2 * np.pi * light.one_minus_cos), dtype)
+        radiance = np.repeat(col, k, axis=1)
+        return LightSample(towards, np.full(k, np.inf, dtype), radiance, pdf, radiance / pdf)
+    if light.kind == "point":
+        centre = light.position.astype(dtype)[:, None]
+        if light.radius > 0:
+            facing, _ = normalize(points - centre)
+            first, second = _tangents(facing)
+            x, y = _disk(u1, u2)
+            target = centre + light.radius * (x * first + y * second)
+        else:
+            facing = None
+            target = centre
+        towards, distance = normalize(target - points)
+        if light.radius > 0:
+            cos_l = np.maximum(-dot(towards, facing), 1e-9)
+            pdf = distance * distance / (cos_l * (np.pi * light.radius ** 2))
+            radiance = col * np.ones(k, dtype)
+            over = radiance / pdf
+        else:
+            pdf = np.full(k, np.inf, dtype)
+            over = col / (distance * distance)
+            radiance = over
+        if light.axis is not None:
+            mask = _spot_mask(light, -towards)
+            radiance, over = radiance * mask, over * mask
+        return LightSample(towards, distance, radiance, pdf, over)
+    # Area light: a point uniform over its surface.
+    if light.disk:
+        x, y = _disk(u1, u2)
+        x, y = 0.5 * x, 0.5 * y
+    else:
+        x, y = u1 - 0.5, u2 - 0.5
+    target = (light.position.astype(dtype)[:, None]
+              + (x * light.size_x) * light.axis_x.astype(dtype)[:, None]
+              + (y * light.size_y) * light.axis_y.astype(dtype)[:, None])
+    towards, distance = normalize(target - points)
+    cos_l = -dot(towards, light.direction.astype(dtype)[:, None])
+    front = cos_l > 0
+    pdf = np.where(front, distance * distance / (np.maximum(cos_l, 1e-9) * light.area), 0)
+    radiance = col * front
+    over = np.where(front, col * (np.maximum(cos_l, 0) * light.area)
+                    / (distance * distance), 0)
+    return LightSample(towards, distance, radiance, pdf, over)
+
+
+def light_hit(light: Light, origins, directions, t_max):
+    """Where BSDF-sampled rays from ``origins`` (3, k) along unit ``directions`` find a
+    non-delta ``light`` before ``t_max`` (k,) (inf: the ray escaped): (hit (k,) bool,
+    t (k,), radiance (3, k), pdf (k,) the density ``sample_light`` gives that direction)."""
+    dtype = directions.dtype
+    k = directions.shape[1]
+    none = (np.zeros(k, bool), np.full(k, np.inf, dtype), np.zeros((3, k), dtype),
+            np.zeros(k, dtype))
+    if light.delta:
+        return none
+    col = light.radiance.astype(dtype)[:, None]
+    if light.kind == "sun":
+        cos_angle = -dot(directions, light.direction.astype(dtype)[:, None])
+        hit = np.isinf(t_max) & (cos_angle >= 1 - light.one_minus_cos)
+        pdf = np.full(k, 1 / (2 * np.pi * light.one_minus_cos), dtype)
+        return hit, np.full(k, np.inf, dtype), col * hit, np.where(hit, pdf, 0)
+    if light.kind == "point":
+        centre = light.position.astype(dtype)[:, None]
+        facing, _ = normalize(origins - centre)
+        denominator = dot(directions, facing)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = dot(centre - origins, facing) / denominator
+        at = origins + directions * t
+        inside = dot(at - centre, at - centre) <= light.radius ** 2
+        hit = (denominator < 0) & (t > 0) & (t < t_max) & inside
+        cos_l = np.maximum(-denominator, 1e-9)
+        pdf = t * t / (cos_l * np.pi * light.radius ** 2)
+        radiance = col * hit
+        if light.axis is not None:
+            radiance = radiance * _spot_mask(light, -directions)
+        return hit, np.where(hit, t, np.inf), radiance, np.where(hit, pdf, 0)
+    normal = light.direction.astype(dtype)[:, None]
+    centre = light.position.astype(dtype)[:, None]
+    denominator = dot(directions, normal)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = dot(centre - origins, normal) / denominator
+    at = origins + directions * t - centre
+    x = dot(at, light.axis_x.astype(dtype)[:, None]) / light.size_x
+    y = dot(at, light.axis_y.astype(dtype)[:, None]) / light.size_y
+    inside = (x * x + y * y <= 0.25) if light.disk else (np.abs(x) <= 0.5) & (np.abs(y) <= 0.5)
+    hit = (denominator < 0) & (t > 0) & (t < t_max) & inside
+    cos_l = np.maximum(-denominator, 1e-9)
+    pdf = t * t / (cos_l * light.area)
+    return hit, np.where(hit, t, np.inf), col * hit, np.where(hit, pdf, 0)
+
+
+@dataclass(frozen=True, eq=False)
+class MeshLights:
+    """Emitting triangles, float64: their global primitive ids (E,), corners (3, E) each,
+    unit normals (3, E), areas (E,), emitted radiance (3, E) (their material's constant
+    emission), the probability (E,) of choosing each (in proportion to area x mean
+    radiance) and its cumulative sum, and per primitive id of the scene the probability
+    of choosing it (0 for the rest), for the density of a BSDF ray that hits one."""
+
+    primitives: np.ndarray
+    v0: np.ndarray
+    v1: np.ndarray
+    v2: np.ndarray
+    normals: np.ndarray
+    areas: np.ndarray
+    emission: np.ndarray
+    probability: np.ndarray
+    cumulative: np.ndarray
+    by_primitive: np.ndarray
+    power: float
+
+
+def mesh_lights(triangles, sphere_count: int, emission_table: np.ndarray):
+    """The emitting triangles of ``triangles`` (``core.arrays.TriangleArrays``, global ids
+    after ``sphere_count`` spheres) whose material's emission (``emission_table`` (3, M))
+    is not black, or None."""
+    if triangles is None or len(triangles) == 0:
+        return None
+    emission = emission_table[:, triangles.material]
+    emitting = np.flatnonzero(emission.max(axis=0) > 0)
+    if len(emitting) == 0:
+        return None
+    v0, v1, v2 = (v[:, emitting] for v in (triangles.v0, triangles.v1, triangles.v2))
+    cross = np.cross((v1 - v0).T, (v2 - v0).T).T
+    double_area = np.sqrt((cross ** 2).sum(axis=0))
+    areas = 0.5 * double_area
+    weight = areas * emission[:, emitting].mean(axis=0)
+    if not weight.sum() > 0:
+        return None
+    probability = weight / weight.sum()
+    by_primitive = np.zeros(sphere_count + len(triangles))
+    primitives = emitting + sphere_count
+    by_primitive[primitives] = probability
+    normals = cross / np.where(double_area > 0, double_area, 1)
+    return MeshLights(primitives, v0, v1, v2, normals, areas, emission[:, emitting],
+                      probability, np.cumsum(probability), by_primitive,
+                      float(np.pi * weight.sum()))
+
+
+def sample_mesh_light(lights: MeshLights, points, u_pick, u1, u2) -> tuple:
+    """A point on an emitting triangle for each of k points: (LightSample, primitive (k,))."""
+    dtype = points.dtype
+    index = np.minimum(np.searchsorted(lights.cumulative, u_pick * lights.cumulative[-1],
+                                       side="right"), len(lights.areas) - 1)
+    root = np.sqrt(u1)
+    b1, b2 = 1 - root, u2 * root
+    v0, v1, v2 = (v[:, index].astype(dtype) for v in (lights.v0, lights.v1, lights.v2))
+    target = v0 + b1 * (v1 - v0) + b2 * (v2 - v0)
+    towards, distance = normalize(target - points)
+    cos_l = np.abs(dot(towards, lights.normals[:, index].astype(dtype)))
+    pdf = (lights.probability[index] / lights.areas[index]
+           * distance * distance / np.maximum(cos_l, 1e-9)).astype(dtype)
+    radiance = lights.emission[:, index].astype(dtype)
+    over = np.where(cos_l > 1e-9, radiance / pdf, 0)
+    return LightSample(towards, distance, radiance, pdf, over), lights.primitives[index]
+
+
+def mesh_light_pdf(lights: MeshLights, primitive, t, cos_l):
+    """(k,) the density in solid angle with which ``sample_mesh_light`` draws the points that
+    BSDF rays hit on primitives (k,) at distances t (k,), cosines cos_l (k,) to their
+    normals (0 for primitives that do not emit)."""
+    chosen = lights.by_primitive[primitive]
+    area = np.ones_like(chosen)
+    emitting = chosen > 0
+    if emitting.any():
+        lookup = np.zeros(len(lights.by_primitive))
+        lookup[lights.primitives] = lights.areas
+        area = np.where(emitting, lookup[primitive], 1)
+    return np.where(emitting, chosen / area * t * t / np.maximum(np.abs(cos_l), 1e-9), 0)

@@ -1,0 +1,567 @@
+"""The physically based integrator: unidirectional path tracing with next-event estimation
+and multiple importance sampling, in Cycles' units and with Cycles' Light Paths settings.
+
+A bundle of camera rays (one sample of n pixels) is followed bounce by bounce, every path
+of the bundle at once (a wavefront): nearest hits (``ctx.geometry.nearest``), the lights
+the rays found on the way (``core.emitters.light_hit``) and the world where they escaped,
+the surfaces' closures (``core.closures``), their emission, light samples with shadow rays
+(``ctx.geometry.occluded``), then one BSDF sample per path that goes on.  Light reached
+both ways is weighted by the power heuristic, so a small bright lamp is found by its
+samples and a large dim one by the BSDF's.
+
+Bounces follow Cycles (``path_state_next``): a transparent bounce counts only against
+``transparent_bounces``; any other counts against ``max_bounces`` and its kind's limit
+(diffuse, glossy, transmission).  A path past a limit still traces its next ray, which
+collects only emission (so 0 bounces is direct light, from both of its estimators).
+Russian roulette from the second bounce on keeps a path with probability
+min(1, sqrt(max throughput)), as Cycles does.  Contributions are clamped as Cycles' film
+clamps them (the sum of a sample's RGB, direct and indirect apart).
+
+Alpha and holdouts follow ``core.trace``'s rules: a path is on the camera's view while it
+went on from the camera only straight through Transparent BSDFs.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import closures as lobes
+from .camera import CameraRays
+from .closures import Closures
+from .emitters import (SAMPLED_EACH, MeshLights, light_hit, mesh_light_pdf, sample_light,
+                       sample_mesh_light)
+from .rays import RayBatch, RayStats, ray_offsets
+from .sampler import bounce_groups, index_bits, sample_group
+from .vectors import dot, facing, take
+
+#: The golden ratio's fraction: successive lights at one vertex shift their sample numbers
+#: by it, so that they do not all take the same point of their areas.
+_GOLDEN = 0.6180339887498949
+
+
+@dataclass
+class PathResult:
+    """colour (3, n) each sample's radiance; alpha (n,) 1 - what the camera's view let
+    through (``core.trace``); albedo, normal (3, n): the first hit's albedo and shading
+    normal (denoising's guides; 0 where the camera ray escaped)."""
+
+    colour: np.ndarray
+    alpha: np.ndarray
+    albedo: np.ndarray
+    normal: np.ndarray
+
+
+def _power_heuristic(a, b):
+    a2, b2 = a * a, b * b
+    total = a2 + b2
+    return np.where(total > 0, a2 / np.where(total > 0, total, 1), 0)
+
+
+def _clamp(values, limit: float):
+    """Cycles' film clamp: a contribution (3, k) whose channels sum above ``limit`` (0: no
+    clamp) is scaled down to it."""
+    if not limit > 0:
+        return values
+    total = np.abs(values).sum(axis=0)
+    return values * np.where(total > limit, limit / np.where(total > 0, total, 1), 1)
+
+
+def _add(colour, path, values):
+    """colour[:, path] += values (3, k), repeats of a path index all adding."""
+    for row in range(3):
+        colour[row] += np.bincount(path, values[row], colour.shape[1])
+
+
+def closures_at(ctx, materials) -> Closures:
+    """The closures of hits on ``materials`` (k,) (table rows; programs: ``ctx``)."""
+    return Closures.from_table(ctx.look.surfaces, materials)
+
+
+def _blocked(ctx, points, towards, distance, exclude, lift, stats):
+    """(k,) whether shadow rays from points (3, k) along unit ``towards`` are blocked before
+    ``distance`` (k,) (inf: never), ignoring ``exclude`` (k,); ``lift`` the points'
+    ``TerminatorLift`` or None.  Segments to a light stop short of it by the light's own
+    offset, so an emitting triangle does not block its own light."""
+    offset = ray_offsets(points)
+    reach = np.where(np.isfinite(distance), distance - ray_offsets(
+        points + towards * np.where(np.isfinite(distance), distance, 0)), np.inf)
+    origins = points
+    exclusion = exclude
+    if lift is not None:
+        moved, lifted, ignored = lift.origins(points, towards, exclude)
+        if len(moved):
+            origins = points.copy()
+            origins[:, moved] = lifted
+            exclusion = exclude.copy()
+            exclusion[moved] = ignored
+    return ctx.geometry.occluded(
+        RayBatch(origins, towards, offset, reach, None, exclusion, source=exclusion), stats)
+
+
+def _next_event(ctx, setup, closures, choice, points, normal, geometric, to_view, exclude,
+                lift, u_light, u_pick, stats):
+    """(3, k) the light the points receive by light samples: every light source when there
+    are few (``SAMPLED_EACH``), else one chosen by power, each times the BSDF and the power
+    heuristic against BSDF sampling.  exclude: (2, k) the primitive shadow rays ignore on
+    the side the view is on and on the other (``Aggregate.exclusions``); a light sample on
+    the side of the shading normal other than the geometric normal's brings nothing."""
+    k = points.shape[1]
+    dtype = points.dtype
+    total = np.zeros((3, k), dtype)
+    sources = setup.sources
+    if not sources or k == 0:
+        return total
+    if len(sources) <= SAMPLED_EACH:
+        groups = [(i, np.arange(k), 1.0) for i in range(len(sources))]
+    else:
+        chosen = np.minimum(np.searchsorted(setup.source_cumulative, u_pick, side="right"),
+                            len(sources) - 1)
+        groups = [(i, np.flatnonzero(chosen == i), setup.source_probability[i])
+                  for i in range(len(sources))]
+    for i, rows, probability in groups:
+        if len(rows) == 0:
+            continue
+        shift = (i * _GOLDEN) % 1.0
+        u1 = (u_light[0][rows] + shift) % 1.0
+        u2 = (u_light[1][rows] + shift * _GOLDEN) % 1.0
+        where = take(points, rows)
+        source = sources[i]
+        if isinstance(source, MeshLights):
+            sample, _ = sample_mesh_light(source, where, (u_pick[rows] + shift) % 1.0, u1, u2)
+        else:
+            sample = sample_light(source, where, u1, u2)
+        part = closures.take(rows)
+        part_choice = lobes.LobeChoice(choice.probability[:, rows], choice.albedo[:, :, rows])
+        shading = take(normal, rows)
+        f, pdf = lobes.evaluate(part, part_choice, shading, take(to_view, rows),
+                                sample.towards)
+        above = dot(take(geometric, rows), sample.towards) > 0
+        agree = above == (dot(shading, sample.towards) > 0)
+        ignore = np.where(above, exclude[0][rows], exclude[1][rows])
+        useful = np.flatnonzero(agree & (np.abs(f).max(axis=0) > 0)
+                                & (np.abs(sample.over_pdf).max(axis=0) > 0))
+        if len(useful) == 0:
+            continue
+        light_pdf = sample.pdf[useful] * probability
+        weight = np.where(np.isinf(light_pdf), 1.0, _power_heuristic(light_pdf, pdf[useful]))
+        contribution = f[:, useful] * sample.over_pdf[:, useful] * (weight / probability)
+        blocked = _blocked(ctx, take(where, useful), take(sample.towards, useful),
+                           sample.distance[useful], ignore[useful],
+                           None if lift is None else lift.take(rows[useful]), stats)
+        open_ = useful[~blocked]
+        total[:, rows[open_]] += contribution[:, ~blocked]
+    return total
+
+
+def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> PathResult:
+    """Follow n camera rays (sample ``sample_index`` (n,) of the pixels whose sampler seeds
+    are ``seeds`` (n,)) to the end of their paths (module docstring)."""
+    setup = ctx.paths
+    settings = ctx.settings
+    dtype = ctx.dtype
+    geometry = ctx.geometry
+    n = rays.directions.shape[1]
+    bits = setup.index_bits
+    colour = np.zeros((3, n), dtype)
+    transparency = np.zeros(n, dtype)
+    albedo = np.zeros((3, n), dtype)
+    first_normal = np.zeros((3, n), dtype)
+    background = setup.world.astype(dtype)[:, None]
+    film = settings.film
+
+    path = np.arange(n)
+    throughput = np.ones((3, n), dtype)
+    bounce = np.zeros(n, np.int32)
+    diffuse_bounce = np.zeros(n, np.int32)
+    glossy_bounce = np.zeros(n, np.int32)
+    transmission_bounce = np.zeros(n, np.int32)
+    transparent_bounce = np.zeros(n, np.int32)
+    last_pdf = np.zeros(n, dtype)          # 0: the ray came from the camera or a delta lobe
+    camera_view = np.ones(n, bool)
+    emission_only = np.zeros(n, bool)      # past a bounce limit: the next hit only emits
+    by_diffuse = np.zeros(n, bool)         # the ray left a diffuse or translucent lobe
+    min_pdf = np.full(n, np.inf, dtype)    # for Filter Glossy
+    origins = rays.origins
+    batch = RayBatch(rays.origins, rays.directions, rays.t_min, rays.t_max,
+                     ctx.camera_origin if rays.shared_origin else None)
+    stats.camera_rays += n
+    clamp_direct, clamp_indirect = settings.clamp_direct, settings.clamp_indirect
+    for depth in range(setup.max_vertices):
+        hits = geometry.nearest(batch, stats)
+        t_geometry = np.full(len(batch), np.inf, dtype)
+        t_geometry[hits.rays] = hits.t
+        seed = seeds[path]
+        sample = sample_index[path]
+        limit = clamp_direct if depth == 0 else clamp_indirect
+        # Lights found by rays that left surfaces (Blender's lights are hidden from the
+        # camera's view, Object > Visibility > Camera off).
+        if setup.visible_lights and not camera_view.all():
+            ray_origins = np.broadcast_to(batch.origins, batch.directions.shape)
+            for light in setup.visible_lights:
+                found, _, radiance, pdf = light_hit(light, ray_origins, batch.directions,
+                                                    t_geometry)
+                found &= ~camera_view
+                if not found.any():
+                    continue
+                index = np.flatnonzero(found)
+                weight = np.where(last_pdf[index] > 0, _power_heuristic(
+                    last_pdf[index], pdf[index] * setup.light_probability[light]), 1.0)
+                _add(colour, path[index], _clamp(throughput[:, index] * radiance[:, index]
+                                                 * weight, limit))
+        missed = np.flatnonzero(t_geometry == np.inf)
+        if len(missed):
+            escaped = missed[camera_view[missed]]
+            if film != "opaque" and len(escaped):
+                np.add.at(transparency, path[escaped], throughput[:, escaped].mean(axis=0))
+            shown = missed[~camera_view[missed]] if film == "transparent" else missed
+            if len(shown) and background.any():
+                _add(colour, path[shown], _clamp(throughput[:, shown] * background, limit))
+        if len(hits) == 0:
+            break
+        keep = hits.rays
+        path, throughput, seed, sample = path[keep], throughput[:, keep], seed[keep], sample[keep]
+        bounce, last_pdf, camera_view = bounce[keep], last_pdf[keep], camera_view[keep]
+        emission_only, by_diffuse, min_pdf = emission_only[keep], by_diffuse[keep], min_pdf[keep]
+        diffuse_bounce, glossy_bounce = diffuse_bounce[keep], glossy_bounce[keep]
+        transmission_bounce, transparent_bounce = (transmission_bounce[keep],
+                                                   transparent_bounce[keep])
+        arrived_from = np.broadcast_to(batch.origins, batch.directions.shape)
+        arrived_from = take(arrived_from, keep) if arrived_from.shape[1] > 1 else arrived_from
+        points, directions, front = hits.points, hits.directions, hits.front
+        normal = facing(hits.shading, front)
+        geometric = facing(hits.normals, front)
+        to_view = -directions
+        closures = closures_at(ctx, hits.material)
+        if closures.normal is not None:
+            normal = facing(closures.normal, front)
+        if depth == 0:
+            first_normal[:, path] = normal
+        # Emission, weighted against the light samples that could have found it.
+        emits = np.flatnonzero(closures.emission.max(axis=0) > 0)
+        if len(emits):
+            weight = np.ones(len(emits), dtype)
+            mesh = setup.mesh_lights
+            if mesh is not None and depth > 0:
+                light_pdf = mesh_light_pdf(mesh, hits.primitive[emits], hits.t[emits],
+                                           dot(take(hits.normals, emits), take(directions, emits)))
+                light_pdf = light_pdf * setup.light_probability[mesh]
+                weight = np.where(last_pdf[emits] > 0,
+                                  _power_heuristic(last_pdf[emits], light_pdf), 1.0)
+            _add(colour, path[emits], _clamp(throughput[:, emits]
+                                             * take(closures.emission, emits) * weight, limit))
+        # Holdouts on the camera's view.
+        held = None
+        if setup.any_holdout and camera_view.any():
+            held = _hold_out(closures, camera_view, path, throughput, transparency)
+        # Paths past their limits end here, after their emission; the rest may be cut by
+        # Russian roulette.
+        alive = ~emission_only
+        if held is not None:
+            alive[held] = False
+        if depth > 0:
+            survive = np.minimum(np.sqrt(np.abs(throughput).max(axis=0)), 1.0)
+            u_rr = sample_group(seed, sample, bounce_groups(depth)[1], bits, dtype)[2]
+            roulette = bounce >= 1
+            alive &= ~roulette | (u_rr < survive)
+            throughput = np.where(roulette & (survive > 0), throughput
+                                  / np.where(survive > 0, survive, 1), throughput)
+        go = np.flatnonzero(alive)
+        if len(go) == 0:
+            break
+        if len(go) < len(alive):
+            path, throughput, seed, sample = path[go], throughput[:, go], seed[go], sample[go]
+            bounce, camera_view, min_pdf = bounce[go], camera_view[go], min_pdf[go]
+            last_pdf = last_pdf[go]
+            by_diffuse = by_diffuse[go]
+            diffuse_bounce, glossy_bounce = diffuse_bounce[go], glossy_bounce[go]
+            transmission_bounce, transparent_bounce = (transmission_bounce[go],
+                                                       transparent_bounce[go])
+            points, directions, front = take(points, go), take(directions, go), front[go]
+            normal, geometric, to_view = take(normal, go), take(geometric, go), take(to_view, go)
+            closures = closures.take(go)
+            primitive = hits.primitive[go]
+            hit_normals = take(hits.normals, go)
+            lift = None if hits.terminator is None else hits.terminator.take(go)
+        else:
+            primitive = hits.primitive
+            hit_normals = hits.normals
+            lift = hits.terminator
+        _filter_closures(setup, closures, min_pdf, by_diffuse)
+        choice = lobes.lobe_albedos(closures, normal, to_view, front)
+        if depth == 0:
+            albedo[:, path] = np.clip(choice.albedo.sum(axis=0), 0, 1)
+        numbers = sample_group(seed, sample, bounce_groups(depth)[0], bits, dtype)
+        choices = sample_group(seed, sample, bounce_groups(depth)[1], bits, dtype)
+        if setup.sources:
+            exclude = (geometry.exclusions(primitive, front),
+                       geometry.exclusions(primitive, ~front))
+            light = _next_event(ctx, setup, closures, choice, points, normal, geometric,
+                                to_view, exclude, lift, numbers[2:4], choices[1], stats)
+            _add(colour, path, _clamp(light * throughput, limit))
+        drawn = lobes.sample(closures, choice, normal, to_view, front, choices[0], numbers[0],
+                             numbers[1])
+        # The direction must leave on the side its lobe says, of the geometric normal too.
+        side = dot(geometric, drawn.directions)
+        ok = (drawn.lobe >= 0) & np.where(drawn.through, side < 0, side > 0)
+        throughput = throughput * drawn.weight
+        ok &= np.abs(throughput).max(axis=0) > 0
+        go = np.flatnonzero(ok)
+        if len(go) == 0:
+            break
+        lobe = drawn.lobe[go]
+        transparent = lobe == lobes.TRANSPARENT
+        path, throughput, seed, sample = path[go], throughput[:, go], seed[go], sample[go]
+        bounce, camera_view, min_pdf = bounce[go], camera_view[go], min_pdf[go]
+        diffuse_bounce, glossy_bounce = diffuse_bounce[go], glossy_bounce[go]
+        transmission_bounce, transparent_bounce = (transmission_bounce[go],
+                                                   transparent_bounce[go])
+        previous_pdf = last_pdf[go]
+        pdf = drawn.pdf[go]
+        through = drawn.through[go]
+        # Counting bounces as Cycles does (its limits are the settings plus one).
+        transparent_bounce = transparent_bounce + transparent
+        solid = ~transparent
+        bounce = bounce + solid
+        diffuse = solid & ((lobe == lobes.DIFFUSE) | (lobe == lobes.TRANSLUCENT))
+        glossy = solid & (lobe == lobes.GLOSSY)
+        transmitted = solid & (lobe == lobes.TRANSMISSION)
+        diffuse_bounce = diffuse_bounce + diffuse
+        glossy_bounce = glossy_bounce + glossy
+        transmission_bounce = transmission_bounce + transmitted
+        emission_only = ((bounce > setup.max_bounces)
+                         | (diffuse_bounce > setup.diffuse_bounces)
+                         | (glossy_bounce > setup.glossy_bounces)
+                         | (transmission_bounce > setup.transmission_bounces)
+                         | (transparent_bounce > setup.transparent_bounces))
+        camera_view = camera_view & transparent
+        by_diffuse = diffuse
+        # A transparent bounce keeps the density of the bounce before it: a light seen
+        # through it is weighted as seen from there.
+        last_pdf = np.where(transparent, previous_pdf, pdf)
+        min_pdf = np.where(solid & (pdf > 0), np.minimum(min_pdf, pdf), min_pdf)
+        leave = take(drawn.directions, go)
+        leave_front = np.where(through, ~front[go], front[go])
+        batch = geometry.spawn(take(points, go), take(hit_normals, go), primitive[go], leave,
+                               leave_front)
+        stats.reflection_rays += len(go)
+    alpha = np.clip(1 - transparency, 0, 1)
+    return PathResult(colour, alpha, albedo, first_normal)
+
+
+def _filter_closures(setup, closures: Closures, min_pdf, by_diffuse) -> None:
+    """Cycles' Filter Glossy (a path that took an unlikely direction blurs the glossy lobes
+    it meets next: alpha >= sqrt(1 - filter min_pdf) / 2) and its caustics settings (glossy
+    reflection, refraction, off at surfaces reached by a diffuse bounce), in place."""
+    if setup.filter_glossy > 0:
+        blur_pdf = setup.filter_glossy * min_pdf
+        blurred = blur_pdf < 1
+        if blurred.any():
+            roughness = np.sqrt(np.clip(1 - blur_pdf, 0, 1)) * 0.5
+            closures.alpha[:] = np.where(blurred, np.maximum(closures.alpha, roughness),
+                                         closures.alpha)
+    if by_diffuse.any():
+        if not setup.caustics_reflective:
+            closures.f0[:, by_diffuse] = 0
+            closures.f90[:, by_diffuse] = 0
+        if not setup.caustics_refractive:
+            closures.transmission[:, by_diffuse] = 0
+
+
+def _hold_out(closures: Closures, camera_view, path, throughput, transparency):
+    """Add what the holdouts on the camera's view take of their samples to transparency;
+    the indices of hits whose shading the camera does not see (object holdouts), or None."""
+    viewed = np.flatnonzero(camera_view)
+    holdout = closures.holdout[viewed]
+    whole = closures.holdout_object[viewed]
+    if not (holdout.any() or whole.any()):
+        return None
+    w = throughput[:, viewed]
+    held = holdout * w.mean(axis=0)
+    if whole.any():
+        kept = 1 - take(closures.transparency, viewed)
+        held = np.where(whole, (kept * w).mean(axis=0), held)
+    np.add.at(transparency, path[viewed], held)
+    return viewed[whole] if whole.any() else None
+
+
+@dataclass(frozen=True)
+class PathSetup:
+    """What the path integrator precomputes for a frame: the Light Paths limits, the light
+    sources next-event estimation samples (``sources``: ``core.emitters.Light``s and the
+    ``MeshLights``) with the probability of choosing each when there are many, the lights
+    BSDF rays can find, the world's radiance, and the sampler's index bits."""
+
+    max_bounces: int
+    diffuse_bounces: int
+    glossy_bounces: int
+    transmission_bounces: int
+    transparent_bounces: int
+    filter_glossy: float
+    caustics_reflective: bool
+    caustics_refractive: bool
+    sources: tuple
+    source_probability: np.ndarray
+    source_cumulative: np.ndarray
+    visible_lights: tuple
+    light_probability: dict
+    mesh_lights: MeshLights | None
+    world: np.ndarray
+    any_holdout: bool
+    index_bits: int
+
+    @property
+    def max_vertices(self) -> int:
+        """An upper bound on the rays a path traces: every bounce and transparent bounce,
+        and the last ray that collects emission only."""
+        return self.max_bounces + self.transparent_bounces + 2
+
+
+def path_setup(settings, lights, mesh, world, any_holdout: bool) -> PathSetup:
+    """The frame's ``PathSetup`` (settings: ``RenderSettings``; lights: prepared
+    ``core.emitters.Light``s; mesh: ``MeshLights`` or None; world: (3,) radiance)."""
+    sources = tuple(lights) + ((mesh,) if mesh is not None else ())
+    power = np.array([max(source.power, 0.0) for source in sources]) if sources else np.zeros(0)
+    if len(power) and power.sum() > 0:
+        probability = power / power.sum()
+    else:
+        probability = np.full(len(sources), 1.0 / max(len(sources), 1))
+    each = len(sources) <= SAMPLED_EACH
+    light_probability = {source: (1.0 if each else float(p))
+                         for source, p in zip(sources, probability)}
+    return PathSetup(
+        max_bounces=settings.max_bounces, diffuse_bounces=settings.diffuse_bounces,
+        glossy_bounces=settings.glossy_bounces,
+        transmission_bounces=settings.transmission_bounces,
+        transparent_bounces=settings.transparent_bounces,
+        filter_glossy=settings.filter_glossy,
+        caustics_reflective=settings.caustics_reflective,
+        caustics_refractive=settings.caustics_refractive,
+        sources=sources, source_probability=probability,
+        source_cumulative=np.cumsum(probability),
+        visible_lights=tuple(light for light in lights if not light.delta),
+        light_probability=light_probability, mesh_lights=mesh,
+        world=np.asarray(world, np.float64), any_holdout=any_holdout,
+        index_bits=index_bits(settings.samples))
+
+
+def filter_offsets(u, filter_type: str, width: float):
+    """(k,) offsets from a pixel's centre, in pixels, with the density of Cycles' separable
+    pixel filter of ``width`` (box, Gaussian or Blackman-Harris) for numbers u (k,) in
+    [0, 1): the inverse of the filter's cumulative distribution, tabulated."""
+    table = _filter_table(filter_type, float(width))
+    return np.interp(u, np.linspace(0, 1, len(table)), table).astype(np.asarray(u).dtype)
+
+
+_FILTER_TABLES: dict = {}
+
+
+def _filter_table(filter_type: str, width: float) -> np.ndarray:
+    key = (filter_type, width)
+    table = _FILTER_TABLES.get(key)
+    if table is None:
+        x = np.linspace(-0.5, 0.5, 4097) * width
+        if filter_type == "BOX":
+            weight = np.ones_like(x)
+        elif filter_type == "GAUSSIAN":
+            weight = np.exp(-2 * (x / (width / 2)) ** 2 * 2)
+        else:
+            t = np.linspace(0, 1, len(x))
+            weight = (0.35875 - 0.48829 * np.cos(2 * np.pi * t)
+                      + 0.14128 * np.cos(4 * np.pi * t) - 0.01168 * np.cos(6 * np.pi * t))
+        cumulative = np.concatenate([[0], np.cumsum((weight[1:] + weight[:-1]) / 2)])
+        cumulative /= cumulative[-1]
+        table = np.interp(np.linspace(0, 1, 257), cumulative, x)
+        _FILTER_TABLES[key] = table
+    return table
+
+
+
+def min_samples(settings) -> int:
+    """The samples every pixel gets before adaptive sampling may stop it: the setting, or
+    for 0 Cycles' automatic choice from the noise threshold."""
+    if settings.min_samples > 0:
+        return min(settings.min_samples, settings.samples)
+    threshold = max(settings.noise_threshold, 1e-6)
+    return min(settings.samples, max(4, math.ceil(16.0 / threshold ** 0.3)))
+
+
+def converged(total, half, count, threshold: float):
+    """(k,) whether pixels whose sample sums are ``total`` (3, k) and twice the sums of
+    their odd samples ``half`` (3, k) after ``count`` (k,) samples are converged: Cycles'
+    ``film_adaptive_sampling_convergence_check`` (the two halves' estimates differ by less
+    than ``threshold`` relative to the square root of the pixel's brightness)."""
+    difference = np.abs(total - half).sum(axis=0) / count
+    normalise = np.sqrt(np.maximum(total.sum(axis=0), 0) / count)
+    return difference / (1e-4 + normalise) < threshold
+
+
+def render_path_tile(ctx, camera, tile, stop=None):
+    """(rgba (h, w, 4), stats) of tile (y0, y1, x0, x1) by path tracing: ``samples`` samples
+    a pixel, positioned by the pixel filter's density, or with a noise threshold, pixels
+    stopped once ``converged`` (checked after the minimum samples, then each time their
+    count doubles).  A pixel's value depends only on its own samples: never on the tile."""
+    from .camera import camera_rays, has_aperture
+    from .render import RenderCancelled, _assemble, _pixel_grid
+    from .sampler import PIXEL_GROUP, pixel_seeds
+
+    start = time.perf_counter()
+    settings = ctx.settings
+    dtype = ctx.dtype
+    y0, y1, x0, x1 = tile
+    stats = RayStats(tiles=1)
+    cols, rows = _pixel_grid(y0, y1, x0, x1)
+    n = len(cols)
+    seeds = pixel_seeds(cols, rows, settings.seed)
+    total_samples = settings.samples
+    bits = ctx.paths.index_bits
+    aperture = has_aperture(camera)
+    sums = np.zeros((3, n))
+    halves = np.zeros((3, n))
+    alpha = np.zeros(n)
+    counts = np.zeros(n)
+    adaptive = settings.noise_threshold > 0
+    live = np.arange(n)
+    done = 0
+    target = min_samples(settings) if adaptive else total_samples
+    rays_per_bundle = max(1024, settings.tile_size ** 2)
+    while len(live) and done < total_samples:
+        count = target - done
+        per_bundle = max(1, rays_per_bundle // count)
+        for first in range(0, len(live), per_bundle):
+            if stop is not None and stop.is_set():
+                raise RenderCancelled("render cancelled")
+            chunk = live[first:first + per_bundle]
+            pixel = np.repeat(chunk, count)
+            sample = np.tile(np.arange(done, target), len(chunk))
+            u = sample_group(seeds[pixel], sample, PIXEL_GROUP, bits)
+            xs = cols[pixel] + 0.5 + filter_offsets(u[0], settings.filter_type,
+                                                    settings.filter_width)
+            ys = rows[pixel] + 0.5 + filter_offsets(u[1], settings.filter_type,
+                                                    settings.filter_width)
+            began = time.perf_counter()
+            rays = camera_rays(camera, xs, ys, dtype, u[2:4] if aperture else None)
+            traced = time.perf_counter()
+            result = trace_paths(ctx, rays, seeds[pixel], sample, stats)
+            stats.seconds_camera += traced - began
+            stats.seconds_bounces += time.perf_counter() - traced
+            odd = (sample & 1).astype(np.float64) * 2
+            for row in range(3):
+                sums[row] += np.bincount(pixel, result.colour[row], n)
+                halves[row] += np.bincount(pixel, result.colour[row] * odd, n)
+            alpha += np.bincount(pixel, result.alpha, n)
+        counts[live] = target
+        done = target
+        if adaptive and done < total_samples:
+            settled = converged(sums[:, live], halves[:, live], counts[live],
+                                settings.noise_threshold)
+            live = live[~settled]
+            stats.supersampled_pixels += len(live)
+        target = min(total_samples, 2 * done)
+    rgba = np.empty((y1 - y0, x1 - x0, 4), dtype)
+    _assemble(rgba, (sums / counts).T.astype(dtype), (alpha / counts).astype(dtype))
+    stats.seconds_tiles += time.perf_counter() - start
+    return rgba, stats
