@@ -75,11 +75,16 @@ class MemoryPlan:
                 "scene": "use fewer spheres, triangles or light samples"}[largest]
 
 
+#: The denoising guides' channels beside RGBA (``RenderSettings.guides``: albedo, normal).
+GUIDE_CHANNELS = 6
+
+
 def plan(scene: Scene, settings: RenderSettings, image_dtype, threads: int,
          other_bytes: int = 0) -> MemoryPlan:
     """What a render of ``scene`` holds at its peak (module docstring)."""
     width, height = scene.camera.width, scene.camera.height
-    image = width * height * 4 * np.dtype(image_dtype).itemsize
+    channels = 4 + (GUIDE_CHANNELS if settings.guides else 0)
+    image = width * height * channels * np.dtype(image_dtype).itemsize
     samples = settings.samples if settings.anti_aliasing != "off" else 1
     bundle = max(settings.tile_size ** 2, samples)
     in_flight = 2 * threads * settings.tile_size ** 2 * 4 * 8

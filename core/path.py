@@ -521,6 +521,7 @@ def render_path_tile(ctx, camera, tile, stop=None):
     aperture = has_aperture(camera)
     sums = np.zeros((3, n))
     halves = np.zeros((3, n))
+    guides = np.zeros((6, n)) if settings.guides else None
     alpha = np.zeros(n)
     counts = np.zeros(n)
     adaptive = settings.noise_threshold > 0
@@ -553,6 +554,10 @@ def render_path_tile(ctx, camera, tile, stop=None):
                 sums[row] += np.bincount(pixel, result.colour[row], n)
                 halves[row] += np.bincount(pixel, result.colour[row] * odd, n)
             alpha += np.bincount(pixel, result.alpha, n)
+            if guides is not None:
+                for row in range(3):
+                    guides[row] += np.bincount(pixel, result.albedo[row], n)
+                    guides[3 + row] += np.bincount(pixel, result.normal[row], n)
         counts[live] = target
         done = target
         if adaptive and done < total_samples:
@@ -563,5 +568,11 @@ def render_path_tile(ctx, camera, tile, stop=None):
         target = min(total_samples, 2 * done)
     rgba = np.empty((y1 - y0, x1 - x0, 4), dtype)
     _assemble(rgba, (sums / counts).T.astype(dtype), (alpha / counts).astype(dtype))
+    if guides is not None:
+        extra = np.empty((y1 - y0, x1 - x0, 4), dtype)
+        more = np.empty((y1 - y0, x1 - x0, 4), dtype)
+        _assemble(extra, (guides[:3] / counts).T.astype(dtype), np.zeros(n, dtype))
+        _assemble(more, (guides[3:] / counts).T.astype(dtype), np.zeros(n, dtype))
+        rgba = np.concatenate([rgba, extra[..., :3], more[..., :3]], axis=2)
     stats.seconds_tiles += time.perf_counter() - start
     return rgba, stats

@@ -34,6 +34,7 @@ from .passes import PrimaryPasses, fill_tile_passes
 from .path import render_path_tile
 from .cull import PACKET_SIZE
 from . import memory
+from .memory import GUIDE_CHANNELS
 from .frame import canonical_scene, scene_frame
 from .lights import SampleShares, pixel_shares, pixel_shifts
 from .precision import choose_precision
@@ -126,6 +127,10 @@ class RenderResult:
     semantics: str = "article"
     parallelism: str = "threads"
     passes: Optional[PrimaryPasses] = None   # render(passes=True): see core.passes
+    #: (H, W, 3) the first hits' albedo and shading normal (``RenderSettings.guides``, path
+    #: integrator), denoising's guides; None otherwise.
+    albedo: Optional[np.ndarray] = None
+    normal: Optional[np.ndarray] = None
     #: Why tiles that were to go to worker processes ran on threads (they cannot start
     #: here: ``core.workers.unavailable_reason``), else None; the front ends show it.
     fallback: Optional[str] = None
@@ -418,6 +423,15 @@ def render_tile(ctx: TraceContext, camera, tile, stop: Optional[threading.Event]
     supersampled tiles)."""
     if ctx.paths is not None:
         return render_path_tile(ctx, camera, tile, stop)
+    rgba, stats = _render_whitted_tile(ctx, camera, tile, stop)
+    if ctx.settings.guides:     # (no guides: the image's other channels stay 0)
+        rgba = np.concatenate([rgba, np.zeros(rgba.shape[:2] + (GUIDE_CHANNELS,),
+                                              rgba.dtype)], axis=2)
+    return rgba, stats
+
+
+def _render_whitted_tile(ctx: TraceContext, camera, tile, stop=None):
+    """``render_tile`` with the Whitted integrator (``core.trace``)."""
     start = time.perf_counter()
     y0, y1, x0, x1 = tile
     h, w = y1 - y0, x1 - x0
@@ -562,7 +576,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     ctx.geometry.build_frame_tables(ctx.camera_origin.position if shared_eye else None,
                                     bounces=traces_bounces(ctx),
                                     trails=traces_from_points(ctx), threads=threads)
-    shape = (height, width, 4)
+    shape = (height, width, 4 + (GUIDE_CHANNELS if settings.guides else 0))
     stats = RayStats()
     if isinstance(passes, PrimaryPasses):
         if passes.depth.shape != (height, width):
@@ -596,7 +610,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
             fill_passes(tile, tile_stats)
         stats.add(tile_stats)
         if on_tile is not None:
-            on_tile(tile, pixels)
+            on_tile(tile, pixels[..., :4])
         if progress is not None:
             progress(done / len(tiles))
 
@@ -620,11 +634,10 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
                 ctx, scene.camera, tiles, shape, image_dtype, threads,
                 functools.partial(land, worker_tile=True), should_cancel)
             if unavailable is not None:  # the workers failed after some tiles landed
-                return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
-                                    settings.semantics, parallelism="threads",
-                                    passes=primary, fallback=_fallback_line(unavailable))
-            return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
-                                settings.semantics, parallelism="processes", passes=primary)
+                return _result(image, stats, dtype, scene, settings, parallelism="threads",
+                               passes=primary, fallback=_fallback_line(unavailable))
+            return _result(image, stats, dtype, scene, settings, parallelism="processes",
+                           passes=primary)
         except workers.WorkersBusy:
             pass  # another render (a viewport) has them: threads, without a word
         except workers.ProcessesUnavailable as error:
@@ -638,8 +651,8 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
             if cancelled():
                 raise RenderCancelled("render cancelled")
             finish(tile, *work(ctx, scene.camera, tile), done)
-        return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
-                            settings.semantics, passes=primary, fallback=fallback)
+        return _result(image, stats, dtype, scene, settings, passes=primary,
+                       fallback=fallback)
 
     stop = threading.Event()
     with ThreadPoolExecutor(max_workers=threads) as pool:
@@ -673,5 +686,13 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
             for future in pending:
                 future.cancel()
             raise
-    return RenderResult(image, stats, dtype.name, missed_colour(scene, settings),
-                        settings.semantics, passes=primary, fallback=fallback)
+    return _result(image, stats, dtype, scene, settings, passes=primary, fallback=fallback)
+
+
+def _result(image, stats, dtype, scene, settings, **extra) -> RenderResult:
+    """The RenderResult of a frame whose tiles filled ``image`` (H, W, 4 or 4 + guides)."""
+    albedo = normal = None
+    if image.shape[2] > 4:
+        albedo, normal = image[..., 4:7], image[..., 7:10]
+    return RenderResult(image[..., :4], stats, dtype.name, missed_colour(scene, settings),
+                        settings.semantics, albedo=albedo, normal=normal, **extra)

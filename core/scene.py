@@ -1037,6 +1037,7 @@ class RenderSettings:
     filter_type: Literal["BOX", "GAUSSIAN", "BLACKMAN_HARRIS"] = "BLACKMAN_HARRIS"
     filter_width: float = 1.5
     seed: int = 0
+    guides: bool = False
 
     def __post_init__(self):
         _choice("settings.semantics", self.semantics, SEMANTICS)
@@ -1068,7 +1069,7 @@ class RenderSettings:
         if not 0.01 <= self.filter_width <= 10.0:
             raise SceneError(f"settings.filter_width must be in [0.01, 10] pixels, got "
                              f"{self.filter_width!r}")
-        for name in ("caustics_reflective", "caustics_refractive"):
+        for name in ("caustics_reflective", "caustics_refractive", "guides"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise SceneError(f"settings.{name} must be True or False, got "
                                  f"{getattr(self, name)!r}")

@@ -178,6 +178,9 @@ class GlintRenderEngine(bpy.types.RenderEngine):
                          # saves, its display buffers: measured, render.py peaks at 3.35
                          # frames at 16K (14.36 GB for 4.29 GB), so 2.5 frames more.
                          reserve_bytes=5 * job.frame_bytes // 2)
+        if result.denoised and tiles is not None:
+            # The tiles Blender holds are the noisy ones: the denoised frame replaces them.
+            tiles.hand_over((0, height, 0, width), result.image)
         self.update_stats("Glint", f"{summary}, {result.precision}")
         if result.fallback is not None:
             self.report({'WARNING'}, f"Glint: {result.fallback}")

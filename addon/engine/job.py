@@ -21,6 +21,7 @@ point reports.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import threading
 import traceback
@@ -34,6 +35,7 @@ from ...core.render import RayStats
 from ..export import ExportError, export_scene
 from .ignored import ignored_settings_warning
 from ..utils.colour import render_result_pixels
+from ..utils.denoise import available as denoise_available, denoise
 
 #: Set (to anything) to have unexpected errors print their traceback to stderr as well.
 DEBUG_VARIABLE = "GLINT_DEBUG"
@@ -112,6 +114,7 @@ class JobResult:
     passes: Optional[object] = None   # core.passes.PrimaryPasses when run(passes=True)
     parallelism: str = "threads"
     fallback: Optional[str] = None
+    denoised: bool = False   # the image was denoised after its tiles landed
 
 
 @dataclass
@@ -119,6 +122,9 @@ class RenderJob:
     scene: Scene
     settings: RenderSettings   # its film: Film > Transparent (``render_settings``)
     warnings: list[str] = field(default_factory=list)
+    #: Denoise the final image (Glint's Denoise option, path tracing): with Open Image
+    #: Denoise guided by the first hits' albedo and normal (``addon.utils.denoise``).
+    denoise: bool = False
 
     @property
     def size(self) -> tuple[int, int]:
@@ -153,13 +159,21 @@ class RenderJob:
         def finished_tile(tile, rgba):
             on_tile(tile, np.array(rgba, np.float32, copy=True))
 
-        result = render(self.scene, self.settings, progress=progress,
+        denoising = self.denoise and denoise_available()
+        settings = (dataclasses.replace(self.settings, guides=True) if denoising
+                    else self.settings)
+        result = render(self.scene, settings, progress=progress,
                         should_cancel=should_cancel, image_dtype=np.float32,
                         reserve_bytes=reserve_bytes,
                         on_tile=finished_tile if on_tile is not None else None,
                         passes=passes)
-        return JobResult(result.image, result.precision, result.stats, result.passes,
-                         result.parallelism, result.fallback)
+        image = result.image
+        denoised = denoising and result.albedo is not None
+        if denoised:
+            image = np.array(image, np.float32, copy=True)
+            image[..., :3] = denoise(image[..., :3], result.albedo, result.normal)
+        return JobResult(image, result.precision, result.stats, result.passes,
+                         result.parallelism, result.fallback, denoised)
 
 
 def failure_message(error: BaseException) -> str:
@@ -188,10 +202,10 @@ def prepare_job(depsgraph, camera_override=None) -> RenderJob:
     scene, warnings = export_scene(depsgraph, camera_override)
     warnings += ignored_settings_warning(depsgraph, camera_override)
     blender_scene = depsgraph.scene_eval
-    return RenderJob(scene=scene,
-                     settings=render_settings(blender_scene.glint, blender_scene.render,
-                                              blender_scene),
-                     warnings=warnings)
+    settings = render_settings(blender_scene.glint, blender_scene.render, blender_scene)
+    return RenderJob(scene=scene, settings=settings, warnings=warnings,
+                     denoise=bool(blender_scene.glint.use_denoising)
+                     and settings.integrator == "path" and settings.semantics == "default")
 
 
 class ThreadedRender:
