@@ -196,7 +196,9 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
         t_geometry[hits.rays] = hits.t
         seed = seeds[path]
         sample = sample_index[path]
-        limit = clamp_direct if depth == 0 else clamp_indirect
+        # Emission found by this depth's rays counts as the bounce before's light (Cycles'
+        # ``bounce - 1``): direct for the camera's rays and those of the first hit.
+        limit = clamp_direct if depth <= 1 else clamp_indirect
         # Lights found by rays that left surfaces (Blender's lights are hidden from the
         # camera's view, Object > Visibility > Camera off).
         if setup.visible_lights and not camera_view.all():
@@ -301,7 +303,8 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
                        geometry.exclusions(primitive, ~front))
             light = _next_event(ctx, setup, closures, choice, points, normal, geometric,
                                 to_view, exclude, lift, numbers[2:4], choices[1], stats)
-            _add(colour, path, _clamp(light * throughput, limit))
+            _add(colour, path, _clamp(light * throughput,
+                                      clamp_direct if depth == 0 else clamp_indirect))
         drawn = lobes.sample(closures, choice, normal, to_view, front, choices[0], numbers[0],
                              numbers[1])
         # The direction must leave on the side its lobe says, of the geometric normal too.

@@ -1,0 +1,186 @@
+"""The path integrator on scenes whose answer is known in closed form (furnaces), its
+determinism, its sampler and its settings' validation.  (Against Cycles:
+``test_path_cycles.py``.)"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+import core
+from core import sampler
+from core.path import converged, filter_offsets
+from core.scene import (AreaLight, BlenderCamera, RenderSettings, Scene, SceneError, Sphere,
+                        SurfaceMaterial, TriangleMesh)
+
+
+def _camera(position, width=32, height=24, lens=50.0) -> BlenderCamera:
+    """A camera at ``position`` looking along +Y (Blender's camera rotated 90 degrees about X)."""
+    matrix = np.eye(4)
+    matrix[:3, :3] = [[1, 0, 0], [0, 0, -1], [0, 1, 0]]
+    matrix[:3, 3] = position
+    return BlenderCamera(matrix_world=tuple(map(tuple, matrix)), resolution_x=width,
+                         resolution_y=height, lens=lens)
+
+
+def _diffuse(albedo, emission=(0.0, 0.0, 0.0)) -> SurfaceMaterial:
+    return SurfaceMaterial(diffuse=(albedo,) * 3, roughness=1.0, emission=emission)
+
+
+def test_convex_diffuse_ball_in_a_uniform_world_reflects_albedo_times_the_world():
+    # Every BSDF ray of a convex ball escapes: cosine sampling makes the estimate exact
+    # (zero variance), so every pixel on the ball is a L.
+    world = (0.7, 1.1, 1.6)
+    scene = Scene(camera=_camera((0, -5, 0)), spheres=(Sphere((0, 0, 0), 1.0, _diffuse(0.4)),),
+                  background=world, ambient=world)
+    image = core.render(scene, RenderSettings(samples=4, threads=1)).image
+    centre = image[9:15, 13:19, :3].reshape(-1, 3)
+    np.testing.assert_allclose(centre, np.tile(np.multiply(0.4, world), (len(centre), 1)),
+                               rtol=1e-5)
+
+
+@pytest.mark.parametrize("bounces", [0, 1, 3])
+def test_inside_an_emitting_diffuse_sphere_bounces_add_up_to_the_truncated_series(bounces):
+    # Camera inside a closed sphere of albedo a emitting E: each bounce adds a^k E.  With
+    # Cycles' counting, max bounces b still lets the last bounce's ray collect emission, so
+    # the pixel is E (1 + a + ... + a^(b + 1)) = E (1 - a^(b + 2)) / (1 - a).
+    a, emitted = 0.5, 1.0
+    ball = Sphere((0, 0, 0), 10.0, _diffuse(a, (emitted,) * 3))
+    scene = Scene(camera=_camera((0, 0, 0)), spheres=(ball,))
+    settings = RenderSettings(samples=64, threads=1, max_bounces=bounces,
+                              diffuse_bounces=bounces)
+    mean = core.render(scene, settings).image[..., :3].mean()
+    expected = emitted * (1 - a ** (bounces + 2)) / (1 - a)
+    # 768 pixels x 64 samples: the mean's noise is far below 0.5 %.
+    assert mean == pytest.approx(expected, rel=0.005)
+
+
+def test_inside_an_emitting_sphere_many_bounces_converge_to_the_geometric_sum():
+    a = 0.5
+    scene = Scene(camera=_camera((0, 0, 0)),
+                  spheres=(Sphere((0, 0, 0), 10.0, _diffuse(a, (1.0, 1.0, 1.0))),))
+    settings = RenderSettings(samples=64, threads=1, max_bounces=64, diffuse_bounces=64)
+    assert core.render(scene, settings).image[..., :3].mean() == pytest.approx(
+        1 / (1 - a), rel=0.01)
+
+
+def _box_scene(width=24, height=18):
+    """A small closed room under an area light, with a ball: light that bounces."""
+    white, red = _diffuse(0.7), SurfaceMaterial(diffuse=(0.7, 0.1, 0.1), roughness=1.0)
+    corners = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
+                        [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], float) * 3
+    quads = [(0, 1, 2, 3), (4, 7, 6, 5), (3, 2, 6, 7), (0, 3, 7, 4), (1, 5, 6, 2)]
+    triangles = np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))])
+    materials = np.array([0, 0, 0, 0, 0, 0, 1, 1, 0, 0])
+    room = TriangleMesh(corners, triangles, None, materials, (white, red), name="room")
+    light = AreaLight((0, 0, 2.9), (0, 0, -1), (1, 0, 0), (0, 1, 0), size_x=1.5,
+                      power=300.0)
+    return Scene(camera=_camera((0, -8, 0), width, height), meshes=(room,), lights=(light,),
+                 spheres=(Sphere((0.8, 0.5, -1.8), 1.2, white),))
+
+
+def test_the_image_is_the_same_for_any_tiles_threads_and_processes():
+    scene = _box_scene(40, 30)
+    base = RenderSettings(samples=4, threads=1, tile_size=64, parallelism="threads")
+    reference = core.render(scene, base).image
+    for settings in (dataclasses.replace(base, tile_size=16),
+                     dataclasses.replace(base, threads=2, tile_size=16),
+                     dataclasses.replace(base, threads=2, tile_size=16,
+                                         parallelism="processes")):
+        np.testing.assert_array_equal(core.render(scene, settings).image, reference)
+
+
+def test_more_samples_bring_the_image_closer_to_a_converged_one():
+    scene = _box_scene()
+    reference = core.render(scene, RenderSettings(samples=1024, threads=2)).image[..., :3]
+    errors = [np.sqrt(((core.render(scene, RenderSettings(samples=s, threads=2)).image[..., :3]
+                        - reference) ** 2).mean()) for s in (4, 16, 64)]
+    # Monte Carlo: error ~ 1 / sqrt(samples), so each 4x step about halves it.
+    assert errors[1] < 0.7 * errors[0] and errors[2] < 0.7 * errors[1], errors
+
+
+def test_bounces_add_light_to_a_room():
+    scene = _box_scene()
+    direct = core.render(scene, RenderSettings(samples=64, threads=2, max_bounces=0)).image
+    bounced = core.render(scene, RenderSettings(samples=64, threads=2, max_bounces=4)).image
+    # The walls facing away from the light (the floor's shadowed corners, the ceiling) get
+    # light only by bouncing.
+    assert bounced[0:2, :, :3].mean() > 2 * direct[0:2, :, :3].mean()
+
+
+def test_clamping_indirect_light_darkens_only_what_bounced():
+    scene = _box_scene()
+    settings = RenderSettings(samples=16, threads=2, max_bounces=0, clamp_indirect=0.01)
+    # With no bounce there is nothing indirect to clamp (direct light, found by light
+    # samples and by the BSDF alike, is clamp_direct's).
+    np.testing.assert_array_equal(
+        core.render(scene, settings).image,
+        core.render(scene, dataclasses.replace(settings, clamp_indirect=0.0)).image)
+    bounced = dataclasses.replace(settings, max_bounces=4)
+    assert (core.render(scene, bounced).image[..., :3].mean()
+            < core.render(scene, dataclasses.replace(bounced, clamp_indirect=0.0))
+            .image[..., :3].mean())
+
+
+def test_sobol_samples_are_stratified_in_one_and_two_dimensions_per_pixel():
+    seeds = sampler.pixel_seeds(np.arange(4), np.zeros(4, int))
+    for seed in seeds:
+        points = sampler.sample_group(np.full(16, seed), np.arange(16), 3, bits=4)
+        for dimension in range(4):
+            assert len(np.unique((points[dimension] * 16).astype(int))) == 16
+        for first, second in ((0, 1), (2, 3)):
+            cells = (points[first] * 4).astype(int) * 4 + (points[second] * 4).astype(int)
+            assert len(np.unique(cells)) == 16
+
+
+def test_pixels_draw_different_samples():
+    points = sampler.sample_group(sampler.pixel_seeds(np.arange(1000), np.zeros(1000, int)),
+                                  np.zeros(1000, int), 1, bits=4)
+    # The first sample of each pixel: spread uniformly over the pixels, not one value.
+    histogram = np.histogram(points[0], bins=10, range=(0, 1))[0]
+    assert histogram.min() > 60 and histogram.max() < 140
+
+
+def test_pixel_filter_offsets_follow_the_filter():
+    u = (np.arange(10000) + 0.5) / 10000
+    box = filter_offsets(u, "BOX", 1.0)
+    assert box.min() >= -0.5 and box.max() <= 0.5 and abs(box.std() - 1 / math.sqrt(12)) < 0.01
+    wide = filter_offsets(u, "BLACKMAN_HARRIS", 1.5)
+    assert abs(wide.mean()) < 1e-3 and wide.max() <= 0.75 and wide.std() < box.std()
+    assert np.abs(filter_offsets(u, "BLACKMAN_HARRIS", 0.01)).max() <= 0.005
+
+
+def test_adaptive_sampling_converges_where_the_halves_agree():
+    total = np.array([[10.0, 10.0], [10.0, 10.0], [10.0, 10.0]])
+    half = np.array([[10.0, 14.0], [10.0, 14.0], [10.0, 14.0]])
+    assert converged(total, half, np.array([16.0, 16.0]), 0.01).tolist() == [True, False]
+
+
+def test_noise_threshold_stops_flat_pixels_early():
+    scene = Scene(camera=_camera((0, -5, 0)), spheres=(Sphere((0, 0, 0), 1.0, _diffuse(0.4)),),
+                  background=(0.5, 0.5, 0.5), ambient=(0.5, 0.5, 0.5))
+    adaptive = core.render(scene, RenderSettings(samples=64, threads=1, noise_threshold=0.01,
+                                                 min_samples=4))
+    full = core.render(scene, RenderSettings(samples=64, threads=1))
+    # The noise-free ball and background stop after the minimum, where the image is the
+    # same; pixels on the silhouette take more samples.
+    assert adaptive.stats.camera_rays < full.stats.camera_rays / 4
+    flat = np.isclose(full.image[..., 0], 0.2) | np.isclose(full.image[..., 0], 0.5)
+    np.testing.assert_allclose(adaptive.image[flat], full.image[flat], atol=1e-6)
+    assert adaptive.stats.supersampled_pixels > 0
+
+
+@pytest.mark.parametrize("field, value", [
+    ("samples", 0), ("samples", -3), ("noise_threshold", -0.1), ("clamp_indirect", math.nan),
+    ("clamp_direct", math.inf), ("max_bounces", -1), ("filter_width", 0.0),
+    ("filter_type", "TRIANGLE"), ("integrator", "bidirectional"), ("time_limit", -1.0),
+    ("samples", 10 ** 9),
+])
+def test_bad_settings_give_one_line_naming_the_field(field, value):
+    with pytest.raises(SceneError) as error:
+        RenderSettings(**{field: value})
+    message = str(error.value)
+    assert f"settings.{field}" in message and "\n" not in message
