@@ -377,6 +377,7 @@ class Aggregate:
             hit_primitive = primitive
         is_triangle = hit_primitive >= self.sphere_count
         lifted = None    # smooth triangles' terminator lift (``_terminator_lift``)
+        hit_barycentrics = None
         if not is_triangle.any():
             points = t * directions
             points += origins
@@ -404,6 +405,7 @@ class Aggregate:
             triangle = hit_primitive[tris] - self.sphere_count
             rows = keep[tris]
             b0, b1, b2 = (b[rows].astype(self.dtype) for b in barycentrics)
+            hit_barycentrics = tuple(b[keep] for b in barycentrics)
             v0, v1, v2 = (take(v, triangle) for v in self._v)
             # The point from the barycentrics: its error scales with the corners, not with
             # the distance travelled (pbrt's choice).
@@ -425,7 +427,7 @@ class Aggregate:
         if lifted is not None:
             terminator = self._terminator_lift(normals, shading, front, *lifted)
         return Hits(keep, primitive, t, hit_primitive, material, points, directions, normals,
-                    shading, cos_in, front, terminator)
+                    shading, cos_in, front, terminator, hit_barycentrics)
 
     def _terminator_lift(self, normals, shading, front, tris, triangle, corners,
                          corner_normals, barycentrics):

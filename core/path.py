@@ -36,6 +36,8 @@ from .emitters import (SAMPLED_EACH, MeshLights, light_hit, mesh_light_pdf, samp
                        sample_mesh_light)
 from .rays import RayBatch, RayStats, ray_offsets
 from .sampler import bounce_groups, index_bits, sample_group
+from .shader.program import run
+from .surface_points import surface_points
 from .vectors import dot, facing, take
 
 #: The golden ratio's fraction: successive lights at one vertex shift their sample numbers
@@ -76,9 +78,41 @@ def _add(colour, path, values):
         colour[row] += np.bincount(path, values[row], colour.shape[1])
 
 
-def closures_at(ctx, materials) -> Closures:
-    """The closures of hits on ``materials`` (k,) (table rows; programs: ``ctx``)."""
-    return Closures.from_table(ctx.look.surfaces, materials)
+def closures_at(ctx, hits, normal, geometric, front) -> Closures:
+    """The closures of ``hits``: their materials' table rows, and where a material has a
+    program (``PathSetup.programs``), its value at those hits (normals facing the ray)."""
+    closures = Closures.from_table(ctx.look.surfaces, hits.material)
+    setup = ctx.paths
+    if not setup.programs:
+        return closures
+    for material, program in setup.programs.items():
+        rows = np.flatnonzero(hits.material == material)
+        if len(rows) == 0:
+            continue
+        barycentrics = (None if hits.barycentrics is None
+                        else tuple(b[rows] for b in hits.barycentrics))
+        shading = take(normal, rows)
+        points = surface_points(setup.surface_tables, ctx.geometry, take(hits.points, rows),
+                                shading, take(geometric, rows), -take(hits.directions, rows),
+                                ~front[rows], hits.primitive[rows], barycentrics)
+        value = run(program, points).closures(len(rows), ctx.dtype, shading)
+        value.holdout_object = closures.holdout_object[rows]
+        if value.normal is not None and closures.normal is None:
+            closures.normal = normal.copy()
+        closures.put(rows, value)
+    return closures
+
+
+def world_radiance(ctx, directions) -> np.ndarray:
+    """(3, k) the world's radiance along unit ``directions`` (3, k): its program's value
+    there, or the constant background."""
+    setup = ctx.paths
+    if setup.world_program is None:
+        return np.broadcast_to(setup.world.astype(directions.dtype)[:, None], directions.shape)
+    from .shader.world import world_points
+    value = run(setup.world_program, world_points(directions))
+    return np.broadcast_to(np.maximum(value.emission, 0), directions.shape).astype(
+        directions.dtype)
 
 
 def _blocked(ctx, points, towards, distance, exclude, lift, stats):
@@ -170,7 +204,6 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
     transparency = np.zeros(n, dtype)
     albedo = np.zeros((3, n), dtype)
     first_normal = np.zeros((3, n), dtype)
-    background = setup.world.astype(dtype)[:, None]
     film = settings.film
 
     path = np.arange(n)
@@ -220,8 +253,9 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
             if film != "opaque" and len(escaped):
                 np.add.at(transparency, path[escaped], throughput[:, escaped].mean(axis=0))
             shown = missed[~camera_view[missed]] if film == "transparent" else missed
-            if len(shown) and background.any():
-                _add(colour, path[shown], _clamp(throughput[:, shown] * background, limit))
+            if len(shown) and setup.world_shines:
+                seen = world_radiance(ctx, take(batch.directions, shown))
+                _add(colour, path[shown], _clamp(throughput[:, shown] * seen, limit))
         if len(hits) == 0:
             break
         keep = hits.rays
@@ -237,9 +271,9 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
         normal = facing(hits.shading, front)
         geometric = facing(hits.normals, front)
         to_view = -directions
-        closures = closures_at(ctx, hits.material)
+        closures = closures_at(ctx, hits, normal, geometric, front)
         if closures.normal is not None:
-            normal = facing(closures.normal, front)
+            normal = closures.normal
         if depth == 0:
             first_normal[:, path] = normal
         # Emission, weighted against the light samples that could have found it.
@@ -415,6 +449,13 @@ class PathSetup:
     world: np.ndarray
     any_holdout: bool
     index_bits: int
+    programs: dict = None
+    surface_tables: object = None
+    world_program: object = None
+
+    @property
+    def world_shines(self) -> bool:
+        return self.world_program is not None or bool(self.world.any())
 
     @property
     def max_vertices(self) -> int:
@@ -423,9 +464,13 @@ class PathSetup:
         return self.max_bounces + self.transparent_bounces + 2
 
 
-def path_setup(settings, lights, mesh, world, any_holdout: bool) -> PathSetup:
+def path_setup(settings, lights, mesh, world, any_holdout: bool, programs=None,
+               surface_tables=None, world_program=None) -> PathSetup:
     """The frame's ``PathSetup`` (settings: ``RenderSettings``; lights: prepared
-    ``core.emitters.Light``s; mesh: ``MeshLights`` or None; world: (3,) radiance)."""
+    ``core.emitters.Light``s; mesh: ``MeshLights`` or None; world: (3,) radiance;
+    programs: {material table row: its ShaderProgram}; surface_tables: what the programs'
+    shading points read (``core.surface_points.SurfaceTables``); world_program: the
+    world's ShaderProgram or None)."""
     sources = tuple(lights) + ((mesh,) if mesh is not None else ())
     power = np.array([max(source.power, 0.0) for source in sources]) if sources else np.zeros(0)
     if len(power) and power.sum() > 0:
@@ -448,7 +493,8 @@ def path_setup(settings, lights, mesh, world, any_holdout: bool) -> PathSetup:
         visible_lights=tuple(light for light in lights if not light.delta),
         light_probability=light_probability, mesh_lights=mesh,
         world=np.asarray(world, np.float64), any_holdout=any_holdout,
-        index_bits=index_bits(settings.samples))
+        index_bits=index_bits(settings.samples), programs=dict(programs or {}),
+        surface_tables=surface_tables, world_program=world_program)
 
 
 def filter_offsets(u, filter_type: str, width: float):

@@ -156,7 +156,9 @@ class Hits:
     cos_in: (m,) directions . shading normals; front: (m,) whether the ray arrived from the
     outside / front side (directions . geometric normals < 0); terminator: where the hits'
     shadow rays leave (``core.terminator.TerminatorLift``, normals on the side the ray
-    arrived from), or None when no hit is on a smooth triangle with a geometry offset.
+    arrived from), or None when no hit is on a smooth triangle with a geometry offset;
+    barycentrics: (b0, b1, b2) (m,) each, the triangle hits' weights of their corners (0
+    for sphere hits), or None when no hit is on a triangle.
     """
 
     rays: np.ndarray
@@ -171,6 +173,7 @@ class Hits:
     cos_in: np.ndarray
     front: np.ndarray
     terminator: object = None
+    barycentrics: tuple | None = None
 
     def __len__(self) -> int:
         return len(self.rays)

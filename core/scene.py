@@ -58,6 +58,7 @@ MAX_LIGHT_SAMPLES = 1024
 MAX_DEPTH = 256
 MAX_TILE_SIZE = 1024
 MAX_THREADS = 1024
+MAX_FILTER_WIDTH = 100.0
 
 
 # --------------------------------------------------------------------------------------------
@@ -105,6 +106,11 @@ def _colour(name: str, value) -> Vec3:
         if channel < 0.0:
             raise SceneError(f"{name}[{i}] must be >= 0, got {channel!r}")
     return rgb
+
+
+def _is_program(value) -> bool:
+    from .shader.program import ShaderProgram
+    return isinstance(value, ShaderProgram)
 
 
 def _choice(name: str, value, allowed: Sequence[str]) -> str:
@@ -239,6 +245,10 @@ class SurfaceMaterial:
         holdout collection): camera rays (and rays straight through Transparent BSDFs) see
         it as a holdout except for its transparency, which they pass through; every other
         ray (mirrors, refraction, shadows) sees the material as it is.
+    program: the material's shader program (``core.shader.program.ShaderProgram``), which
+        the path integrator evaluates per hit; the fields above are then its value at a
+        point at rest (what the Whitted integrator shades with).  None: the fields are the
+        material.
     """
 
     diffuse: Vec3 = (0.8, 0.8, 0.8)
@@ -257,6 +267,7 @@ class SurfaceMaterial:
     translucency: Vec3 = (0.0, 0.0, 0.0)
     holdout: float = 0.0
     holdout_object: bool = False
+    program: object = None
 
     #: Roughness up to which a sharp mirror (and the world seen in it) is traced.
     MIRROR_ROUGHNESS = 0.2
@@ -281,6 +292,9 @@ class SurfaceMaterial:
             raise SceneError(f"{where}.holdout_object must be True or False, got "
                              f"{self.holdout_object!r}")
         _set(self, "holdout_object", bool(self.holdout_object))
+        if self.program is not None and not _is_program(self.program):
+            raise SceneError(f"{where}.program must be a core.shader ShaderProgram or None, "
+                             f"got {type(self.program).__name__}")
         return self
 
     def __post_init__(self):
@@ -847,6 +861,8 @@ class TriangleMesh:
     default 0.1): how many of a smooth mesh's grazing shadow rays leave from the smooth
     surface over its facets rather than from the facets (``core.terminator``); 0 keeps the
     facets' faceted terminator.  Flat meshes (corner_normals None) have none.
+    uv_maps: ((name, (T, 3, 2) corner UVs), ...): the UV maps shader programs read, the
+    first the active render map (a program's 'uv' coordinate); () where none reads one.
     """
 
     vertices: np.ndarray
@@ -857,6 +873,7 @@ class TriangleMesh:
     transforms: np.ndarray = field(default_factory=_identity_transforms)
     name: str = ""
     shadow_terminator_offset: float = DEFAULT_GEOMETRY_OFFSET
+    uv_maps: tuple = ()
 
     def __post_init__(self):
         where = _set_label("mesh", self.name)
@@ -900,6 +917,15 @@ class TriangleMesh:
             _set(self, name, value)
         _set(self, "shadow_terminator_offset",
              _fraction(f"{where}.shadow_terminator_offset", self.shadow_terminator_offset))
+        maps = []
+        for name, corners in self.uv_maps:
+            if not isinstance(name, str):
+                raise SceneError(f"{where}: uv_maps names must be strings, got {name!r}")
+            corners = _frozen_array(where, f"uv_maps[{name!r}]", corners, np.float32,
+                                    (count, 3, 2))
+            _require_finite(where, f"uv_maps[{name!r}]", corners)
+            maps.append((name, corners))
+        _set(self, "uv_maps", tuple(maps))
 
     def __len__(self) -> int:
         """Triangles drawn: triangles per instance times instances."""
@@ -915,6 +941,9 @@ class Scene:
     meshes (``TriangleMesh``).
     camera: a ScreenCamera (the article's) or a BlenderCamera.
     background: RGB seen where a ray escapes (default semantics; the article's is black).
+    world: the world's shader program (``core.shader.program.ShaderProgram``: its value is
+        the radiance of the directions rays escape in), which the path integrator runs;
+        ``background`` is then its value straight up.  None: the world is ``background``.
     ambient: an RGB ambient intensity lighting every point in addition to the lights' own
         ambient terms (default semantics only).  For a SurfaceMaterial it is the radiance of
         a constant environment: a diffuse surface reflects albedo x ambient, a rough glossy
@@ -928,6 +957,7 @@ class Scene:
     ambient: Vec3 = (0.0, 0.0, 0.0)
     sphere_sets: tuple[SphereSet, ...] = ()
     meshes: tuple[TriangleMesh, ...] = ()
+    world: object = None
 
     def __post_init__(self):
         if not isinstance(self.camera, (ScreenCamera, BlenderCamera)):
@@ -952,6 +982,9 @@ class Scene:
                 raise SceneError(f"scene.meshes[{i}] must be a TriangleMesh, got {mesh!r}")
         _set(self, "background", _colour("scene.background", self.background))
         _set(self, "ambient", _colour("scene.ambient", self.ambient))
+        if self.world is not None and not _is_program(self.world):
+            raise SceneError(f"scene.world must be a core.shader ShaderProgram or None, got "
+                             f"{type(self.world).__name__}")
 
     @property
     def sphere_count(self) -> int:
@@ -1065,10 +1098,10 @@ class RenderSettings:
         for name in ("clamp_direct", "clamp_indirect", "filter_glossy", "noise_threshold",
                      "time_limit"):
             _set(self, name, _non_negative(f"settings.{name}", getattr(self, name)))
-        _set(self, "filter_width", _finite("settings.filter_width", self.filter_width))
-        if not 0.01 <= self.filter_width <= 10.0:
-            raise SceneError(f"settings.filter_width must be in [0.01, 10] pixels, got "
-                             f"{self.filter_width!r}")
+        _set(self, "filter_width", _positive("settings.filter_width", self.filter_width))
+        if self.filter_width > MAX_FILTER_WIDTH:
+            raise SceneError(f"settings.filter_width must be at most {MAX_FILTER_WIDTH:g} "
+                             f"pixels, got {self.filter_width!r}")
         for name in ("caustics_reflective", "caustics_refractive", "guides"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise SceneError(f"settings.{name} must be True or False, got "

@@ -160,8 +160,10 @@ class ExportContext:
             return self.materials[held]
         if key not in self.materials:
             try:
-                exporter = export_article_material if self.article else export_material
-                core_material, note = exporter(material)
+                if self.article:
+                    core_material, note = export_article_material(material)
+                else:
+                    core_material, note = export_material(material, self)
             except SceneError as error:
                 raise ExportError(f"object '{owner}', material '{key}': {error}") from None
             self.materials[key] = core_material

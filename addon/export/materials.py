@@ -38,15 +38,14 @@ reflection 0.5: the article's look in grey.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
 
 from ...core import Material, SceneError, SurfaceMaterial
-from ...core.scene import MAX_COLOUR, dielectric_f0, principled_fresnel
-from ..utils.colour import colour_from_blender, srgb_to_linear
+from ..utils.colour import colour_from_blender
+from .shader import ShaderCompiler, surface_material
 
 AMBIENT_FRACTION = 0.1
 #: alpha = roughness^2 is clamped here so a roughness of 0 gives a finite exponent.
@@ -167,362 +166,7 @@ def check_finite(values: SurfaceValues) -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# Default semantics: the shader nodes as lobes.
-
-@dataclass
-class Lobes:
-    """A shader's lobes, linear in everything so Mix and Add Shader are sums: colours (3,)
-    arrays, and roughness / ior / transmission_fresnel carried as weighted sums (divided by
-    their weights at the end)."""
-
-    diffuse: np.ndarray
-    f0: np.ndarray
-    f90: np.ndarray
-    gloss_weight: float        # sum of the glossy lobes' strengths (mean f90)
-    roughness_sum: float       # sum of strength x roughness
-    transmission: np.ndarray
-    refraction_weight: float   # sum of the transmissions' strengths (mean colour)
-    ior_sum: float
-    fresnel_sum: float
-    emission: np.ndarray
-    transparency: np.ndarray
-    translucency: np.ndarray
-    holdout: float
-    layered_sum: float         # sum of the layered diffuse lobes' strengths (mean colour)
-    layer_f0_sum: float        # sum of strength x their specular layer's f0
-    dielectric_sum: float      # sum of the glossy rises (f90 - f0) of dielectric curve
-    specular_ior_sum: float    # sum of those rises x their index
-
-    @classmethod
-    def none(cls) -> "Lobes":
-        zero = np.zeros(3)
-        return cls(zero, zero, zero, 0.0, 0.0, zero, 0.0, 0.0, 0.0, zero, zero, zero, 0.0,
-                   0.0, 0.0, 0.0, 0.0)
-
-    def scaled(self, k: float) -> "Lobes":
-        return Lobes(*(value * k for value in vars(self).values()))
-
-    def __add__(self, other: "Lobes") -> "Lobes":
-        return Lobes(*(a + b for a, b in zip(vars(self).values(), vars(other).values())))
-
-    @classmethod
-    def glossy(cls, f0, f90, roughness: float) -> "Lobes":
-        lobes = cls.none()
-        lobes.f0, lobes.f90 = np.asarray(f0, float), np.asarray(f90, float)
-        lobes.gloss_weight = float(np.mean(f90))
-        lobes.roughness_sum = lobes.gloss_weight * roughness
-        return lobes
-
-    @classmethod
-    def refraction(cls, colour, ior: float, fresnel: float) -> "Lobes":
-        lobes = cls.none()
-        lobes.transmission = np.asarray(colour, float)
-        lobes.refraction_weight = float(np.mean(colour))
-        lobes.ior_sum = lobes.refraction_weight * ior
-        lobes.fresnel_sum = lobes.refraction_weight * fresnel
-        return lobes
-
-    def material(self) -> SurfaceMaterial:
-        positive = lambda v: tuple(float(c) for c in np.maximum(v, 0.0))  # noqa: E731
-        roughness = self.roughness_sum / self.gloss_weight if self.gloss_weight > 0 else 0.5
-        ior = self.ior_sum / self.refraction_weight if self.refraction_weight > 0 else 1.5
-        fresnel = (self.fresnel_sum / self.refraction_weight if self.refraction_weight > 0
-                   else 1.0)
-        diffuse_weight = float(np.mean(np.maximum(self.diffuse, 0.0)))
-        layer = self.layered_sum / diffuse_weight if diffuse_weight > 0 else 0.0
-        layer_f0 = self.layer_f0_sum / self.layered_sum if self.layered_sum > 0 else 0.0
-        rise = float(np.mean(np.maximum(self.f90 - self.f0, 0.0)))
-        dielectric = self.dielectric_sum / rise if rise > 0 else 0.0
-        specular_ior = (self.specular_ior_sum / self.dielectric_sum if self.dielectric_sum > 0
-                        else 1.5)
-        return SurfaceMaterial(
-            diffuse=positive(self.diffuse), layer=float(np.clip(layer, 0, 1)),
-            layer_f0=float(np.clip(layer_f0, 0, 1)), specular_f0=positive(self.f0),
-            specular_dielectric=float(np.clip(dielectric, 0, 1)),
-            specular_ior=max(float(specular_ior), 1.0),
-            specular_f90=positive(self.f90), roughness=float(np.clip(roughness, 0, 1)),
-            transmission=positive(self.transmission),
-            transmission_fresnel=float(np.clip(fresnel, 0, 1)), ior=max(float(ior), 1e-3),
-            emission=positive(self.emission), transparency=positive(self.transparency),
-            translucency=positive(self.translucency),
-            holdout=float(np.clip(self.holdout, 0, 1)))
-
-
-def _principled_lobes(values: dict) -> Lobes:
-    """Lobes of Blender's Principled BSDF (``SurfaceMaterial.principled``'s model)."""
-    base = np.asarray(values["base"], float)
-    m = float(np.clip(values["metallic"], 0, 1))
-    t = float(np.clip(values["transmission"], 0, 1))
-    a = float(np.clip(values["alpha"], 0, 1))
-    ior = max(float(values["ior"]), 1e-3)
-    level = max(float(values["specular"]), 0.0)
-    tint = np.asarray(values["tint"], float)
-    roughness = float(np.clip(values["roughness"], 0, 1))
-    f0_dielectric = min(1.0, dielectric_f0(ior) * 2.0 * level)
-    dielectric = (1.0 - m) * a
-    lobes = Lobes.glossy(dielectric * f0_dielectric * tint + m * a * base,
-                         dielectric * min(1.0, 2.0 * level) * tint + m * a * np.ones(3),
-                         roughness)
-    lobes.diffuse = dielectric * (1.0 - t) * (1.0 - f0_dielectric) * base
-    if f0_dielectric > 0:  # the diffuse lies under the specular layer (``SurfaceMaterial``)
-        lobes.layered_sum = float(np.mean(lobes.diffuse))
-        lobes.layer_f0_sum = lobes.layered_sum * min(1.0, f0_dielectric * float(np.max(tint)))
-    share, specular_ior = principled_fresnel(base, tint, m, a, level, f0_dielectric)
-    lobes.dielectric_sum = share * float(np.mean(np.maximum(lobes.f90 - lobes.f0, 0.0)))
-    lobes.specular_ior_sum = lobes.dielectric_sum * specular_ior
-    if t > 0:
-        refraction = Lobes.refraction(dielectric * t * base, ior, 1.0)
-        lobes = lobes + refraction
-    lobes.emission = np.asarray(values["emission"], float)
-    lobes.transparency = np.full(3, 1.0 - a)
-    return lobes
-
-
-#: Principled inputs checked to be finite, with the names errors give them (as the article
-#: semantics' mapping names them).
-PRINCIPLED_LABELS = {"Base Color": "base colour", "Metallic": "metallic",
-                     "Roughness": "roughness", "Specular IOR Level": "specular level",
-                     "IOR": "ior", "Alpha": "alpha"}
-
-#: Nodes whose value passes straight through (their first input of the socket's kind).
-_PASS_THROUGH = {"NodeReroute"}
-
-
-def layer_average(exponent: float) -> float:
-    """Cosine-weighted mean of (1 - |N.V|)^k over a hemisphere: 2 / ((k + 1)(k + 2)), how a
-    Fresnel or Layer Weight factor, which varies over a surface, is approximated by one
-    constant (a sphere seen from afar shows the camera each cosine with that weight)."""
-    return 2.0 / ((exponent + 1.0) * (exponent + 2.0))
-
-
-def fresnel_average(ior: float) -> float:
-    """Mean of Schlick's F over a cosine-weighted hemisphere: f0 + (1 - f0) / 21."""
-    f0 = dielectric_f0(max(ior, 1e-3))
-    return f0 + (1.0 - f0) * layer_average(5.0)
-
-
-class NodeEvaluator:
-    """Evaluates a material's node tree into Lobes, following links through reroutes and
-    node groups; what it cannot evaluate gets its socket's own value (a texture: its image's
-    average) and one note naming the node."""
-
-    def __init__(self, owner: str):
-        self.owner = owner
-        self.notes: list[str] = []
-
-    def note(self, text: str) -> None:
-        if text not in self.notes:
-            self.notes.append(text)
-
-    # --- following links ------------------------------------------------------------------
-
-    def source(self, socket, groups):
-        """What feeds an input socket, through reroutes, muted nodes and node groups:
-        (output socket, group stack) of the node that computes it, or (None, the unlinked
-        input socket whose own value it takes; inside a group that is the group node's)."""
-        for _ in range(256):
-            if not socket.is_linked:
-                return None, socket
-            link = socket.links[0]
-            if not link.is_valid or link.is_muted:
-                return None, socket
-            node, output = link.from_node, link.from_socket
-            if node.bl_idname in _PASS_THROUGH or (node.mute and node.inputs):
-                inputs = [i for i in node.inputs if i.type == output.type] or list(node.inputs)
-                socket = inputs[0]
-                continue
-            if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None:
-                outputs = [n for n in node.node_tree.nodes if n.bl_idname == "NodeGroupOutput"]
-                active = [n for n in outputs if n.is_active_output] or outputs
-                inner = active[0].inputs.get(output.name) if active else None
-                if inner is None:
-                    return None, socket
-                groups = groups + (node,)
-                socket = inner
-                continue
-            if node.bl_idname == "NodeGroupInput" and groups:
-                outer = groups[-1].inputs.get(output.name)
-                if outer is None:
-                    return None, socket
-                groups = groups[:-1]
-                socket = outer
-                continue
-            return output, groups
-        return None, socket
-
-    def _math(self, node, groups):
-        """A Math node of constant inputs, or None for operations not evaluated."""
-        a, b = (self.value(node.inputs[i], groups) for i in (0, 1))
-        operations = {
-            "ADD": lambda: a + b, "SUBTRACT": lambda: a - b, "MULTIPLY": lambda: a * b,
-            "DIVIDE": lambda: a / b if b else 0.0, "MINIMUM": lambda: min(a, b),
-            "MAXIMUM": lambda: max(a, b), "ABSOLUTE": lambda: abs(a),
-            "POWER": lambda: a ** b if a > 0 or float(b).is_integer() else 0.0,
-            "SQRT": lambda: math.sqrt(a) if a > 0 else 0.0,
-        }
-        if node.operation not in operations:
-            return None
-        result = float(operations[node.operation]())
-        return min(max(result, 0.0), 1.0) if node.use_clamp else result
-
-    def value(self, socket, groups=()) -> float:
-        output, groups = self.source(socket, groups)
-        if output is None:
-            return float(groups.default_value)
-        node = output.node
-        if node.bl_idname == "ShaderNodeMath":
-            result = self._math(node, groups)
-            if result is not None:
-                return result
-        if node.bl_idname == "ShaderNodeValue":
-            return float(output.default_value)
-        if node.bl_idname == "ShaderNodeFresnel":
-            return fresnel_average(self.value(node.inputs["IOR"], groups))
-        if node.bl_idname == "ShaderNodeLayerWeight":
-            blend = float(np.clip(self.value(node.inputs["Blend"], groups), 0, 1 - 1e-5))
-            if output.name == "Fresnel":
-                return fresnel_average(1.0 / (1.0 - blend))
-            exponent = 2 * blend if blend < 0.5 else 0.5 / (1 - blend)
-            return layer_average(exponent)
-        colour = self._node_colour(output, groups)
-        if colour is not None:
-            return float(np.dot(colour, (0.2126, 0.7152, 0.0722)))
-        self.note(f"{self.owner}: node '{node.name}' ({node.bl_label}) is not evaluated; "
-                  f"'{socket.name}' uses its own value")
-        return float(socket.default_value)
-
-    def colour(self, socket, groups=()) -> np.ndarray:
-        outer = groups
-        output, groups = self.source(socket, groups)
-        if output is None:
-            return np.asarray(groups.default_value[:3], float)
-        colour = self._node_colour(output, groups)
-        if colour is not None:
-            return colour
-        node = output.node
-        if output.type == 'VALUE':
-            return np.full(3, self.value(socket, outer))
-        self.note(f"{self.owner}: node '{node.name}' ({node.bl_label}) is not evaluated; "
-                  f"'{socket.name}' uses its own value")
-        return np.asarray(socket.default_value[:3], float)
-
-    def _node_colour(self, output, groups):
-        node = output.node
-        if node.bl_idname == "ShaderNodeRGB":
-            return np.asarray(output.default_value[:3], float)
-        if node.bl_idname == "ShaderNodeValue":
-            return np.full(3, float(output.default_value))
-        if node.bl_idname in ("ShaderNodeTexImage", "ShaderNodeTexEnvironment"):
-            average = image_average(node.image)
-            if average is None:
-                return None
-            self.note(f"{self.owner}: texture '{node.name}' counts as its image's average "
-                      f"colour")
-            return average if output.name == "Color" else np.full(3, average.mean())
-        return None
-
-    # --- shaders --------------------------------------------------------------------------
-
-    def shader(self, socket, groups=()) -> Lobes:
-        output, groups = self.source(socket, groups)
-        if output is None:
-            return Lobes.none()
-        node = output.node
-        kind = node.bl_idname
-        colour = lambda name: self.colour(node.inputs[name], groups)  # noqa: E731
-        value = lambda name: self.value(node.inputs[name], groups)  # noqa: E731
-        if kind == "ShaderNodeBsdfPrincipled":
-            for name, label in PRINCIPLED_LABELS.items():
-                reading = colour(name) if name == "Base Color" else value(name)
-                # (A huge base colour is named by the material's own check, as its diffuse.)
-                too_large = name != "Base Color" and abs(float(reading)) > MAX_COLOUR
-                if not np.all(np.isfinite(reading)) or too_large:
-                    raise SceneError(f"{label} ('{name}' of '{node.name}') must be finite "
-                                     f"and at most {MAX_COLOUR:g}, got "
-                                     f"{tuple(float(v) for v in np.atleast_1d(reading))!r}")
-            for name in ("Coat Weight", "Sheen Weight"):
-                if name in node.inputs and value(name) > 0:
-                    self.note(f"{self.owner}: Principled '{node.name}': {name} is not "
-                              f"modelled")
-            return _principled_lobes(dict(
-                base=colour("Base Color"), metallic=value("Metallic"),
-                roughness=value("Roughness"), ior=value("IOR"), alpha=value("Alpha"),
-                specular=value("Specular IOR Level"), tint=colour("Specular Tint"),
-                transmission=value("Transmission Weight"),
-                emission=colour("Emission Color") * value("Emission Strength")))
-        if kind == "ShaderNodeBsdfTranslucent":
-            lobes = Lobes.none()
-            lobes.translucency = colour("Color")
-            return lobes
-        if kind in ("ShaderNodeBsdfDiffuse",
-                    "ShaderNodeSubsurfaceScattering", "ShaderNodeBsdfToon",
-                    "ShaderNodeBsdfSheen", "ShaderNodeBsdfVelvet"):
-            if kind != "ShaderNodeBsdfDiffuse":
-                self.note(f"{self.owner}: {node.bl_label} '{node.name}' is approximated by a "
-                          f"Diffuse BSDF of its colour")
-            lobes = Lobes.none()
-            lobes.diffuse = colour("Color")
-            return lobes
-        if kind in ("ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic"):
-            tint = colour("Color")
-            return Lobes.glossy(tint, tint, value("Roughness"))
-        if kind == "ShaderNodeBsdfGlass":
-            tint, ior = colour("Color"), value("IOR")
-            return (Lobes.glossy(tint * dielectric_f0(max(ior, 1e-3)), tint, value("Roughness"))
-                    + Lobes.refraction(tint, ior, 1.0))
-        if kind == "ShaderNodeBsdfRefraction":
-            return Lobes.refraction(colour("Color"), value("IOR"), 0.0)
-        if kind == "ShaderNodeBsdfTransparent":
-            lobes = Lobes.none()
-            lobes.transparency = colour("Color")
-            return lobes
-        if kind in ("ShaderNodeEmission", "ShaderNodeBackground"):
-            lobes = Lobes.none()
-            lobes.emission = colour("Color") * value("Strength")
-            return lobes
-        if kind == "ShaderNodeHoldout":
-            lobes = Lobes.none()
-            lobes.holdout = 1.0
-            return lobes
-        if kind == "ShaderNodeMixShader":
-            factor = float(np.clip(self.value(node.inputs[0], groups), 0, 1))
-            return (self.shader(node.inputs[1], groups).scaled(1 - factor)
-                    + self.shader(node.inputs[2], groups).scaled(factor))
-        if kind == "ShaderNodeAddShader":
-            return self.shader(node.inputs[0], groups) + self.shader(node.inputs[1], groups)
-        if kind == "NodeUndefined":
-            # A node of an add-on that is not installed (another engine's shader): Cycles
-            # renders the surface black, and so does Glint.
-            self.note(f"{self.owner}: node '{node.name}' is undefined (an add-on's that is "
-                      f"not installed); the surface renders black, as in Cycles")
-            return Lobes.none()
-        self.note(f"{self.owner}: shader node '{node.name}' ({node.bl_label}) is not "
-                  f"supported; it renders as Blender's default grey diffuse")
-        lobes = Lobes.none()
-        lobes.diffuse = np.full(3, 0.8)
-        return lobes
-
-
-def image_average(image):
-    """The mean scene-linear RGB (3,) of an image's pixels, or None if it has none loaded.
-    Byte images in an sRGB colour space are linearised per pixel before averaging."""
-    if image is None:
-        return None
-    try:
-        width, height = image.size
-        if width * height == 0:
-            return None
-        pixels = np.empty(width * height * image.channels, np.float32)
-        image.pixels.foreach_get(pixels)
-    except (RuntimeError, ValueError):
-        return None
-    rgb = pixels.reshape(-1, image.channels)[:, :3].astype(np.float64)
-    if image.channels < 3:
-        rgb = np.repeat(pixels.reshape(-1, image.channels)[:, :1], 3, axis=1)
-    if not image.is_float and image.colorspace_settings.name == "sRGB":
-        rgb = srgb_to_linear(rgb)
-    return rgb.mean(axis=0)
-
+# Default semantics: the shader nodes as a program (``shader``).
 
 def surface_socket(tree):
     """The Surface input of the active Material Output (Cycles' or All), or None."""
@@ -537,14 +181,16 @@ def _viewport_display(material) -> SurfaceMaterial:
                                       metallic=material.metallic, roughness=material.roughness)
 
 
-def export_material(material) -> tuple[SurfaceMaterial | Material, Optional[str]]:
+def export_material(material, context=None) -> tuple[SurfaceMaterial | Material, Optional[str]]:
     """(core material, note or None) for a bpy Material or None, default semantics.
 
     None gets Blender's default surface (a default Principled BSDF).  The Glint section with
     "Custom" on gives the article's Material as typed.  A material without a node tree uses
     its Viewport Display colour, metallic and roughness; one whose tree has no Material
     Output for Cycles (another engine's, say) or nothing plugged into its Surface renders
-    black, as in Cycles, with a note."""
+    black, as in Cycles, with a note.  Otherwise its Surface is compiled (``shader``):
+    constants where the tree folds to them, else a program the path integrator runs per
+    hit.  context: the export context (its image cache)."""
     if material is None:
         return SurfaceMaterial.principled(), None
     settings = getattr(material, "glint", None)
@@ -554,9 +200,9 @@ def export_material(material) -> tuple[SurfaceMaterial | Material, Optional[str]
         return _viewport_display(material), None
     surface = surface_socket(material.node_tree)
     if surface is None or not surface.is_linked:
-        return Lobes.none().material(), (f"material '{material.name}': no shader reaches a "
-                                         f"Cycles Material Output; it renders black, as in "
-                                         f"Cycles")
-    evaluator = NodeEvaluator(f"material '{material.name}'")
-    lobes = evaluator.shader(surface)
-    return lobes.material(), ("; ".join(evaluator.notes) or None)
+        return SurfaceMaterial(diffuse=(0.0, 0.0, 0.0)), (
+            f"material '{material.name}': no shader reaches a Cycles Material Output; it "
+            f"renders black, as in Cycles")
+    compiler = ShaderCompiler(f"material '{material.name}'", context)
+    value = compiler.compile(surface)
+    return surface_material(value), ("; ".join(compiler.notes) or None)

@@ -64,6 +64,7 @@ class MeshArrays:
     triangles: np.ndarray                 # (T, 3) int64
     corner_normals: Optional[np.ndarray]  # (T, 3, 3) float64, or None: flat shading
     slots: np.ndarray                     # (T,) int64 material slot of each triangle
+    corner_loops: np.ndarray              # (T, 3) int64 each corner's loop (its UVs' index)
 
 
 def face_slots(mesh, faces: np.ndarray) -> np.ndarray:
@@ -133,9 +134,9 @@ def read_mesh(mesh) -> MeshArrays:
         normals = _flat_where_zero(_gathered(corner_normals, loops, np.float64), vertices,
                                    triangles)
     if not keep.all():
-        triangles, slots = triangles[keep], slots[keep]
+        triangles, slots, loops = triangles[keep], slots[keep], loops[keep]
         normals = normals[keep] if normals is not None else None
-    return MeshArrays(vertices, triangles, normals, slots)
+    return MeshArrays(vertices, triangles, normals, slots, loops)
 
 
 def evaluated_materials(obj) -> tuple:
@@ -195,6 +196,48 @@ class MeshPlacement:
         use.matrices.append(bytes(matrix_world))
         use.names.append(self.name)
         use.forced.append(self.forced)
+
+
+def _coordinates(materials) -> set:
+    """The texture coordinates the materials' programs read."""
+    names = set()
+    for material in materials:
+        program = getattr(material, "program", None)
+        if program is not None:
+            names |= set(program.coordinates)
+    return names
+
+
+def _reads_coordinates(materials) -> bool:
+    return bool(_coordinates(materials) & {"uv", "generated", "object", "tangent"}
+                or any(name.startswith("uv:") for name in _coordinates(materials)))
+
+
+def _uv_names(materials):
+    """The UV maps the materials' programs read: None for none, else the names ('' for the
+    active render map)."""
+    names = _coordinates(materials)
+    wanted = {name[3:] for name in names if name.startswith("uv:")}
+    if "uv" in names or "tangent" in names:
+        wanted.add("")
+    return wanted or None
+
+
+def uv_maps(mesh, arrays: MeshArrays, names) -> tuple:
+    """((name, (T, 3, 2) float32 corner UVs), ...) of the maps ``names`` ('' the active
+    render map, which goes first) of the evaluated mesh, for its drawn triangles; () for
+    None."""
+    if not names or not len(mesh.uv_layers):
+        return ()
+    active = next((layer for layer in mesh.uv_layers if layer.active_render),
+                  mesh.uv_layers[0])
+    chosen = [active] + [layer for layer in mesh.uv_layers
+                         if layer.name in names and layer is not active]
+    maps = []
+    for layer in chosen:
+        corners = read_array(layer.uv, "vector", 2, np.float32, stored=STORED_FLOAT)
+        maps.append((layer.name, corners[arrays.corner_loops].astype(np.float32)))
+    return tuple(maps)
 
 
 def own_geometry(instance) -> bool:
@@ -288,7 +331,9 @@ class MeshExporter:
             return
         slot_materials = ([context.material(m, use.name, use.holdout) for m in use.materials]
                           or [context.material(None, use.name, use.holdout)])
-        if fit is not None and drawn.any():
+        # A mesh whose material reads texture coordinates is drawn as Cycles draws it: its
+        # own triangles and UVs, not an analytic sphere (which keeps no rotation or UVs).
+        if fit is not None and drawn.any() and not _reads_coordinates(slot_materials):
             placed = sphere_instances(fit, matrices[drawn], context.footprint, forced[drawn])
             as_sphere = np.zeros(len(matrices), bool)
             as_sphere[np.flatnonzero(drawn)[placed.chosen]] = True
@@ -322,11 +367,13 @@ class MeshExporter:
         remap = np.zeros(len(slot_materials), np.int64)
         remap[used] = np.arange(len(used))
         name = use.name if len(matrices) == 1 else f"{use.name} ({len(matrices)} instances)"
+        materials = tuple(slot_materials[i] for i in used)
         try:
             self.context.meshes.append(TriangleMesh(
                 vertices=arrays.vertices, triangles=arrays.triangles,
                 corner_normals=arrays.corner_normals, material_indices=remap[slots],
-                materials=tuple(slot_materials[i] for i in used), transforms=matrices,
-                name=name, shadow_terminator_offset=use.terminator_offset))
+                materials=materials, transforms=matrices,
+                name=name, shadow_terminator_offset=use.terminator_offset,
+                uv_maps=uv_maps(use.mesh, arrays, _uv_names(materials))))
         except SceneError as error:
             raise ExportError(f"object '{use.name}': {error}") from None

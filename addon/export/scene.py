@@ -51,7 +51,7 @@ from .lights import export_article_light
 from .lights import export_light as export_cycles_light
 from .meshes import EVALUATED_AS_MESH, MeshExporter
 from .pointclouds import export_point_cloud
-from .world import world_colour
+from .world import export_world
 
 #: The scene-linear space Glint's sRGB conversions assume (Blender's default; Blender 5.0
 #: lets a file choose another).
@@ -238,7 +238,9 @@ def export_scene(depsgraph, camera_override=None, *, view_camera=None
     meshes.finish()
 
     world = depsgraph.scene_eval.world
-    colour, world_note = world_colour(world)
+    colour, world_program, world_note = export_world(world, context)
+    if article:
+        world_program = None
     background = colour_from_blender(colour) if article else tuple(colour)
     try:
         Scene(camera=context.camera, background=background)  # checks the world's colour alone
@@ -263,5 +265,6 @@ def export_scene(depsgraph, camera_override=None, *, view_camera=None
                         f"writes colours as {WORKING_SPACE}")
     scene = Scene(camera=context.camera, spheres=tuple(context.spheres),
                   lights=tuple(context.lights), background=background, ambient=background,
-                  sphere_sets=tuple(context.sphere_sets), meshes=tuple(context.meshes))
+                  sphere_sets=tuple(context.sphere_sets), meshes=tuple(context.meshes),
+                  world=world_program)
     return scene, warnings

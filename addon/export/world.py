@@ -1,34 +1,53 @@
-"""The World -> the scene-linear radiance Glint's constant environment has.
+"""The World -> what escaping rays see: a constant radiance, or a program of the directions.
 
-The active World Output's Surface is evaluated like a material (``materials.NodeEvaluator``:
-reroutes, groups, Mix and Add Shader), and its Background (or Emission) nodes' Color x
-Strength is the world's radiance W: what camera and reflection rays see where they escape, and
-the light a diffuse albedo a reflects as a x W (``core.bsdf``).  An Environment Texture counts
-as its image's average colour, a Sky Texture or anything else not evaluated as the socket's
-own colour, each with a note.  A world without a node tree uses its Viewport Display colour;
-no world, or an unconnected output, is black, as in Blender.
+The active World Output's Surface is compiled like a material's (``shader``: reroutes,
+groups, Mix and Add Shader, textures): a Background (or Emission) of constant Color x
+Strength folds to that radiance W, what camera and reflection rays see where they escape;
+one whose colour or strength comes from nodes (an Environment Texture, a Sky Texture, a
+gradient) becomes a program the path integrator runs on the directions rays escape in, with
+its value straight up as the constant the Whitted integrator uses.  A world without a node
+tree uses its Viewport Display colour; no world, or an unconnected output, is black, as in
+Blender.
 """
 
 from __future__ import annotations
 
 import bpy
+import numpy as np
 
-from .materials import NodeEvaluator
+from ...core.shader.program import ShaderProgram, constant_array, run
+from ...core.shader.world import world_points
+from .shader import ShaderCompiler
 
 
-def world_colour(world) -> tuple[tuple[float, float, float], str | None]:
-    """(scene-linear RGB the world shows, note or None)."""
+def export_world(world, context=None):
+    """(scene-linear RGB at rest, the world's program or None, note or None)."""
     if world is None:
-        return (0.0, 0.0, 0.0), None
+        return (0.0, 0.0, 0.0), None, None
     tree = world.node_tree
     uses_nodes = tree is not None and (bpy.app.version >= (5, 0, 0) or world.use_nodes)
     if not uses_nodes:
-        return tuple(world.color), None
+        return tuple(world.color), None, None
     output = tree.get_output_node('CYCLES') or tree.get_output_node('ALL')
     surface = output.inputs.get("Surface") if output is not None else None
     if surface is None or not surface.is_linked:
-        return (0.0, 0.0, 0.0), None  # Blender renders an unconnected world black too
-    evaluator = NodeEvaluator(f"world '{world.name}'")
-    lobes = evaluator.shader(surface)
-    radiance = tuple(float(max(c, 0.0)) for c in lobes.emission)
-    return radiance, ("; ".join(evaluator.notes) or None)
+        return (0.0, 0.0, 0.0), None, None  # Blender renders an unconnected world black too
+    compiler = ShaderCompiler(f"world '{world.name}'", context)
+    value = compiler.compile(surface)
+    note = "; ".join(compiler.notes) or None
+    if isinstance(value, ShaderProgram):
+        up = world_points(np.array([[0.0], [0.0], [1.0]]))
+        radiance = run(value, up).emission
+        return _colour(radiance), value, note
+    return _colour(constant_array(value, np.float64).emission), None, note
+
+
+def world_colour(world, context=None) -> tuple[tuple[float, float, float], str | None]:
+    """(scene-linear RGB the world shows at rest, note or None)."""
+    colour, _, note = export_world(world, context)
+    return colour, note
+
+
+def _colour(emission) -> tuple[float, float, float]:
+    values = np.asarray(emission, np.float64).reshape(3, -1)[:, 0]
+    return tuple(float(max(c, 0.0)) for c in values)

@@ -48,6 +48,9 @@ class NodeSpec:
         coordinate of the shading point rather than the socket's own value.
     note: how the node is approximated, where it is ("" for exact); the supported-nodes
         page lists it.
+    reads_points: whether the node reads the shading points' geometry (coordinates,
+        normals, the ray), so that its value varies over a surface even where every input
+        is a constant: the compiler folds only nodes that do not.
     """
 
     bl_idname: str
@@ -57,12 +60,14 @@ class NodeSpec:
     options: tuple = ()
     implicit: dict = field(default_factory=dict)
     note: str = ""
+    reads_points: bool = False
 
 
 NODES: dict[str, NodeSpec] = {}
 
 
-def node(bl_idname: str, *, inputs=(), outputs=(), options=(), implicit=None, note: str = ""):
+def node(bl_idname: str, *, inputs=(), outputs=(), options=(), implicit=None, note: str = "",
+         reads_points: bool = False):
     """Register the decorated function as the evaluation of ``bl_idname`` (``NodeSpec``).
     inputs and outputs: ((identifier, type), ...)."""
     for identifier, kind in tuple(inputs) + tuple(outputs):
@@ -77,6 +82,6 @@ def node(bl_idname: str, *, inputs=(), outputs=(), options=(), implicit=None, no
         if bl_idname in NODES:
             raise ValueError(f"{bl_idname} is registered twice")
         NODES[bl_idname] = NodeSpec(bl_idname, function, tuple(inputs), tuple(outputs),
-                                    tuple(options), dict(implicit or {}), note)
+                                    tuple(options), dict(implicit or {}), note, reads_points)
         return function
     return register

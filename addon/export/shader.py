@@ -1,0 +1,290 @@
+"""Blender node trees -> the core's shader programs (``core.shader.program``), once per
+material or world at export.
+
+The compiler walks back from the output's socket: each node the value depends on becomes
+one instruction (``core.shader.registry.NODES`` says how to read its inputs and options),
+through reroutes, muted nodes and node groups, which vanish; Blender's implicit conversions
+between socket types become conversion nodes; a node whose inputs are all constants and
+which reads nothing of the shading points is evaluated here, once (constant folding), so a
+tree of constants compiles to constants and a material costs the renderer no more than its
+constant table row.  A node Glint does not support passes the value of the socket it feeds
+(that socket's own, unlinked value), as Cycles would show with the node muted, and is
+named in one note.
+"""
+
+from __future__ import annotations
+
+import inspect
+
+import numpy as np
+
+from ...core.closures import Closures
+from ...core.scene import SurfaceMaterial
+from ...core.shader.bsdf_nodes import LobeSum
+from ...core.shader.program import (MAX_INSTRUCTIONS, Coordinate, Instruction, Register,
+                                    ShaderProgram, constant_array, evaluate, run)
+from ...core.shader.points import ShadingPoints
+from ...core.shader.registry import CLOSURE, COLOR, FLOAT, NODES, VECTOR
+from .errors import ExportError
+
+#: Nodes whose value passes straight through (their first input of the socket's kind).
+_PASS_THROUGH = {"NodeReroute"}
+#: How Blender's socket types map to the registry's.
+_SOCKET_KINDS = {"VALUE": FLOAT, "INT": FLOAT, "BOOLEAN": FLOAT, "RGBA": COLOR,
+                 "VECTOR": VECTOR, "SHADER": CLOSURE}
+#: Rec.709 luminance, Cycles' colour-to-float conversion in Blender's default config.
+LUMINANCE = (0.2126, 0.7152, 0.0722)
+
+
+class ShaderCompileError(ExportError):
+    """A node tree the compiler cannot turn into a program (too deep)."""
+
+
+def _point_at_rest(dtype=np.float64) -> ShadingPoints:
+    """One shading point at the origin facing +Z, seen from above: where constant nodes
+    are folded, and where a program's fallback constants are read."""
+    up = np.array([[0.0], [0.0], [1.0]], dtype)
+    return ShadingPoints(np.zeros((3, 1), dtype), up, up, up)
+
+
+def _is_constant(value) -> bool:
+    return not isinstance(value, (Register, Coordinate))
+
+
+def _read_option(node, name):
+    value = getattr(node, name)
+    if isinstance(value, (bool, int, float, str)):
+        return value
+    try:
+        return tuple(float(v) for v in value)
+    except TypeError:
+        return value
+
+
+class ShaderCompiler:
+    """Compiles one node tree (``compile``); owner names it in notes ("material 'Wood'")."""
+
+    def __init__(self, owner: str, context=None):
+        self.owner = owner
+        self.context = context
+        self.notes: list[str] = []
+        self.instructions: list[Instruction] = []
+        self.registers = 0
+        self.coordinates: set[str] = set()
+        self._memo: dict = {}
+
+    def note(self, text: str) -> None:
+        if text not in self.notes:
+            self.notes.append(text)
+
+    # --- following links ----------------------------------------------------------------
+
+    def source(self, socket, groups):
+        """What feeds an input socket, through reroutes, muted nodes and node groups:
+        (output socket, group stack) of the node that computes it, or (None, the unlinked
+        input socket whose own value it takes; inside a group that is the group node's)."""
+        for _ in range(256):
+            if not socket.is_linked:
+                return None, socket
+            link = socket.links[0]
+            if not link.is_valid or link.is_muted:
+                return None, socket
+            node, output = link.from_node, link.from_socket
+            if node.bl_idname in _PASS_THROUGH or (node.mute and node.inputs):
+                inputs = [i for i in node.inputs if i.type == output.type] or list(node.inputs)
+                socket = inputs[0]
+                continue
+            if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None:
+                outputs = [n for n in node.node_tree.nodes if n.bl_idname == "NodeGroupOutput"]
+                active = [n for n in outputs if n.is_active_output] or outputs
+                inner = active[0].inputs.get(output.name) if active else None
+                if inner is None:
+                    return None, socket
+                groups = groups + (node,)
+                socket = inner
+                continue
+            if node.bl_idname == "NodeGroupInput" and groups:
+                outer = groups[-1].inputs.get(output.name)
+                if outer is None:
+                    return None, socket
+                groups = groups[:-1]
+                socket = outer
+                continue
+            return output, groups
+        raise ShaderCompileError(f"{self.owner}: its node groups nest too deep")
+
+    # --- values ---------------------------------------------------------------------------
+
+    def argument(self, socket, groups, kind: str, implicit: str | None = None,
+                 closures_only: bool = False):
+        """The value an input socket of ``kind`` receives: a Register, a Coordinate (an
+        unlinked socket Cycles reads a coordinate for), or a constant.  closures_only: the
+        socket is a shader node's, whose unlinked Normal is None (the hit's own normal)."""
+        output, where = self.source(socket, groups)
+        if output is None:
+            if implicit == "normal" and closures_only:
+                return None     # a shader's own normal: the hit's (and foldable)
+            if implicit is not None and not where.is_linked:
+                self.coordinates.add(implicit)
+                return Coordinate(implicit)
+            return self._default(where, kind)
+        value = self._output(output, where)
+        if value is None:      # an unsupported node: the socket's own value
+            if kind == CLOSURE:
+                return _default_surface()
+            return self._default(socket, kind)
+        return self._convert(value, _SOCKET_KINDS.get(output.type, FLOAT), kind)
+
+    def _default(self, socket, kind: str):
+        if kind == CLOSURE:
+            return LobeSum.none()
+        value = getattr(socket, "default_value", 0.0)
+        try:
+            values = tuple(float(v) for v in value)
+        except TypeError:
+            number = float(value)
+            return number if kind == FLOAT else (number,) * 3
+        if kind == FLOAT:
+            return values[0] if len(values) == 1 else float(np.dot(values[:3], LUMINANCE))
+        return values[:3]
+
+    def _convert(self, value, source: str, kind: str):
+        """Blender's implicit conversion of a ``source``-typed value to ``kind`` (Cycles'
+        ``svm_node_convert``): float to colour or vector repeats it, a colour to float is
+        its luminance, a vector to float its components' mean, a colour or vector into a
+        shader socket emits it."""
+        if source == kind or {source, kind} == {COLOR, VECTOR}:
+            return value
+        names = {(FLOAT, COLOR): "GlintFloatToColor", (FLOAT, VECTOR): "GlintFloatToColor",
+                 (COLOR, FLOAT): "GlintColorToFloat", (VECTOR, FLOAT): "GlintVectorToFloat",
+                 (COLOR, CLOSURE): "GlintColorToEmission",
+                 (VECTOR, CLOSURE): "GlintColorToEmission",
+                 (FLOAT, CLOSURE): "GlintFloatToEmission"}
+        name = names.get((source, kind))
+        if name is None:       # a shader into a value socket: Cycles reads nothing there
+            return 0.0 if kind == FLOAT else (0.0, 0.0, 0.0)
+        return self._emit(name, (value,), (), 1)[0]
+
+    def _output(self, output, groups):
+        """The value of a node's output socket, compiled once (memoised)."""
+        node = output.node
+        key = (node.as_pointer(), output.identifier, tuple(g.as_pointer() for g in groups))
+        if key in self._memo:
+            return self._memo[key]
+        spec = NODES.get(node.bl_idname)
+        if spec is None:
+            self._unsupported(node, output)
+            self._memo[key] = None
+            return None
+        sockets = {socket.identifier: socket for socket in node.inputs}
+        shader = all(kind == CLOSURE for _, kind in spec.outputs)
+        arguments = []
+        for identifier, kind in spec.inputs:
+            socket = sockets.get(identifier)
+            if socket is None:
+                raise ShaderCompileError(f"{self.owner}: node '{node.name}' has no input "
+                                         f"'{identifier}' in this Blender")
+            arguments.append(self.argument(socket, groups, kind, spec.implicit.get(identifier),
+                                           shader))
+        options = self._options(node, spec)
+        values = self._emit(node.bl_idname, tuple(arguments), options, len(spec.outputs))
+        identifiers = [identifier for identifier, _ in spec.outputs]
+        for identifier, value in zip(identifiers, values):
+            self._memo[(key[0], identifier, key[2])] = value
+        if output.identifier not in identifiers:
+            self._unsupported(node, output)
+            self._memo[key] = None
+        return self._memo[key]
+
+    def _options(self, node, spec) -> tuple:
+        from .node_options import OPTION_READERS   # (the readers import the node modules)
+
+        reader = OPTION_READERS.get(node.bl_idname)
+        if reader is not None:
+            takes_context = len(inspect.signature(reader).parameters) > 1
+            values = reader(node, self.context) if takes_context else reader(node)
+        else:
+            values = {name: _read_option(node, name) for name in spec.options}
+        return tuple(sorted(values.items()))
+
+    def _emit(self, name: str, arguments: tuple, options: tuple, outputs: int) -> list:
+        """The outputs of node ``name`` on ``arguments``: folded to constants where every
+        argument is one and the node reads nothing of the points, else an instruction."""
+        spec = NODES[name]
+        if all(_is_constant(a) for a in arguments) and not spec.reads_points:
+            registers = [None] * outputs
+            instruction = Instruction(name, arguments, options, tuple(range(outputs)))
+            evaluate(instruction, registers, _point_at_rest(), np.float64)
+            return [_constant(value) for value in registers]
+        if len(self.instructions) >= MAX_INSTRUCTIONS:
+            raise ShaderCompileError(f"{self.owner}: its node tree is larger than "
+                                     f"{MAX_INSTRUCTIONS} nodes")
+        first = self.registers
+        self.registers += outputs
+        self.instructions.append(Instruction(name, arguments, options,
+                                             tuple(range(first, first + outputs))))
+        return [Register(first + i) for i in range(outputs)]
+
+    def _unsupported(self, node, output) -> None:
+        if node.bl_idname == "NodeUndefined":
+            self.note(f"{self.owner}: node '{node.name}' is undefined (an add-on's that is "
+                      f"not installed); what it feeds takes its own value")
+            return
+        self.note(f"{self.owner}: node '{node.name}' ({node.bl_label}) is not supported; "
+                  f"what it feeds takes its own value")
+
+    # --- whole trees --------------------------------------------------------------------
+
+    def compile(self, socket, kind: str = CLOSURE):
+        """The program computing ``socket``'s value, or the constant it folds to."""
+        value = self.argument(socket, (), kind)
+        if _is_constant(value):
+            return value
+        return ShaderProgram(tuple(self.instructions), value, self.registers, self.owner,
+                             frozenset(self.coordinates))
+
+
+def _constant(value):
+    """A folded value as a constant argument: a float, a tuple of 3 floats, or a closure."""
+    if isinstance(value, LobeSum):
+        return value
+    array = np.asarray(value, np.float64)
+    if array.size == 1:
+        return float(array.reshape(-1)[0])
+    return tuple(float(v) for v in array.reshape(-1)[:3])
+
+
+def _default_surface() -> LobeSum:
+    """Blender's default grey diffuse, for a shader node Glint does not support."""
+    lobes = LobeSum.none()
+    lobes.diffuse = np.full((3, 1), 0.8)
+    return lobes
+
+
+def surface_material(value, holdout_object: bool = False) -> SurfaceMaterial:
+    """The SurfaceMaterial of a compiled Surface: the constants it folded to, or for a
+    program its value at a point at rest (what the Whitted integrator and the passes use)
+    with the program attached (the path integrator's)."""
+    program = None
+    if isinstance(value, ShaderProgram):
+        program = value
+        closures = run(program, _point_at_rest()).closures(1, np.float64)
+    else:
+        closures = constant_array(value, np.float64).closures(1, np.float64)
+    return closures_material(closures, program)
+
+
+def closures_material(closures: Closures, program=None) -> SurfaceMaterial:
+    """A SurfaceMaterial of one hit's closures (``Closures`` of length 1)."""
+    first = lambda a: tuple(float(v) for v in np.asarray(a)[:, 0])  # noqa: E731
+    return SurfaceMaterial(
+        diffuse=first(closures.diffuse), layer=float(closures.layer[0]),
+        layer_f0=float(closures.layer_f0[0]), specular_f0=first(closures.f0),
+        specular_f90=first(closures.f90), specular_dielectric=float(closures.dielectric[0]),
+        specular_ior=float(closures.specular_ior[0]),
+        roughness=float(np.sqrt(closures.alpha[0])),
+        transmission=first(closures.transmission),
+        transmission_fresnel=float(closures.transmission_fresnel[0]),
+        ior=float(closures.ior[0]), emission=first(closures.emission),
+        transparency=first(closures.transparency), translucency=first(closures.translucency),
+        holdout=float(closures.holdout[0]), program=program)

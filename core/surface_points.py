@@ -1,0 +1,177 @@
+"""The shading points of hits: what a material's program reads of them
+(``core.shader.points.ShadingPoints``), made lazily from the hits and the scene's tables.
+
+A triangle hit knows its mesh, instance and triangle by its global id (meshes in order,
+each instance by instance, triangle by triangle: ``core.arrays``), so no per-triangle table
+is built: object coordinates come from the instance's inverse transform, Generated ones from
+the mesh's bounding box in object space (Cycles' default for meshes), UVs from the mesh's
+corner UVs and the hit's barycentrics.  A sphere's object space is its centre with world
+axes (analytic spheres keep no rotation), its UVs those of Blender's UV sphere.  The world's
+axes and location of each hit's object go to the nodes that read them
+(``object_axis_x``..., ``object_location``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .shader.points import ShadingPoints
+from .vectors import take
+
+
+@dataclass(frozen=True)
+class SurfaceTables:
+    """Per mesh of the scene (canonical frame): the first global primitive id of its
+    triangles, its triangles and instances, each instance's object-to-canonical (K, 3, 4)
+    and inverse, its object-space bounding box (low, size), its UV maps ((name, (T, 3, 2))
+    ...).  Spheres: the sphere count, and ``world_scale`` (scene units per canonical
+    unit, for sphere object coordinates)."""
+
+    sphere_count: int
+    starts: np.ndarray
+    triangle_counts: np.ndarray
+    transforms: tuple
+    inverses: tuple
+    boxes: tuple
+    uv_maps: tuple
+    world_scale: float
+
+    @classmethod
+    def of(cls, scene, world_scale: float = 1.0) -> "SurfaceTables":
+        counts = np.array([len(mesh.triangles) for mesh in scene.meshes], np.int64)
+        instances = np.array([len(mesh.transforms) for mesh in scene.meshes], np.int64)
+        starts = scene.sphere_count + np.concatenate([[0], np.cumsum(counts * instances)[:-1]])
+        transforms, inverses, boxes = [], [], []
+        for mesh in scene.meshes:
+            transforms.append(mesh.transforms[:, :3, :])
+            inverses.append(np.linalg.inv(mesh.transforms)[:, :3, :])
+            low = mesh.vertices.min(axis=0) if len(mesh.vertices) else np.zeros(3)
+            high = mesh.vertices.max(axis=0) if len(mesh.vertices) else np.ones(3)
+            size = high - low
+            boxes.append((low, np.where(size > 0, size, 1.0)))
+        return cls(scene.sphere_count, starts.astype(np.int64), counts, tuple(transforms),
+                   tuple(inverses), tuple(boxes), tuple(mesh.uv_maps for mesh in scene.meshes),
+                   float(world_scale))
+
+
+def _triangle_hits(tables: SurfaceTables, primitive):
+    """For hits on primitives (k,): (mesh (k,) or -1 for spheres, instance (k,), local
+    triangle (k,))."""
+    mesh = np.searchsorted(tables.starts, primitive, side="right") - 1
+    mesh = np.where(primitive >= tables.sphere_count, mesh, -1)
+    local = primitive - tables.starts[np.maximum(mesh, 0)]
+    count = tables.triangle_counts[np.maximum(mesh, 0)]
+    count = np.where(count > 0, count, 1)
+    return mesh, local // count, local % count
+
+
+class _HitSources:
+    """The lazily made coordinates of k hits (module docstring)."""
+
+    def __init__(self, tables: SurfaceTables, geometry, primitive, points, barycentrics):
+        self.tables = tables
+        self.geometry = geometry
+        self.primitive = primitive
+        self.points = points
+        self.barycentrics = barycentrics
+        self.mesh, self.instance, self.local = _triangle_hits(tables, primitive)
+        self._object = None
+
+    def _groups(self):
+        """(mesh index, rows of the hits on it) for every mesh hit."""
+        for m in np.unique(self.mesh[self.mesh >= 0]):
+            yield int(m), np.flatnonzero(self.mesh == m)
+
+    def _spheres(self):
+        return np.flatnonzero(self.mesh < 0)
+
+    def object(self) -> np.ndarray:
+        if self._object is None:
+            dtype = self.points.dtype
+            result = np.zeros_like(self.points)
+            rows = self._spheres()
+            if len(rows):
+                spheres = self.geometry.spheres
+                centre = spheres.centers[self.primitive[rows]].T.astype(dtype)
+                result[:, rows] = (take(self.points, rows) - centre) * self.tables.world_scale
+            for m, rows in self._groups():
+                inverse = self.tables.inverses[m][self.instance[rows]]        # (k, 3, 4)
+                p = take(self.points, rows).astype(np.float64)
+                local = np.einsum("kij,jk->ik", inverse[:, :, :3], p) + inverse[:, :, 3].T
+                result[:, rows] = local
+            self._object = result
+        return self._object
+
+    def generated(self) -> np.ndarray:
+        local = self.object()
+        result = np.zeros_like(local)
+        rows = self._spheres()
+        if len(rows):
+            radius = self.geometry.spheres.radii[self.primitive[rows]] * self.tables.world_scale
+            result[:, rows] = take(local, rows) / (2 * radius) + 0.5
+        for m, rows in self._groups():
+            low, size = self.tables.boxes[m]
+            result[:, rows] = (take(local, rows) - low[:, None]) / size[:, None]
+        return result
+
+    def uv(self, name: str | None = None) -> np.ndarray:
+        local = self.object()
+        result = np.zeros_like(local)
+        rows = self._spheres()
+        if len(rows):
+            p = take(local, rows)
+            radius = np.sqrt((p * p).sum(axis=0))
+            result[0, rows] = np.arctan2(p[1], p[0]) / (2 * np.pi) + 0.5
+            result[1, rows] = np.arcsin(np.clip(p[2] / np.where(radius > 0, radius, 1), -1,
+                                                1)) / np.pi + 0.5
+        for m, rows in self._groups():
+            maps = dict(self.tables.uv_maps[m])
+            if not maps:
+                continue
+            corners = maps.get(name) if name is not None else self.tables.uv_maps[m][0][1]
+            if corners is None:
+                continue
+            triangle = corners[self.local[rows]]                               # (k, 3, 2)
+            weights = np.stack([b[rows] for b in self.barycentrics], axis=1)   # (k, 3)
+            result[:2, rows] = np.einsum("kc,kcu->uk", weights, triangle)
+        return result
+
+    def object_axis(self, axis: int) -> np.ndarray:
+        result = np.zeros_like(self.points)
+        rows = self._spheres()
+        if len(rows):
+            result[axis, rows] = 1.0
+        for m, rows in self._groups():
+            result[:, rows] = self.tables.transforms[m][self.instance[rows]][:, :, axis].T
+        return result
+
+    def object_location(self) -> np.ndarray:
+        result = np.zeros_like(self.points)
+        rows = self._spheres()
+        if len(rows):
+            result[:, rows] = self.geometry.spheres.centers[self.primitive[rows]].T
+        for m, rows in self._groups():
+            result[:, rows] = self.tables.transforms[m][self.instance[rows]][:, :, 3].T
+        return result
+
+
+def surface_points(tables: SurfaceTables, geometry, points, normal, true_normal, incoming,
+                   backfacing, primitive, barycentrics) -> ShadingPoints:
+    """The ShadingPoints of k hits: points, shading and true normals (facing the ray) and
+    incoming (towards the viewer) (3, k), backfacing (k,), primitive (k,) global ids,
+    barycentrics (b0, b1, b2) (k,) each or None (no triangle hit)."""
+    if barycentrics is None:
+        zero = np.zeros(points.shape[1], points.dtype)
+        barycentrics = (zero, zero, zero)
+    hits = _HitSources(tables, geometry, primitive, points, barycentrics)
+    sources = {"object": hits.object, "generated": hits.generated, "uv": hits.uv,
+               "object_location": hits.object_location,
+               "object_axis_x": lambda: hits.object_axis(0),
+               "object_axis_y": lambda: hits.object_axis(1),
+               "object_axis_z": lambda: hits.object_axis(2)}
+    names = {name for maps in tables.uv_maps for name, _ in maps}
+    for name in names:
+        sources[f"uv:{name}"] = (lambda name=name: hits.uv(name))
+    return ShadingPoints(points, normal, true_normal, incoming, backfacing, sources)
