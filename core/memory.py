@@ -85,6 +85,11 @@ def plan(scene: Scene, settings: RenderSettings, image_dtype, threads: int,
     width, height = scene.camera.width, scene.camera.height
     channels = 4 + (GUIDE_CHANNELS if settings.guides else 0)
     image = width * height * channels * np.dtype(image_dtype).itemsize
+    if settings.integrator == "path" and settings.semantics == "default":
+        # A progressive frame's float32 totals, and the buffer its tiles' sums land in.
+        from .progressive import GUIDE_SUM_CHANNELS, SUM_CHANNELS
+        sums = SUM_CHANNELS + (GUIDE_SUM_CHANNELS if settings.guides else 0)
+        image += 2 * width * height * sums * 4
     samples = settings.samples if settings.anti_aliasing != "off" else 1
     bundle = max(settings.tile_size ** 2, samples)
     in_flight = 2 * threads * settings.tile_size ** 2 * 4 * 8

@@ -548,80 +548,64 @@ def converged(total, half, count, threshold: float):
     return difference / (1e-4 + normalise) < threshold
 
 
-def render_path_tile(ctx, camera, tile, stop=None):
-    """(rgba (h, w, 4), stats) of tile (y0, y1, x0, x1) by path tracing: ``samples`` samples
-    a pixel, positioned by the pixel filter's density, or with a noise threshold, pixels
-    stopped once ``converged`` (checked after the minimum samples, then each time their
-    count doubles).  A pixel's value depends only on its own samples: never on the tile."""
+def render_path_tile(ctx, camera, job, stop=None):
+    """(sums (h, w, channels), stats) of a ``core.progressive.TileJob``: the tile's live
+    pixels traced with samples job.first..job.last, each positioned by the pixel filter's
+    density; per pixel the sums ``core.progressive`` adds up (radiance, twice the odd
+    samples' radiance, alpha, the count, and with guides their sums).  A pixel's sums depend
+    only on its own samples: never on the tile."""
     from .camera import camera_rays, has_aperture
-    from .render import RenderCancelled, _assemble, _pixel_grid
+    from .progressive import GUIDE_SUM_CHANNELS, SUM_CHANNELS
+    from .render import RenderCancelled, _pixel_grid
     from .sampler import PIXEL_GROUP, pixel_seeds
 
     start = time.perf_counter()
     settings = ctx.settings
     dtype = ctx.dtype
-    y0, y1, x0, x1 = tile
+    y0, y1, x0, x1 = job[:4]
+    h, w = y1 - y0, x1 - x0
     stats = RayStats(tiles=1)
     cols, rows = _pixel_grid(y0, y1, x0, x1)
+    live = job.live_pixels()
+    if live is not None:
+        chosen = live[rows - y0, cols - x0]
+        cols, rows = cols[chosen], rows[chosen]
     n = len(cols)
     seeds = pixel_seeds(cols, rows, settings.seed)
-    total_samples = settings.samples
     bits = ctx.paths.index_bits
     aperture = has_aperture(camera)
-    sums = np.zeros((3, n))
-    halves = np.zeros((3, n))
-    guides = np.zeros((6, n)) if settings.guides else None
-    alpha = np.zeros(n)
-    counts = np.zeros(n)
-    adaptive = settings.noise_threshold > 0
-    live = np.arange(n)
-    done = 0
-    target = min_samples(settings) if adaptive else total_samples
-    rays_per_bundle = max(1024, settings.tile_size ** 2)
-    while len(live) and done < total_samples:
-        count = target - done
-        per_bundle = max(1, rays_per_bundle // count)
-        for first in range(0, len(live), per_bundle):
-            if stop is not None and stop.is_set():
-                raise RenderCancelled("render cancelled")
-            chunk = live[first:first + per_bundle]
-            pixel = np.repeat(chunk, count)
-            sample = np.tile(np.arange(done, target), len(chunk))
-            u = sample_group(seeds[pixel], sample, PIXEL_GROUP, bits)
-            xs = cols[pixel] + 0.5 + filter_offsets(u[0], settings.filter_type,
-                                                    settings.filter_width)
-            ys = rows[pixel] + 0.5 + filter_offsets(u[1], settings.filter_type,
-                                                    settings.filter_width)
-            began = time.perf_counter()
-            rays = camera_rays(camera, xs, ys, dtype, u[2:4] if aperture else None)
-            traced = time.perf_counter()
-            result = trace_paths(ctx, rays, seeds[pixel], sample, stats)
-            stats.seconds_camera += traced - began
-            stats.seconds_bounces += time.perf_counter() - traced
-            odd = (sample & 1).astype(np.float64) * 2
-            for row in range(3):
-                sums[row] += np.bincount(pixel, result.colour[row], n)
-                halves[row] += np.bincount(pixel, result.colour[row] * odd, n)
-            alpha += np.bincount(pixel, result.alpha, n)
-            if guides is not None:
-                for row in range(3):
-                    guides[row] += np.bincount(pixel, result.albedo[row], n)
-                    guides[3 + row] += np.bincount(pixel, result.normal[row], n)
-        counts[live] = target
-        done = target
-        if adaptive and done < total_samples:
-            settled = converged(sums[:, live], halves[:, live], counts[live],
-                                settings.noise_threshold)
-            live = live[~settled]
-            stats.supersampled_pixels += len(live)
-        target = min(total_samples, 2 * done)
-    rgba = np.empty((y1 - y0, x1 - x0, 4), dtype)
-    _assemble(rgba, (sums / counts).T.astype(dtype), (alpha / counts).astype(dtype))
-    if guides is not None:
-        extra = np.empty((y1 - y0, x1 - x0, 4), dtype)
-        more = np.empty((y1 - y0, x1 - x0, 4), dtype)
-        _assemble(extra, (guides[:3] / counts).T.astype(dtype), np.zeros(n, dtype))
-        _assemble(more, (guides[3:] / counts).T.astype(dtype), np.zeros(n, dtype))
-        rgba = np.concatenate([rgba, extra[..., :3], more[..., :3]], axis=2)
+    channels = SUM_CHANNELS + (GUIDE_SUM_CHANNELS if settings.guides else 0)
+    sums = np.zeros((channels, n))
+    count = job.last - job.first
+    per_bundle = max(1, max(1024, settings.tile_size ** 2) // count)
+    for first in range(0, n, per_bundle):
+        if stop is not None and stop.is_set():
+            raise RenderCancelled("render cancelled")
+        chunk = np.arange(first, min(first + per_bundle, n))
+        pixel = np.repeat(chunk, count)
+        sample = np.tile(np.arange(job.first, job.last), len(chunk))
+        u = sample_group(seeds[pixel], sample, PIXEL_GROUP, bits)
+        xs = cols[pixel] + 0.5 + filter_offsets(u[0], settings.filter_type,
+                                                settings.filter_width)
+        ys = rows[pixel] + 0.5 + filter_offsets(u[1], settings.filter_type,
+                                                settings.filter_width)
+        began = time.perf_counter()
+        rays = camera_rays(camera, xs, ys, dtype, u[2:4] if aperture else None)
+        traced = time.perf_counter()
+        result = trace_paths(ctx, rays, seeds[pixel], sample, stats)
+        stats.seconds_camera += traced - began
+        stats.seconds_bounces += time.perf_counter() - traced
+        odd = (sample & 1).astype(np.float64) * 2
+        columns = [result.colour[0], result.colour[1], result.colour[2],
+                   result.colour[0] * odd, result.colour[1] * odd, result.colour[2] * odd,
+                   result.alpha, None]
+        if channels > SUM_CHANNELS:
+            columns += list(result.albedo) + list(result.normal)
+        for row, values in enumerate(columns):
+            if values is not None:
+                sums[row] += np.bincount(pixel, values, n)
+    sums[7] = count
+    grid = np.zeros((h, w, channels))
+    grid[rows - y0, cols - x0] = sums.T
     stats.seconds_tiles += time.perf_counter() - start
-    return rgba, stats
+    return grid, stats

@@ -32,6 +32,7 @@ from .colour import linear_to_srgb
 from .context import RayStats, TraceContext, make_context
 from .passes import PrimaryPasses, fill_tile_passes
 from .path import render_path_tile
+from .progressive import ProgressiveFrame, WorkQueue
 from .cull import PACKET_SIZE
 from . import memory
 from .memory import GUIDE_CHANNELS
@@ -497,7 +498,8 @@ def _in_processes(settings: RenderSettings, pixels: int, tiles: int, threads: in
     the work out of this process), and in a process that renders once
     (``workers.one_render``) for warm workers or a render heavy enough to pay for their
     start-up."""
-    per_pixel = settings.samples if settings.anti_aliasing == "fixed" else 1
+    per_pixel = (settings.samples if settings.anti_aliasing == "fixed"
+                 or (settings.integrator == "path" and settings.semantics == "default") else 1)
     work = pixels * per_pixel * (workers.TREE_SAMPLE_WEIGHT if tree else 1)
     if tiles < 2 or work < workers.MIN_PIXELS:
         return False
@@ -574,9 +576,11 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     # What the frame's tiles would each build on first use (in every worker process), built
     # once here on the render's threads: the eye's bins, the occlusion trails' tables.
     shared_eye = ctx.camera_origin is not None and not has_aperture(scene.camera)
+    path_traced = ctx.paths is not None
     ctx.geometry.build_frame_tables(ctx.camera_origin.position if shared_eye else None,
-                                    bounces=traces_bounces(ctx),
-                                    trails=traces_from_points(ctx), threads=threads)
+                                    bounces=path_traced or traces_bounces(ctx),
+                                    trails=path_traced or traces_from_points(ctx),
+                                    threads=threads)
     shape = (height, width, 4 + (GUIDE_CHANNELS if settings.guides else 0))
     stats = RayStats()
     if isinstance(passes, PrimaryPasses):
@@ -592,6 +596,11 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
         from a worker process."""
         if primary is not None:
             fill_tile_passes(primary, ctx, scene.camera, tile, tile_stats, world)
+
+    if path_traced:
+        return _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype,
+                                   threads, in_processes, fill_passes, primary, on_tile,
+                                   progress, should_cancel)
 
     def work(ctx, camera, tile, stop=None):
         rgba, tile_stats = render_tile(ctx, camera, tile, stop)
@@ -683,6 +692,93 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
         except BaseException:
             # Cancelled, a tile failed, or an exception (KeyboardInterrupt) arrived: stop
             # the other tiles at their next bundle instead of finishing them.
+            stop.set()
+            for future in pending:
+                future.cancel()
+            raise
+    return _result(image, stats, dtype, scene, settings, passes=primary, fallback=fallback)
+
+
+def _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype, threads,
+                        in_processes, fill_passes, primary, on_tile, progress,
+                        should_cancel) -> RenderResult:
+    """A path-traced frame, pass by pass (``core.progressive``), its tiles' passes on
+    worker processes or threads like any frame's tiles."""
+    image = np.zeros(shape, image_dtype)
+    frame = ProgressiveFrame(settings, tiles, image, guides=settings.guides)
+    queue = WorkQueue(frame)
+    stats = RayStats()
+    total_samples = settings.samples
+
+    def landed(job, sums, tile_stats, first_pass):
+        if not np.isfinite(sums).all():   # never a silently wrong picture, even from a bug
+            y0, y1, x0, x1 = job[:4]
+            raise RenderError(f"pixels {x0}-{x1 - 1} x {y0}-{y1 - 1} came out NaN or "
+                              f"infinite; please report this scene")
+        view = frame.land(job, sums)
+        if first_pass:
+            fill_passes(job[:4], tile_stats)
+        stats.add(tile_stats)
+        if on_tile is not None:
+            on_tile(job[:4], view[..., :4])
+        if progress is not None:
+            before = frame.done_samples - frame.sizes[frame.passes_made - 1]
+            share = 1 - frame.outstanding / max(len(tiles), 1)
+            progress(min(1.0, (before + share * (frame.done_samples - before))
+                         / total_samples))
+        queue.refill()
+
+    def cancelled():
+        return should_cancel is not None and should_cancel()
+
+    fallback = None
+    if in_processes:
+        def finish(job, sums, tile_stats, done, finite):
+            landed(job, np.array(sums, np.float64), tile_stats, job.first == 0)
+
+        sums_shape = (shape[0], shape[1], frame.channels)
+        try:
+            _, unavailable = workers.render_tiles(ctx, scene.camera, queue, sums_shape,
+                                                  np.float32, threads, finish, should_cancel)
+            return _result(image, stats, dtype, scene, settings, passes=primary,
+                           parallelism="threads" if unavailable else "processes",
+                           fallback=_fallback_line(unavailable) if unavailable else None)
+        except workers.WorkersBusy:
+            pass
+        except workers.ProcessesUnavailable as error:
+            fallback = _fallback_line(str(error))
+        queue = WorkQueue(ProgressiveFrame(settings, tiles, image, guides=settings.guides))
+        frame = queue.frame
+
+    if threads == 1 or len(tiles) == 1:
+        while queue:
+            if cancelled():
+                raise RenderCancelled("render cancelled")
+            job = queue.popleft()
+            sums, tile_stats = render_tile(ctx, scene.camera, job)
+            landed(job, sums, tile_stats, job.first == 0)
+        return _result(image, stats, dtype, scene, settings, passes=primary,
+                       fallback=fallback)
+
+    stop = threading.Event()
+    with ThreadPoolExecutor(max_workers=threads) as pool:
+        pending = {}
+        try:
+            while queue or pending:
+                while len(pending) < 2 * threads and queue:
+                    job = queue.popleft()
+                    pending[pool.submit(render_tile, ctx, scene.camera, job, stop)] = job
+                if not pending:
+                    break
+                finished, _ = wait(pending, timeout=CANCEL_POLL_SECONDS,
+                                   return_when=FIRST_COMPLETED)
+                for future in finished:
+                    job = pending.pop(future)
+                    sums, tile_stats = future.result()
+                    landed(job, sums, tile_stats, job.first == 0)
+                if cancelled():
+                    raise RenderCancelled("render cancelled")
+        except BaseException:
             stop.set()
             for future in pending:
                 future.cancel()

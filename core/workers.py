@@ -347,7 +347,7 @@ def _serve(connection) -> None:
                 tile = message
                 try:
                     rgba, stats = render_tile(job.ctx, job.camera, tile, stop)
-                    y0, y1, x0, x1 = tile
+                    y0, y1, x0, x1 = tile[:4]
                     job.image[y0:y1, x0:x1] = rgba     # straight into the caller's image
                     connection.send(("done", tile, stats, bool(np.isfinite(rgba).all())))
                 except RenderCancelled:
@@ -635,7 +635,7 @@ class _Render:
         global unavailable_reason
         from .render import RenderCancelled
 
-        self.pending = deque(tiles)
+        self.pending = tiles if hasattr(tiles, "popleft") else deque(tiles)
         by_connection = {w.connection: w for w in self.workers}
         self.starting = starting = {w.connection for w in self.workers}
         helping = not all(w.served for w in self.workers)   # warm ones are ready at once
@@ -673,9 +673,12 @@ class _Render:
                 if kind == "cancelled":
                     raise RenderCancelled("render cancelled")
                 self.done += 1
-                y0, y1, x0, x1 = tile
+                y0, y1, x0, x1 = tile[:4]
                 finish(tile, self.image[y0:y1, x0:x1], message[2], self.done, message[3])
                 self._feed(worker, self.pending)
+                for other in self.workers:     # (a new pass may have begun)
+                    if other is not worker and other.connection not in starting:
+                        self._feed(other, self.pending)
             if help_now and not ready:
                 self.render_here(self.pending.popleft(), finish)
 
@@ -684,7 +687,7 @@ class _Render:
         from .render import render_tile
 
         rgba, stats = render_tile(self.ctx, self.camera, tile)
-        y0, y1, x0, x1 = tile
+        y0, y1, x0, x1 = tile[:4]
         finite = bool(np.isfinite(rgba).all())
         if finite:
             self.image[y0:y1, x0:x1] = rgba
