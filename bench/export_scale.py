@@ -1,5 +1,5 @@
-"""Export time for large point clouds and instance counts (issue 9: "a million spheres go
-from bpy attributes to a validated core scene in well under a second").
+"""Export time for large point clouds and instance counts (the target: a million
+spheres go from bpy attributes to a validated core scene in well under a second).
 
     .venv/bin/python -m bench.export_scale [--counts 100000 1000000] [--repeat 3]
 

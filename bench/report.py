@@ -13,7 +13,7 @@ MIB = 2 ** 20
 
 #: Target (1): float64-accurate means a max error of at most this (in [0, 1] units).
 ACCURATE = 1e-6
-#: Issue 12's targets for the article scene at article-hd's size.
+#: The article scene's speed targets at article-hd's size.
 BASELINE_SPEEDUP, CYCLES1_SPEEDUP = 12.0, 10.0
 DEFAULT_OVER_ARTICLE = 1.3      # default/auto's time at most this times article/float64's
 TWO_WORKERS_SPEEDUP = 1.8       # 2 worker processes against 1
@@ -301,7 +301,7 @@ def target_float32(bench: Bench) -> Target:
                   f"reference: max {f32.max_error:.2g}, RMS {f32.rms_error:.2g} (8-bit steps)")
 
 
-#: Issue 9's scale targets: Glint's F12 within this factor of Cycles' on a million
+#: The scale targets: Glint's F12 within this factor of Cycles' on a million
 #: point-cloud spheres, and faster than Cycles on 100,000 instanced spheres.
 POINTS_SLOWDOWN, INSTANCES_SLOWDOWN = 5.0, 1.0
 

@@ -1,4 +1,4 @@
-"""Issue 9's scale rows: Glint and Cycles on the same scene, built in bpy, in one process.
+"""The scale rows: Glint and Cycles on the same scene, built in bpy, in one process.
 
     .venv/bin/python -m bench.scale CASE:COUNT:WIDTHxHEIGHT ... [--repeats N] [--budget S]
 

@@ -25,7 +25,7 @@ Workloads (``--only NAME``):
   per frame in this process and in the workers; the processes' start-up is paid in the
   warm-up, and once more, alone, in a "cold" row (workers ended first).
 
-* scale-points, scale-instances, scale-suzanne: issue 9's scale rows (``bench.scale``):
+* scale-points, scale-instances, scale-suzanne: the scale rows (``bench.scale``):
   scenes built in bpy (a million Geometry Nodes points; 100,000 UV spheres as Geometry Nodes
   instances, vertex instances and linked duplicates; Suzanne subdivided to 1,007,616
   triangles over a floor at 1920x1080), Glint's F12 (export + render, AA off) against
@@ -149,7 +149,7 @@ QUICK = Plan(
     sphere_set_hd=((320, 180), (1_000, 100_000)),
     baseline_max_elements=5_000_000, repeats=1, budget=5.0)
 
-#: Issue 9's scale rows (``bench.scale``: Glint and Cycles through F12 on scenes built in
+#: The scale rows (``bench.scale``: Glint and Cycles through F12 on scenes built in
 #: bpy, in child processes); KIND:COUNT:WIDTHxHEIGHT, COUNT being Suzanne's subdivision levels.
 FULL = replace(FULL, scale_cases={
     "scale-points": ("points:1000000:640x360",),
@@ -834,7 +834,7 @@ class Bench:
                                         "processes after a warm-up render each"]))
 
     # ---------------------------------------------------------------------------------------
-    # Issue 9's scale rows
+    # The scale rows against Cycles
 
     def skipped_without_blender(self, name: str) -> bool:
         """True (and a note) when --no-blender leaves out a workload whose contenders are

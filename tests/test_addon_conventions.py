@@ -264,7 +264,7 @@ def test_orthographic_depth_of_field_blurs_like_cycles(tmp_path, fstop, focus):
 
     glint_alpha, cycles_alpha = _alpha_rows_glint_and_cycles(scene, tmp_path)
     # The silhouette (depth 10) blurs over a circle of radius 0.05 * |1 - 10 / 5| = 0.05
-    # (F-stop 10) or 0.025 * |1 - 10 / 2.5| = 0.075 (F-stop 20): 2 or 3 pixels, so 4 or 6
+    # (an F-stop of 10) or 0.025 * |1 - 10 / 2.5| = 0.075 (an F-stop of 20): 2 or 3 pixels, so 4 or 6
     # partial pixels per edge; lens / (2 F-stop) would give under 0.2 pixel.  Tolerances as
     # for the perspective lens (test above): 256 samples leave about 0.03 of coverage noise.
     print("partial pixels glint", _partial(glint_alpha), "cycles", _partial(cycles_alpha),

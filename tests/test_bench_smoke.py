@@ -42,7 +42,7 @@ def test_per_pixel_program_matches_the_article_image_on_a_crop():
 
 
 def test_scale_cases_render_the_same_scene_in_glint_and_cycles(tmp_path):
-    """bench.scale's cases (issue 9's scale rows), tiny: both engines draw the scene the case
+    """bench.scale's cases (the scale rows against Cycles), tiny: both engines draw the scene the case
     built, Glint exports every point, instance or triangle of it, and the report's targets
     read the results."""
     from bench import report, scale
@@ -77,3 +77,25 @@ def test_scale_cases_render_the_same_scene_in_glint_and_cycles(tmp_path):
     assert statuses["(scale 1"] in ("PASS", "FAIL") and statuses["(scale 2"] in ("PASS", "FAIL")
     assert statuses["(scale 3"] == "MEASURED" and statuses["(scale 4"] == "NOT MEASURED"
     assert len(report.table(bench)) == 2 + 2 * len(results)
+
+
+def test_the_readme_picture_puts_glint_beside_cycles(tmp_path):
+    """bench.readme_picture, tiny: one PNG, Glint's image, a 4-pixel gap and Cycles' image of
+    the same scene, alike in 8 x 8 boxes (Cycles' bounced light and 8 samples' noise keep r
+    below 1; a different scene or an empty image would fall far below 0.8)."""
+    import sys
+
+    from bench import scale
+
+    out = tmp_path / "picture.png"
+    result = scale.child_result([sys.executable, "-m", "bench.readme_picture", "--out", str(out),
+                                 "--width", "64", "--height", "48", "--cycles-samples", "8"],
+                                timeout=600)
+    assert result["picture"] == str(out)
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    width, height = int.from_bytes(out.read_bytes()[16:20], "big"), \
+        int.from_bytes(out.read_bytes()[20:24], "big")
+    assert (width, height) == (2 * 64 + 4, 48)
+    assert result["similarity"]["r"] > 0.8
+    # Glint lacks the bounced light: a few per cent darker (0.97 at the default size).
+    assert 0.8 < result["similarity"]["brightness_ratio"] < 1.05

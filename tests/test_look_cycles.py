@@ -5,7 +5,7 @@ Tolerances, from what separates the two renderers when the model is right:
 * Direct light on diffuse surfaces (``LIGHT_TOLERANCE`` 2 %): Cycles' mesh sphere (96 x 48
   faces, interpolated normals) against Glint's analytic one, Cycles' noise at 32-64 samples
   with a near-zero pixel filter, and Glint's 16-point integration of area lights.  Measured:
-  at most 0.8 % (disk area light), typically 0.05 % (README's table).
+  at most 0.8 % (disk area light), typically 0.05 % (docs/accuracy.md's tables).
 * Per-pixel (``PIXEL_TOLERANCE`` 5 % at the 90th percentile): the same plus the pixels on
   the facets' rims.  Measured: at most 1.7 %.
 * Rough glossy lobes (``GLOSSY_TOLERANCE`` 3 %, on the pixels above 0.5 % of the highlight's

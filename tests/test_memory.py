@@ -3,7 +3,8 @@ render that cannot fit is refused at once with one line, and every step after tr
 in place or a block of rows at a time.
 
 Sizes stay small here (at most 1024 x 1024, or a 2K image for the streaming steps); the 8K
-and 16K peak-RSS figures in the README were measured with the command given there, not in CI.
+and 16K peak-RSS figures in docs/performance.md were measured with the command given there,
+not in CI.
 """
 
 from __future__ import annotations

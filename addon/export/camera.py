@@ -64,7 +64,7 @@ def depth_of_field(camera) -> dict:
     """The thin lens of a camera with Depth of Field on, as Cycles reads it
     (``blender_camera.cpp``): aperture radius = lens (mm, as metres: 1e-3 per scene unit) /
     (2 F-stop) for a perspective camera, 1 / (2 F-stop) scene units for an orthographic one
-    (checked against Cycles: F-stop 10 blurs a silhouette 2 focus distances away over 4
+    (checked against Cycles: an F-stop of 10 blurs a silhouette 2 focus distances away over 4
     pixels of 0.025 per edge, a radius of 0.05); focus distance along the view axis to the
     focus object's origin, else the Focus Distance; blades and rotation as set (fewer than 3
     blades: a round aperture)."""

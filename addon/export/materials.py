@@ -1,8 +1,8 @@
 """Blender materials -> core materials.
 
 Default semantics (``export_material``): the material's shader nodes are evaluated into a
-``core.SurfaceMaterial`` (``NodeEvaluator`` below; README's table lists what each node
-becomes); Viewport Display is the fallback for a material without a usable node tree.
+``core.SurfaceMaterial`` (``NodeEvaluator`` below; docs/user-guide.md's table lists what each
+node becomes); Viewport Display is the fallback for a material without a usable node tree.
 
 Article semantics (``export_article_material``): the article's five Blinn-Phong parameters.
 Three sources, in order:
