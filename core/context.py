@@ -17,7 +17,7 @@ from .bsdf import SurfaceArrays, surface_arrays, translucent_view
 from .camera import eye_position
 from .rays import ARTICLE_OFFSET, RAY_EPSILON, RayStats, SharedOrigin, ray_offsets
 from .lights import PreparedLight, fibonacci_sphere, prepare_light
-from .scene import BlenderCamera, PointLight, RenderSettings, Scene
+from .scene import BlenderCamera, PointLight, RenderSettings, Scene, SurfaceMaterial
 from .vectors import dot
 
 __all__ = ["ARTICLE_OFFSET", "RAY_EPSILON", "RayStats", "ray_offsets", "Lights", "Materials",
@@ -193,6 +193,19 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
         background=arrays.background, ambient=arrays.ambient, path_gain_bound=gain,
         look=look, paths=paths,
     )
+
+
+def path_traced(scene: Scene, settings: RenderSettings) -> bool:
+    """Whether the path integrator renders this frame: default semantics asking for it, and
+    something in the scene physically based (a SurfaceMaterial or one of Blender's lights;
+    else the article's model runs alone, with the Whitted integrator)."""
+    if settings.semantics != "default" or settings.integrator != "path":
+        return False
+    if any(not isinstance(light, PointLight) for light in scene.lights):
+        return True
+    materials = [sphere.material for sphere in scene.spheres]
+    materials += [m for group in scene.sphere_sets + scene.meshes for m in group.materials]
+    return any(isinstance(material, SurfaceMaterial) for material in materials)
 
 
 def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces,

@@ -85,7 +85,8 @@ def plan(scene: Scene, settings: RenderSettings, image_dtype, threads: int,
     width, height = scene.camera.width, scene.camera.height
     channels = 4 + (GUIDE_CHANNELS if settings.guides else 0)
     image = width * height * channels * np.dtype(image_dtype).itemsize
-    if settings.integrator == "path" and settings.semantics == "default":
+    from .context import path_traced
+    if path_traced(scene, settings):
         # A progressive frame's float32 totals, and the buffer its tiles' sums land in.
         from .progressive import GUIDE_SUM_CHANNELS, SUM_CHANNELS
         sums = SUM_CHANNELS + (GUIDE_SUM_CHANNELS if settings.guides else 0)

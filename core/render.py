@@ -29,7 +29,7 @@ import numpy as np
 from .aggregate import builds_tree
 from .camera import camera_rays, has_aperture
 from .colour import linear_to_srgb
-from .context import RayStats, TraceContext, make_context
+from .context import RayStats, TraceContext, make_context, path_traced
 from .passes import PrimaryPasses, fill_tile_passes
 from .path import render_path_tile
 from .progressive import ProgressiveFrame, WorkQueue
@@ -490,7 +490,7 @@ def missed_colour(scene: Scene, settings: RenderSettings) -> np.ndarray:
 
 
 def _in_processes(settings: RenderSettings, pixels: int, tiles: int, threads: int,
-                  tree: bool = False) -> bool:
+                  tree: bool = False, path: bool = False) -> bool:
     """Whether this render's tiles go to worker processes (``RenderSettings.parallelism``).
     A single tile or a small render stays in this process (starting a worker costs more
     than it gains there): its work is its camera samples, weighted for a scene with a tree
@@ -498,8 +498,7 @@ def _in_processes(settings: RenderSettings, pixels: int, tiles: int, threads: in
     the work out of this process), and in a process that renders once
     (``workers.one_render``) for warm workers or a render heavy enough to pay for their
     start-up."""
-    per_pixel = (settings.samples if settings.anti_aliasing == "fixed"
-                 or (settings.integrator == "path" and settings.semantics == "default") else 1)
+    per_pixel = settings.samples if settings.anti_aliasing == "fixed" or path else 1
     work = pixels * per_pixel * (workers.TREE_SAMPLE_WEIGHT if tree else 1)
     if tiles < 2 or work < workers.MIN_PIXELS:
         return False
@@ -562,7 +561,8 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     emission_pass = isinstance(passes, PrimaryPasses) and passes.emission is not None
     tree = builds_tree(scene.sphere_count, scene.triangle_count)
     in_processes = not emission_pass and _in_processes(settings, width * height, len(tiles),
-                                                       threads, tree)
+                                                       threads, tree,
+                                                       path_traced(scene, settings))
     memory_plan = memory.plan(scene, settings, image_dtype, threads, reserve_bytes)
     if in_processes:  # plus the workers' interpreters and the scene's shared copy
         memory_plan = dataclasses.replace(memory_plan, other=memory_plan.other + workers.
@@ -576,10 +576,10 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     # What the frame's tiles would each build on first use (in every worker process), built
     # once here on the render's threads: the eye's bins, the occlusion trails' tables.
     shared_eye = ctx.camera_origin is not None and not has_aperture(scene.camera)
-    path_traced = ctx.paths is not None
+    tracing_paths = ctx.paths is not None
     ctx.geometry.build_frame_tables(ctx.camera_origin.position if shared_eye else None,
-                                    bounces=path_traced or traces_bounces(ctx),
-                                    trails=path_traced or traces_from_points(ctx),
+                                    bounces=tracing_paths or traces_bounces(ctx),
+                                    trails=tracing_paths or traces_from_points(ctx),
                                     threads=threads)
     shape = (height, width, 4 + (GUIDE_CHANNELS if settings.guides else 0))
     stats = RayStats()
@@ -597,7 +597,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
         if primary is not None:
             fill_tile_passes(primary, ctx, scene.camera, tile, tile_stats, world)
 
-    if path_traced:
+    if tracing_paths:
         return _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype,
                                    threads, in_processes, fill_passes, primary, on_tile,
                                    progress, should_cancel)
