@@ -520,7 +520,8 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
            should_cancel: Optional[Callable[[], bool]] = None,
            image_dtype=None, reserve_bytes: int = 0,
            on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None,
-           passes: "bool | PrimaryPasses" = False) -> RenderResult:
+           passes: "bool | PrimaryPasses" = False,
+           on_pass: Optional[Callable[[int, np.ndarray], None]] = None) -> RenderResult:
     """Render ``scene``; see ``core`` for the result's layout.  image_dtype: the image's
     dtype (default: the render's precision); float32 halves a float64 render's largest array
     for callers that keep no more than float32 anyway (Blender's render results).
@@ -529,6 +530,9 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     ``progress``), with tile = (y0, y1, x0, x1) (rows from the top) and its (h, w, 4) pixels,
     a view of the image: copy what must outlive the call.  Tiles land in any order; a
     cancelled render has passed on exactly the tiles that finished.
+    on_pass(samples, image): for a path-traced frame, called as each progressive pass
+    completes (``core.progressive``), with the samples a pixel has had so far and the
+    frame's image as it stands (a view: copy what must outlive the call).
     passes: also fill ``RenderResult.passes`` (``core.passes``: depth, position, normal,
     primitive and material of each pixel centre's first hit, in world units); a
     PrimaryPasses of the image's size is filled in place, so ``on_tile`` can read each tile's
@@ -600,7 +604,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     if tracing_paths:
         return _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype,
                                    threads, in_processes, fill_passes, primary, on_tile,
-                                   progress, should_cancel)
+                                   progress, should_cancel, on_pass)
 
     def work(ctx, camera, tile, stop=None):
         rgba, tile_stats = render_tile(ctx, camera, tile, stop)
@@ -701,7 +705,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
 
 def _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype, threads,
                         in_processes, fill_passes, primary, on_tile, progress,
-                        should_cancel) -> RenderResult:
+                        should_cancel, on_pass=None) -> RenderResult:
     """A path-traced frame, pass by pass (``core.progressive``), its tiles' passes on
     worker processes or threads like any frame's tiles."""
     image = np.zeros(shape, image_dtype)
@@ -726,6 +730,8 @@ def _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype, 
             share = 1 - frame.outstanding / max(len(tiles), 1)
             progress(min(1.0, (before + share * (frame.done_samples - before))
                          / total_samples))
+        if on_pass is not None and frame.pass_complete():
+            on_pass(frame.done_samples, image)
         queue.refill()
 
     def cancelled():

@@ -31,7 +31,9 @@ from typing import Callable, Optional
 
 import numpy as np
 
+from ..utils.denoise import available as denoise_available, denoise as denoise_image
 from ...core import BlenderCamera, RenderCancelled, RenderSettings, Scene, SceneError, render
+from ...core.context import path_traced
 from .ignored import ignored_settings_warning
 from .job import failure_message
 
@@ -223,7 +225,7 @@ def coarse_divisor(width: int, height: int, pixel_size: int = 1) -> int:
 
 
 def refinement_schedule(width: int, height: int, settings: RenderSettings,
-                        pixel_size: int = 1) -> list[RefinementPass]:
+                        pixel_size: int = 1, path: bool = False) -> list[RefinementPass]:
     """The passes a view goes through, each a better picture than the last:
 
     1. coarse: 1 / ``coarse_divisor`` of the resolution, one ray per (big) pixel; left out
@@ -235,6 +237,17 @@ def refinement_schedule(width: int, height: int, settings: RenderSettings,
     4. the scene's own anti-aliasing (its settings unchanged, so the last picture is what F12
        renders of the same view); left out when anti-aliasing is off.
     """
+    if path:
+        # Path tracing refines itself, pass by pass (``core.progressive``): a coarse
+        # sample first, then the view at its resolution, its frames published as its
+        # passes complete (``ProgressiveRender``).
+        traced = dataclasses.replace(settings, tile_size=VIEWPORT_TILE)
+        passes = []
+        if (width // pixel_size) * (height // pixel_size) > COARSE_PIXELS:
+            passes.append(RefinementPass(coarse_divisor(width, height, pixel_size),
+                                         dataclasses.replace(traced, samples=1)))
+        passes.append(RefinementPass(pixel_size, traced))
+        return passes
     base = dataclasses.replace(settings, anti_aliasing="off", tile_size=VIEWPORT_TILE)
     passes = []
     if (width // pixel_size) * (height // pixel_size) > COARSE_PIXELS:
@@ -260,10 +273,11 @@ class ViewportFrame:
     passes: int
     rect: tuple
     semantics: str = "article"
+    complete: bool = True     # False: a progressive pass of a path-traced step
 
     @property
     def final(self) -> bool:
-        return self.index == self.passes - 1
+        return self.complete and self.index == self.passes - 1
 
 
 class ProgressiveRender:
@@ -277,15 +291,18 @@ class ProgressiveRender:
 
     def __init__(self, scene: Scene, view: ViewportView, settings: RenderSettings,
                  pixel_size: int = 1,
-                 on_frame: Optional[Callable[[ViewportFrame], None]] = None):
+                 on_frame: Optional[Callable[[ViewportFrame], None]] = None,
+                 denoise: bool = False):
         self.scene, self.view = scene, view
         x0, y0, x1, y1 = view.rect
-        self.schedule = refinement_schedule(x1 - x0, y1 - y0, settings, pixel_size)
+        self.schedule = refinement_schedule(x1 - x0, y1 - y0, settings, pixel_size,
+                                            path_traced(scene, settings))
         self.frame: Optional[ViewportFrame] = None
         self.error: Optional[BaseException] = None
         self.started = time.perf_counter()
         self.frame_times: list[float] = []    # seconds from start to each finished pass
         self._on_frame = on_frame
+        self._denoise = denoise
         self._stop = threading.Event()
         self._lock = threading.Lock()
         self._thread = threading.Thread(target=self._run, name="glint-viewport", daemon=True)
@@ -294,23 +311,50 @@ class ProgressiveRender:
     def _run(self) -> None:
         for index, step in enumerate(self.schedule):
             scene = dataclasses.replace(self.scene, camera=self.view.camera(step.divisor))
+            final = index == len(self.schedule) - 1
+            denoise = final and self._denoise and denoise_available()
+            settings = (dataclasses.replace(step.settings, guides=True) if denoise
+                        else step.settings)
             try:
-                result = render(scene, step.settings, should_cancel=self._stop.is_set,
-                                image_dtype=np.float32)
+                result = render(scene, settings, should_cancel=self._stop.is_set,
+                                image_dtype=np.float32,
+                                on_pass=self._pass_watcher(index, scene, settings))
             except RenderCancelled:
                 return
             except BaseException as error:  # shown in the viewport's status line
                 self.error = error
                 return
             image = result.image
-            with self._lock:
-                if self._stop.is_set():
-                    return
-                self.frame = ViewportFrame(image, index, len(self.schedule), self.view.rect,
-                                           result.semantics)
-                self.frame_times.append(time.perf_counter() - self.started)
-            if self._on_frame is not None:
-                self._on_frame(self.frame)
+            if denoise and result.albedo is not None:
+                image = np.array(image, np.float32, copy=True)
+                image[..., :3] = denoise_image(image[..., :3], result.albedo, result.normal)
+            if not self._publish(image, index, result.semantics):
+                return
+
+    def _publish(self, image, index: int, semantics: str, final: bool = True) -> bool:
+        """Show ``image`` as the frame of pass ``index`` (final False: one of its progressive
+        passes, more to come); False once cancelled."""
+        with self._lock:
+            if self._stop.is_set():
+                return False
+            self.frame = ViewportFrame(image, index, len(self.schedule), self.view.rect,
+                                       semantics, complete=final)
+            self.frame_times.append(time.perf_counter() - self.started)
+        if self._on_frame is not None:
+            self._on_frame(self.frame)
+        return True
+
+    def _pass_watcher(self, index: int, scene, settings):
+        """For a path-traced pass: an on_pass that publishes the frame as each progressive
+        pass completes, so the view sharpens sample by sample; None for other passes."""
+        if not path_traced(scene, settings):
+            return None
+
+        def on_pass(samples, image):
+            if samples < settings.samples:
+                self._publish(np.array(image[..., :4], np.float32), index,
+                              settings.semantics, final=False)
+        return on_pass
 
     @property
     def done(self) -> bool:
@@ -360,6 +404,9 @@ class ViewportSession:
         self.scene, self.settings, self.pixel_size = scene, settings, pixel_size
         return self._restart()
 
+    #: Denoise the last pass (Glint's Denoise option), set by the engine from the scene.
+    denoise = False
+
     def update_view(self, view: Optional[ViewportView]) -> bool:
         """Take the view being drawn; True if the refinement restarted."""
         if view == self.view:
@@ -374,7 +421,7 @@ class ViewportSession:
         if self.scene is None or self.view is None:
             return False
         self.render = ProgressiveRender(self.scene, self.view, self.settings,
-                                        self.pixel_size, self._on_frame)
+                                        self.pixel_size, self._on_frame, self.denoise)
         self.restarts += 1
         return True
 
@@ -430,8 +477,10 @@ def export_viewport_scene(depsgraph, preferences=None, view: Optional[ViewportVi
     scene, warnings = export_scene(depsgraph, view_camera=camera)
     warnings += ignored_settings_warning(depsgraph)
     blender_scene = depsgraph.scene_eval
-    return (scene, render_settings(blender_scene.glint, blender_scene.render, blender_scene),
-            pixel_size(blender_scene.render, preferences), warnings)
+    settings = render_settings(blender_scene.glint, blender_scene.render, blender_scene)
+    if path_traced(scene, settings):
+        settings = dataclasses.replace(settings, samples=blender_scene.glint.viewport_samples)
+    return (scene, settings, pixel_size(blender_scene.render, preferences), warnings)
 
 
 class ViewportEngine:
@@ -465,6 +514,7 @@ class ViewportEngine:
             self._report(engine, 'ERROR', (str(error),))
             return
         self._report(engine, 'WARNING', tuple(warnings))
+        self.session.denoise = bool(depsgraph.scene_eval.glint.use_denoising)
         self.session.update_scene(scene, settings, size)
 
     def view_draw(self, engine, context, depsgraph) -> None:
