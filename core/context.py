@@ -223,4 +223,17 @@ def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces,
     tables = SurfaceTables.of(scene, world_scale) if programs else None
     return path_setup(settings, lights, mesh, arrays.background,
                       any_holdout=surfaces.any_holdout, programs=programs,
-                      surface_tables=tables, world_program=scene.world)
+                      surface_tables=tables, world_program=scene.world,
+                      pixel=pixel_footprint(scene.camera))
+
+
+def pixel_footprint(camera) -> tuple[float, float]:
+    """(base, spread) of a camera ray's footprint: its width is base + spread x distance
+    (a perspective pixel's size on the plane at unit depth; an orthographic pixel's size)."""
+    from .camera import blender_view_plane
+    if isinstance(camera, BlenderCamera):
+        plane = blender_view_plane(camera)
+        size = 2 * plane.half_width / camera.width
+        return (size, 0.0) if camera.projection == "ORTHO" else (0.0, size)
+    span = abs(camera.right - camera.left) / max(camera.width - 1, 1)
+    return 0.0, span / max(abs(camera.screen_z - camera.eye[2]), 1e-9)

@@ -78,9 +78,10 @@ def _add(colour, path, values):
         colour[row] += np.bincount(path, values[row], colour.shape[1])
 
 
-def closures_at(ctx, hits, normal, geometric, front) -> Closures:
+def closures_at(ctx, hits, normal, geometric, front, travelled=None) -> Closures:
     """The closures of ``hits``: their materials' table rows, and where a material has a
-    program (``PathSetup.programs``), its value at those hits (normals facing the ray)."""
+    program (``PathSetup.programs``), its value at those hits (normals facing the ray);
+    travelled: (k,) how far each hit's path has come (its footprint's growth)."""
     closures = Closures.from_table(ctx.look.surfaces, hits.material)
     setup = ctx.paths
     if not setup.programs:
@@ -92,9 +93,13 @@ def closures_at(ctx, hits, normal, geometric, front) -> Closures:
         barycentrics = (None if hits.barycentrics is None
                         else tuple(b[rows] for b in hits.barycentrics))
         shading = take(normal, rows)
+        footprint = None
+        if travelled is not None:
+            footprint = (setup.pixel_base + setup.pixel_spread * travelled[rows]).astype(
+                ctx.dtype)
         points = surface_points(setup.surface_tables, ctx.geometry, take(hits.points, rows),
                                 shading, take(geometric, rows), -take(hits.directions, rows),
-                                ~front[rows], hits.primitive[rows], barycentrics)
+                                ~front[rows], hits.primitive[rows], barycentrics, footprint)
         value = run(program, points).closures(len(rows), ctx.dtype, shading)
         value.holdout_object = closures.holdout_object[rows]
         if value.normal is not None and closures.normal is None:
@@ -218,6 +223,7 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
     emission_only = np.zeros(n, bool)      # past a bounce limit: the next hit only emits
     by_diffuse = np.zeros(n, bool)         # the ray left a diffuse or translucent lobe
     min_pdf = np.full(n, np.inf, dtype)    # for Filter Glossy
+    travelled = np.zeros(n, dtype)         # the path's length so far (ray footprints)
     origins = rays.origins
     batch = RayBatch(rays.origins, rays.directions, rays.t_min, rays.t_max,
                      ctx.camera_origin if rays.shared_origin else None)
@@ -271,7 +277,8 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
         normal = facing(hits.shading, front)
         geometric = facing(hits.normals, front)
         to_view = -directions
-        closures = closures_at(ctx, hits, normal, geometric, front)
+        travelled = travelled[keep] + hits.t
+        closures = closures_at(ctx, hits, normal, geometric, front, travelled)
         if closures.normal is not None:
             normal = closures.normal
         if depth == 0:
@@ -311,7 +318,7 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
         if len(go) < len(alive):
             path, throughput, seed, sample = path[go], throughput[:, go], seed[go], sample[go]
             bounce, camera_view, min_pdf = bounce[go], camera_view[go], min_pdf[go]
-            last_pdf = last_pdf[go]
+            last_pdf, travelled = last_pdf[go], travelled[go]
             by_diffuse = by_diffuse[go]
             diffuse_bounce, glossy_bounce = diffuse_bounce[go], glossy_bounce[go]
             transmission_bounce, transparent_bounce = (transmission_bounce[go],
@@ -356,7 +363,7 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
         diffuse_bounce, glossy_bounce = diffuse_bounce[go], glossy_bounce[go]
         transmission_bounce, transparent_bounce = (transmission_bounce[go],
                                                    transparent_bounce[go])
-        previous_pdf = last_pdf[go]
+        previous_pdf, travelled = last_pdf[go], travelled[go]
         pdf = drawn.pdf[go]
         through = drawn.through[go]
         # Counting bounces as Cycles does (its limits are the settings plus one).
@@ -452,6 +459,8 @@ class PathSetup:
     programs: dict = None
     surface_tables: object = None
     world_program: object = None
+    pixel_base: float = 0.0
+    pixel_spread: float = 0.0
 
     @property
     def world_shines(self) -> bool:
@@ -465,12 +474,14 @@ class PathSetup:
 
 
 def path_setup(settings, lights, mesh, world, any_holdout: bool, programs=None,
-               surface_tables=None, world_program=None) -> PathSetup:
+               surface_tables=None, world_program=None, pixel=(0.0, 0.0)) -> PathSetup:
     """The frame's ``PathSetup`` (settings: ``RenderSettings``; lights: prepared
     ``core.emitters.Light``s; mesh: ``MeshLights`` or None; world: (3,) radiance;
     programs: {material table row: its ShaderProgram}; surface_tables: what the programs'
     shading points read (``core.surface_points.SurfaceTables``); world_program: the
-    world's ShaderProgram or None)."""
+    world's ShaderProgram or None; pixel: (base, spread) of a ray's footprint, base +
+    spread x distance travelled: a pixel's size on the view plane at unit depth is the
+    perspective's spread, an orthographic pixel's size its base)."""
     sources = tuple(lights) + ((mesh,) if mesh is not None else ())
     power = np.array([max(source.power, 0.0) for source in sources]) if sources else np.zeros(0)
     if len(power) and power.sum() > 0:
@@ -494,7 +505,8 @@ def path_setup(settings, lights, mesh, world, any_holdout: bool, programs=None,
         light_probability=light_probability, mesh_lights=mesh,
         world=np.asarray(world, np.float64), any_holdout=any_holdout,
         index_bits=index_bits(settings.samples), programs=dict(programs or {}),
-        surface_tables=surface_tables, world_program=world_program)
+        surface_tables=surface_tables, world_program=world_program,
+        pixel_base=float(pixel[0]), pixel_spread=float(pixel[1]))
 
 
 def filter_offsets(u, filter_type: str, width: float):

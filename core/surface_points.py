@@ -37,6 +37,7 @@ class SurfaceTables:
     boxes: tuple
     uv_maps: tuple
     world_scale: float
+    meshes: tuple = ()
 
     @classmethod
     def of(cls, scene, world_scale: float = 1.0) -> "SurfaceTables":
@@ -53,7 +54,7 @@ class SurfaceTables:
             boxes.append((low, np.where(size > 0, size, 1.0)))
         return cls(scene.sphere_count, starts.astype(np.int64), counts, tuple(transforms),
                    tuple(inverses), tuple(boxes), tuple(mesh.uv_maps for mesh in scene.meshes),
-                   float(world_scale))
+                   float(world_scale), tuple(scene.meshes))
 
 
 def _triangle_hits(tables: SurfaceTables, primitive):
@@ -138,6 +139,57 @@ class _HitSources:
             result[:2, rows] = np.einsum("kc,kcu->uk", weights, triangle)
         return result
 
+    def object_jacobian(self) -> np.ndarray:
+        """(3, 3, k) d(object coordinates) / d(position) of each hit."""
+        result = np.zeros((3, 3, len(self.primitive)), self.points.dtype)
+        rows = self._spheres()
+        if len(rows):
+            result[:, :, rows] = np.eye(3)[:, :, None] * self.tables.world_scale
+        for m, rows in self._groups():
+            inverse = self.tables.inverses[m][self.instance[rows]][:, :, :3]   # (k, 3, 3)
+            result[:, :, rows] = inverse.transpose(1, 2, 0)
+        return result
+
+    def generated_jacobian(self) -> np.ndarray:
+        jacobian = self.object_jacobian().copy()
+        rows = self._spheres()
+        if len(rows):
+            radius = self.geometry.spheres.radii[self.primitive[rows]] * self.tables.world_scale
+            jacobian[:, :, rows] /= 2 * radius
+        for m, rows in self._groups():
+            _, size = self.tables.boxes[m]
+            jacobian[:, :, rows] /= size[:, None, None]
+        return jacobian
+
+    def uv_jacobian(self, name: str | None = None) -> np.ndarray:
+        """(3, 3, k) d(u, v, 0) / d(position): the UV map's gradients in each hit
+        triangle's plane (object space, then to the world by the object's inverse)."""
+        result = np.zeros((3, 3, len(self.primitive)), self.points.dtype)
+        object_jacobian = self.object_jacobian()
+        for m, rows in self._groups():
+            maps = self.tables.uv_maps[m]
+            if not maps:
+                continue
+            corners = dict(maps).get(name) if name is not None else maps[0][1]
+            if corners is None:
+                continue
+            mesh = self.tables.meshes[m]
+            triangle = mesh.triangles[self.local[rows]]                       # (k, 3)
+            p = mesh.vertices[triangle]                                        # (k, 3, 3)
+            e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+            uv = corners[self.local[rows]].astype(np.float64)                 # (k, 3, 2)
+            d1, d2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+            a11, a12, a22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+            det = a11 * a22 - a12 * a12
+            det = np.where(np.abs(det) > 0, det, 1)
+            for axis in range(2):
+                a = (d1[:, axis] * a22 - d2[:, axis] * a12) / det
+                b = (d2[:, axis] * a11 - d1[:, axis] * a12) / det
+                gradient = a[:, None] * e1 + b[:, None] * e2                  # (k, 3) object
+                result[axis, :, rows] = np.einsum("kj,jik->ki", gradient,
+                                                  object_jacobian[:, :, rows])
+        return result
+
     def object_axis(self, axis: int) -> np.ndarray:
         result = np.zeros_like(self.points)
         rows = self._spheres()
@@ -158,7 +210,7 @@ class _HitSources:
 
 
 def surface_points(tables: SurfaceTables, geometry, points, normal, true_normal, incoming,
-                   backfacing, primitive, barycentrics) -> ShadingPoints:
+                   backfacing, primitive, barycentrics, footprint=None) -> ShadingPoints:
     """The ShadingPoints of k hits: points, shading and true normals (facing the ray) and
     incoming (towards the viewer) (3, k), backfacing (k,), primitive (k,) global ids,
     barycentrics (b0, b1, b2) (k,) each or None (no triangle hit)."""
@@ -171,7 +223,11 @@ def surface_points(tables: SurfaceTables, geometry, points, normal, true_normal,
                "object_axis_x": lambda: hits.object_axis(0),
                "object_axis_y": lambda: hits.object_axis(1),
                "object_axis_z": lambda: hits.object_axis(2)}
+    jacobians = {"object": hits.object_jacobian, "generated": hits.generated_jacobian,
+                 "uv": hits.uv_jacobian}
     names = {name for maps in tables.uv_maps for name, _ in maps}
     for name in names:
         sources[f"uv:{name}"] = (lambda name=name: hits.uv(name))
-    return ShadingPoints(points, normal, true_normal, incoming, backfacing, sources)
+        jacobians[f"uv:{name}"] = (lambda name=name: hits.uv_jacobian(name))
+    return ShadingPoints(points, normal, true_normal, incoming, backfacing, sources,
+                         jacobians, footprint)

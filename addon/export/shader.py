@@ -32,6 +32,9 @@ _PASS_THROUGH = {"NodeReroute"}
 #: How Blender's socket types map to the registry's.
 _SOCKET_KINDS = {"VALUE": FLOAT, "INT": FLOAT, "BOOLEAN": FLOAT, "RGBA": COLOR,
                  "VECTOR": VECTOR, "SHADER": CLOSURE}
+#: Inputs compiled as programs of their own, which the node evaluates where it needs them
+#: (a Bump's height, at each point and at two neighbours): (node, input, option name).
+SUBPROGRAM_INPUTS = {"ShaderNodeBump": (("Height", "height"),)}
 #: Rec.709 luminance, Cycles' colour-to-float conversion in Blender's default config.
 LUMINANCE = (0.2126, 0.7152, 0.0722)
 
@@ -187,6 +190,9 @@ class ShaderCompiler:
             arguments.append(self.argument(socket, groups, kind, spec.implicit.get(identifier),
                                            shader))
         options = self._options(node, spec)
+        for identifier, option in SUBPROGRAM_INPUTS.get(node.bl_idname, ()):
+            options = tuple(sorted(dict(options, **{option: self._subprogram(
+                sockets[identifier], groups)}).items()))
         values = self._emit(node.bl_idname, tuple(arguments), options, len(spec.outputs))
         identifiers = [identifier for identifier, _ in spec.outputs]
         for identifier, value in zip(identifiers, values):
@@ -196,6 +202,17 @@ class ShaderCompiler:
             self._memo[key] = None
         return self._memo[key]
 
+    def _subprogram(self, socket, groups):
+        """The program (or constant) computing a float input on its own."""
+        child = ShaderCompiler(self.owner, self.context)
+        value = child.argument(socket, groups, FLOAT)
+        self.notes += [note for note in child.notes if note not in self.notes]
+        self.coordinates |= child.coordinates
+        if _is_constant(value):
+            return value
+        return ShaderProgram(tuple(child.instructions), value, child.registers, self.owner,
+                             frozenset(child.coordinates))
+
     def _options(self, node, spec) -> tuple:
         from .node_options import OPTION_READERS   # (the readers import the node modules)
 
@@ -204,7 +221,8 @@ class ShaderCompiler:
             takes_context = len(inspect.signature(reader).parameters) > 1
             values = reader(node, self.context) if takes_context else reader(node)
         else:
-            values = {name: _read_option(node, name) for name in spec.options}
+            values = {name: _read_option(node, name) for name in spec.options
+                  if hasattr(node, name)}
         return tuple(sorted(values.items()))
 
     def _emit(self, name: str, arguments: tuple, options: tuple, outputs: int) -> list:

@@ -3,4 +3,4 @@ evaluations (``core.shader.registry``) that the core runs over arrays of shading
 as Cycles' SVM runs a node graph compiled to a list of operations over a stack."""
 
 # The node families register themselves on import.
-from . import bsdf_nodes, conversions  # noqa: E402,F401
+from . import bsdf_nodes, conversions, vector_nodes  # noqa: E402,F401

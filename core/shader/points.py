@@ -28,7 +28,7 @@ class ShadingPoints:
     """
 
     def __init__(self, position, normal, true_normal, incoming, backfacing=None,
-                 sources=None):
+                 sources=None, jacobians=None, footprint=None):
         self.position = position
         self.normal = normal
         self.true_normal = true_normal
@@ -36,7 +36,31 @@ class ShadingPoints:
         n = position.shape[1]
         self.backfacing = np.zeros(n, bool) if backfacing is None else backfacing
         self._sources = dict(sources or {})
+        self._jacobians = dict(jacobians or {})
         self._made: dict[str, np.ndarray] = {}
+        #: (n,) how wide a ray's footprint is at each point (its pixel's spread times the
+        #: distance it travelled), what Cycles' ray differentials give a Bump node.
+        self.footprint = np.zeros(n, position.dtype) if footprint is None else footprint
+
+    def shifted(self, offset) -> "ShadingPoints":
+        """These points moved by ``offset`` (3, n) along their surface (a Bump node's
+        neighbouring points): each coordinate with a Jacobian (its derivatives by position)
+        moves with it, to first order, as Cycles' bump evaluation moves texture
+        coordinates by their differentials; the others stay."""
+        def moved(name):
+            def made():
+                value = self.coordinate(name)
+                jacobian = self._jacobians.get(name)
+                if jacobian is None:
+                    return value
+                return value + np.einsum("ijk,jk->ik", jacobian(), offset)
+            return made
+
+        sources = {name: moved(name) for name in self._sources}
+        shifted = ShadingPoints(self.position + offset, self.normal, self.true_normal,
+                                self.incoming, self.backfacing, sources, self._jacobians,
+                                self.footprint)
+        return shifted
 
     def __len__(self) -> int:
         return self.position.shape[1]
@@ -51,7 +75,8 @@ class ShadingPoints:
         'camera', 'window', 'reflection') come from the sources the integrator gave,
         made on first use.  A name with no source is zero, as Cycles reads an attribute a
         mesh does not have."""
-        if name in ("position", "normal", "incoming"):
+        if name in ("normal", "incoming") or (name == "position"
+                                               and "position" not in self._sources):
             return getattr(self, name)
         made = self._made.get(name)
         if made is None:

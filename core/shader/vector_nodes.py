@@ -1,0 +1,66 @@
+"""Blender's Bump node over arrays of shading points, as Cycles' ``svm_node_set_bump``: the
+height is evaluated at each point and at two neighbours one ray footprint away along the
+surface (``ShadingPoints.shifted``: the height's coordinates moved with them), and the normal
+tilted by the height's surface gradient."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..vectors import dot
+from .program import run
+from .registry import FLOAT, VECTOR, node
+
+
+def _cross(a, b):
+    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                     a[0] * b[1] - a[1] * b[0]])
+
+
+def _tangents(normal):
+    """Two orthogonal unit tangents (3, n) of unit normals (3, n)."""
+    helper = np.where(np.abs(normal[0]) < 0.9, 1.0, 0.0).astype(normal.dtype)
+    other = np.stack([helper, 1 - helper, np.zeros_like(helper)])
+    first = _cross(normal, other)
+    first /= np.sqrt(dot(first, first))
+    return first, _cross(normal, first)
+
+
+def _height(program, points):
+    if program is None:
+        return np.zeros(len(points), points.dtype)
+    if not hasattr(program, "instructions"):
+        return np.broadcast_to(np.asarray(program, points.dtype), (len(points),))
+    return np.broadcast_to(run(program, points), (len(points),))
+
+
+@node("ShaderNodeBump", inputs=(("Strength", FLOAT), ("Distance", FLOAT),
+                                ("Filter Width", FLOAT), ("Normal", VECTOR)),
+      outputs=(("Normal", VECTOR),), options=("invert", "height"),
+      implicit={"Normal": "normal"}, reads_points=True,
+      note="the neighbours' offsets are the ray's footprint times Filter Width")
+def bump(points, strength, distance, filter_width, normal, *, invert=False, height=None):
+    """Cycles' bump: dP = two tangents of the true normal times the footprint (times Filter
+    Width), Rx = dPy x N, Ry = N x dPx, det = dPx . Rx, the gradient (h_x - h_c) Rx +
+    (h_y - h_c) Ry, and N' = normalize(|det| N - distance sign(det) gradient), mixed with N
+    by Strength."""
+    normal = np.broadcast_to(normal, points.position.shape).astype(points.dtype)
+    if height is None or not hasattr(height, "instructions"):
+        return (normal,)
+    width = np.maximum(points.footprint * np.maximum(filter_width, 0), 1e-6)
+    first, second = _tangents(points.true_normal)
+    dx, dy = first * width, second * width
+    h_c = _height(height, points)
+    h_x = _height(height, points.shifted(dx))
+    h_y = _height(height, points.shifted(dy))
+    rx, ry = _cross(dy, normal), _cross(normal, dx)
+    det = dot(dx, rx)
+    gradient = (h_x - h_c) * rx + (h_y - h_c) * ry
+    scale = -distance if invert else distance
+    out = np.abs(det) * normal - scale * np.sign(det) * gradient
+    length = np.sqrt(dot(out, out))
+    out = np.where(length > 0, out / np.where(length > 0, length, 1), normal)
+    strength = np.maximum(strength, 0)
+    mixed = strength * out + (1 - strength) * normal
+    mixed /= np.sqrt(dot(mixed, mixed))
+    return (mixed,)
