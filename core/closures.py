@@ -64,6 +64,7 @@ class Closures:
     holdout: np.ndarray
     holdout_object: np.ndarray
     normal: np.ndarray | None = None
+    smooth: np.ndarray | None = None   # (3, k) the normal before bump: ``bump_shadowing``
 
     def __len__(self) -> int:
         return self.alpha.shape[0]
@@ -183,6 +184,51 @@ def _transmission_share(closures: Closures, cos_o, entering):
     return refracted, reflected, total, eta, cos_t
 
 
+def valid_reflection(true_normal, to_view, normal):
+    """(3, k) Cycles' ``ensure_valid_specular_reflection``: a bumped or mapped shading
+    normal whose mirror reflection of the view would go below the surface, raised towards
+    the true normal (all facing the view, unit, (3, k)) just enough that it does not."""
+    i_z = dot(to_view, true_normal)
+    reflected_z = 2 * dot(normal, to_view) * dot(normal, true_normal) - i_z
+    threshold = np.minimum(0.9 * i_z, 0.01)
+    wrong = reflected_z < threshold
+    if not wrong.any():
+        return normal
+    x = normal - dot(normal, true_normal) * true_normal
+    length = np.sqrt(dot(x, x))
+    x = np.where(length > 0, x / np.where(length > 0, length, 1), normal)
+    i_x = dot(to_view, x)
+    a = i_x * i_x + i_z * i_z
+    b = 2 * (a + i_z * threshold)
+    c = (threshold + i_z) ** 2
+    root = np.sqrt(np.maximum(b * b - 4 * a * c, 0))
+    safe_a = np.where(a > 0, a, 1)
+    nz2 = np.where(i_x < 0, 0.25 * (b + root) / safe_a, 0.25 * (b - root) / safe_a)
+    raised = np.sqrt(np.maximum(1 - nz2, 0)) * x + np.sqrt(np.maximum(nz2, 0)) * true_normal
+    return np.where(wrong, raised, normal)
+
+
+def bump_shadowing(smooth, normal, towards):
+    """(k,) Cycles' ``bump_shadowing_term`` for diffuse lobes of bumped normals (unit,
+    (3, k)) towards unit ``towards`` (3, k): 0 where the direction and the bumped normal are
+    on opposite sides of the smooth surface (no light through opaque geometry), else Conty
+    et al.'s GGX shadowing of the angle to the smooth normal, with a roughness from how far
+    the bump tilts it (alpha^2 = tan^2(tilt) / 8)."""
+    cos_si = dot(smooth, towards)
+    cos_sn = dot(smooth, normal)
+    cos_ni = dot(normal, towards)
+    leak = cos_si * cos_sn * cos_ni < 0
+    cos_i = np.abs(cos_si)
+    cos_d = np.abs(cos_sn)
+    alpha2 = np.clip(0.125 * (1 / np.maximum(cos_d * cos_d, 1e-12) - 1), 0, 1)
+    safe_i = np.maximum(cos_i, 1e-6)
+    tan2_i = (1 - safe_i * safe_i) / (safe_i * safe_i)
+    shadowing = 2 / (1 + np.sqrt(1 + alpha2 * tan2_i))
+    shadowing = np.where((cos_d >= 1) | (cos_i >= 1), 1.0, shadowing)
+    shadowing = np.where(cos_i < 1e-6, 0.0, shadowing)
+    return np.where(leak, 0.0, shadowing)
+
+
 def frame(normal):
     """(tangent, bitangent) (3, k) completing unit normals (3, k) to orthonormal frames
     (Duff et al. 2017)."""
@@ -285,8 +331,11 @@ def evaluate(closures: Closures, choice: LobeChoice, normal, to_view, towards):
     pdf = np.zeros_like(cos_o)
     p = choice.probability
     lit = np.maximum(cos_i, 0)
+    softened = 1.0
+    if closures.smooth is not None:
+        softened = bump_shadowing(closures.smooth, normal, towards)
     if p[DIFFUSE].any():
-        f += diffuse_seen(closures, cos_o) * (lit / np.pi)
+        f += diffuse_seen(closures, cos_o) * (lit / np.pi * softened)
         pdf += p[DIFFUSE] * (lit / np.pi)
     rough = closures.alpha > DELTA_ALPHA
     if (p[GLOSSY] * rough).any():
@@ -302,7 +351,7 @@ def evaluate(closures: Closures, choice: LobeChoice, normal, to_view, towards):
         pdf += np.where(rough & above, p[GLOSSY] * density, 0)
     if p[TRANSLUCENT].any():
         behind = np.maximum(-cos_i, 0)
-        f += closures.translucency * (behind / np.pi)
+        f += closures.translucency * (behind / np.pi * softened)
         pdf += p[TRANSLUCENT] * (behind / np.pi)
     return f, pdf
 

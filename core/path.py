@@ -102,8 +102,11 @@ def closures_at(ctx, hits, normal, geometric, front, travelled=None) -> Closures
                                 ~front[rows], hits.primitive[rows], barycentrics, footprint)
         value = run(program, points).closures(len(rows), ctx.dtype, shading)
         value.holdout_object = closures.holdout_object[rows]
-        if value.normal is not None and closures.normal is None:
-            closures.normal = normal.copy()
+        if value.normal is not None:
+            value.smooth = shading
+            if closures.normal is None:
+                closures.normal = normal.copy()
+                closures.smooth = normal.copy()
         closures.put(rows, value)
     return closures
 

@@ -863,6 +863,9 @@ class TriangleMesh:
     facets' faceted terminator.  Flat meshes (corner_normals None) have none.
     uv_maps: ((name, (T, 3, 2) corner UVs), ...): the UV maps shader programs read, the
     first the active render map (a program's 'uv' coordinate); () where none reads one.
+    tangent_maps: ((UV map name, (T, 3, 4) corner tangents and bitangent signs), ...): the
+    MikkTSpace tangents of the UV maps Normal Map nodes read, object space, the first the
+    active render map's; () where none reads them.
     """
 
     vertices: np.ndarray
@@ -874,6 +877,7 @@ class TriangleMesh:
     name: str = ""
     shadow_terminator_offset: float = DEFAULT_GEOMETRY_OFFSET
     uv_maps: tuple = ()
+    tangent_maps: tuple = ()
 
     def __post_init__(self):
         where = _set_label("mesh", self.name)
@@ -926,6 +930,13 @@ class TriangleMesh:
             _require_finite(where, f"uv_maps[{name!r}]", corners)
             maps.append((name, corners))
         _set(self, "uv_maps", tuple(maps))
+        tangents = []
+        for name, corners in self.tangent_maps:
+            corners = _frozen_array(where, f"tangent_maps[{name!r}]", corners, np.float32,
+                                    (count, 3, 4))
+            _require_finite(where, f"tangent_maps[{name!r}]", corners)
+            tangents.append((str(name), corners))
+        _set(self, "tangent_maps", tuple(tangents))
 
     def __len__(self) -> int:
         """Triangles drawn: triangles per instance times instances."""

@@ -38,6 +38,7 @@ class SurfaceTables:
     uv_maps: tuple
     world_scale: float
     meshes: tuple = ()
+    tangent_maps: tuple = ()
 
     @classmethod
     def of(cls, scene, world_scale: float = 1.0) -> "SurfaceTables":
@@ -54,7 +55,8 @@ class SurfaceTables:
             boxes.append((low, np.where(size > 0, size, 1.0)))
         return cls(scene.sphere_count, starts.astype(np.int64), counts, tuple(transforms),
                    tuple(inverses), tuple(boxes), tuple(mesh.uv_maps for mesh in scene.meshes),
-                   float(world_scale), tuple(scene.meshes))
+                   float(world_scale), tuple(scene.meshes),
+                   tuple(mesh.tangent_maps for mesh in scene.meshes))
 
 
 def _triangle_hits(tables: SurfaceTables, primitive):
@@ -190,6 +192,30 @@ class _HitSources:
                                                   object_jacobian[:, :, rows])
         return result
 
+    def tangent(self, name: str | None, sign: bool) -> np.ndarray:
+        """(3, k) the UV map's interpolated MikkTSpace tangent in world space (sign: its
+        bitangent sign in the first row); zero where a hit's mesh has none."""
+        result = np.zeros_like(self.points)
+        for m, rows in self._groups():
+            maps = self.tables.tangent_maps[m] if self.tables.tangent_maps else ()
+            if not maps:
+                continue
+            corners = dict(maps).get(name) if name is not None else maps[0][1]
+            if corners is None:
+                continue
+            weights = np.stack([b[rows] for b in self.barycentrics], axis=1)   # (k, 3)
+            values = np.einsum("kc,kcj->jk", weights, corners[self.local[rows]])  # (4, k)
+            if sign:
+                result[0, rows] = np.where(values[3] < 0, -1.0, 1.0)
+                continue
+            linear = self.tables.transforms[m][self.instance[rows]][:, :, :3]   # (k, 3, 3)
+            world = np.einsum("kij,jk->ik", linear, values[:3])
+            # Unit length: the canonical frame scales every object (Cycles works on the
+            # object-space tangent, which the mesh's own unit keeps near unit length).
+            length = np.sqrt((world * world).sum(axis=0))
+            result[:, rows] = world / np.where(length > 0, length, 1)
+        return result
+
     def object_axis(self, axis: int) -> np.ndarray:
         result = np.zeros_like(self.points)
         rows = self._spheres()
@@ -229,5 +255,10 @@ def surface_points(tables: SurfaceTables, geometry, points, normal, true_normal,
     for name in names:
         sources[f"uv:{name}"] = (lambda name=name: hits.uv(name))
         jacobians[f"uv:{name}"] = (lambda name=name: hits.uv_jacobian(name))
+    sources["tangent"] = lambda: hits.tangent(None, False)
+    sources["tangent_sign"] = lambda: hits.tangent(None, True)
+    for name in {name for maps in tables.tangent_maps for name, _ in maps}:
+        sources[f"tangent:{name}"] = (lambda name=name: hits.tangent(name, False))
+        sources[f"tangent:{name}_sign"] = (lambda name=name: hits.tangent(name, True))
     return ShadingPoints(points, normal, true_normal, incoming, backfacing, sources,
                          jacobians, footprint)

@@ -210,7 +210,7 @@ def _coordinates(materials) -> set:
 
 def _reads_coordinates(materials) -> bool:
     return bool(_coordinates(materials) & {"uv", "generated", "object", "tangent"}
-                or any(name.startswith("uv:") for name in _coordinates(materials)))
+                or any(name.startswith(("uv:", "tangent:")) for name in _coordinates(materials)))
 
 
 def _uv_names(materials):
@@ -237,6 +237,44 @@ def uv_maps(mesh, arrays: MeshArrays, names) -> tuple:
     for layer in chosen:
         corners = read_array(layer.uv, "vector", 2, np.float32, stored=STORED_FLOAT)
         maps.append((layer.name, corners[arrays.corner_loops].astype(np.float32)))
+    return tuple(maps)
+
+
+def _tangent_names(materials):
+    """The UV maps whose tangents the materials' programs read: None for none, else the
+    names ('' for the active render map)."""
+    names = _coordinates(materials)
+    wanted = {name[8:] for name in names if name.startswith("tangent:")
+              and not name.endswith("_sign")}
+    if "tangent" in names:
+        wanted.add("")
+    return wanted or None
+
+
+def tangent_maps(mesh, arrays: MeshArrays, names, context=None) -> tuple:
+    """((UV map name, (T, 3, 4) float32 corner tangents and signs), ...) for ``names`` (as
+    ``uv_maps``), Blender's MikkTSpace tangents (``Mesh.calc_tangents``, which Cycles uses
+    too); () for None or where Blender cannot compute them (faces of more than 4 corners:
+    a note says so)."""
+    if not names or not len(mesh.uv_layers):
+        return ()
+    active = next((layer for layer in mesh.uv_layers if layer.active_render),
+                  mesh.uv_layers[0])
+    chosen = [active] + [layer for layer in mesh.uv_layers
+                         if layer.name in names and layer is not active]
+    maps = []
+    for layer in chosen:
+        try:
+            mesh.calc_tangents(uvmap=layer.name)
+        except RuntimeError as error:
+            if context is not None:
+                context.note(f"mesh '{mesh.name}': no tangents for UV map '{layer.name}' "
+                             f"({error}); its Normal Map nodes leave the normal as it is")
+            continue
+        tangent = read_array(mesh.loops, "tangent", 3, np.float32, stored=STORED_FLOAT)
+        sign = read_array(mesh.loops, "bitangent_sign", 1, np.float32, stored=STORED_FLOAT)
+        corners = np.concatenate([tangent, sign[:, None]], axis=1)[arrays.corner_loops]
+        maps.append((layer.name, corners.astype(np.float32)))
     return tuple(maps)
 
 
@@ -374,6 +412,8 @@ class MeshExporter:
                 corner_normals=arrays.corner_normals, material_indices=remap[slots],
                 materials=materials, transforms=matrices,
                 name=name, shadow_terminator_offset=use.terminator_offset,
-                uv_maps=uv_maps(use.mesh, arrays, _uv_names(materials))))
+                uv_maps=uv_maps(use.mesh, arrays, _uv_names(materials)),
+                tangent_maps=tangent_maps(use.mesh, arrays, _tangent_names(materials),
+                                          self.context)))
         except SceneError as error:
             raise ExportError(f"object '{use.name}': {error}") from None

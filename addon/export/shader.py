@@ -32,6 +32,21 @@ _PASS_THROUGH = {"NodeReroute"}
 #: How Blender's socket types map to the registry's.
 _SOCKET_KINDS = {"VALUE": FLOAT, "INT": FLOAT, "BOOLEAN": FLOAT, "RGBA": COLOR,
                  "VECTOR": VECTOR, "SHADER": CLOSURE}
+def _tangent_names(node) -> set:
+    name = f"tangent:{node.uv_map}" if node.uv_map else "tangent"
+    return {name, f"{name}_sign"} if node.space == 'TANGENT' else set()
+
+
+#: The coordinates a node reads of the shading points beyond its inputs' (so that the
+#: exporter provides them: UV maps and tangents are read from meshes only when asked for).
+NODE_COORDINATES = {
+    "ShaderNodeNormalMap": _tangent_names,
+    "ShaderNodeUVMap": lambda node: {f"uv:{node.uv_map}" if node.uv_map else "uv"},
+    "ShaderNodeTexCoord": lambda node: {"uv", "generated", "object"},
+    "ShaderNodeTangent": lambda node: ({f"tangent:{node.uv_map}" if node.uv_map else "tangent"}
+                                       if node.direction_type == 'UV_MAP' else set()),
+}
+
 #: Inputs compiled as programs of their own, which the node evaluates where it needs them
 #: (a Bump's height, at each point and at two neighbours): (node, input, option name).
 SUBPROGRAM_INPUTS = {"ShaderNodeBump": (("Height", "height"),)}
@@ -190,6 +205,9 @@ class ShaderCompiler:
             arguments.append(self.argument(socket, groups, kind, spec.implicit.get(identifier),
                                            shader))
         options = self._options(node, spec)
+        reads = NODE_COORDINATES.get(node.bl_idname)
+        if reads is not None:
+            self.coordinates |= reads(node)
         for identifier, option in SUBPROGRAM_INPUTS.get(node.bl_idname, ()):
             options = tuple(sorted(dict(options, **{option: self._subprogram(
                 sockets[identifier], groups)}).items()))

@@ -1,7 +1,10 @@
-"""Blender's Bump node over arrays of shading points, as Cycles' ``svm_node_set_bump``: the
-height is evaluated at each point and at two neighbours one ray footprint away along the
-surface (``ShadingPoints.shifted``: the height's coordinates moved with them), and the normal
-tilted by the height's surface gradient."""
+"""Blender's Bump and Normal Map nodes over arrays of shading points.
+
+Bump, as Cycles' ``svm_node_set_bump``: the height is evaluated at each point and at two
+neighbours one ray footprint away along the surface (``ShadingPoints.shifted``: the height's
+coordinates moved with them), and the normal tilted by the height's surface gradient.
+Normal Map, as ``svm_node_normal_map``: a colour read as a direction in the UV map's tangent
+space (its MikkTSpace tangents, exported per corner), in object or in world space."""
 
 from __future__ import annotations
 
@@ -9,7 +12,7 @@ import numpy as np
 
 from ..vectors import dot
 from .program import run
-from .registry import FLOAT, VECTOR, node
+from .registry import COLOR, FLOAT, VECTOR, node
 
 
 def _cross(a, b):
@@ -64,3 +67,50 @@ def bump(points, strength, distance, filter_width, normal, *, invert=False, heig
     mixed = strength * out + (1 - strength) * normal
     mixed /= np.sqrt(dot(mixed, mixed))
     return (mixed,)
+
+
+@node("ShaderNodeNormalMap", inputs=(("Strength", FLOAT), ("Color", COLOR)),
+      outputs=(("Normal", VECTOR),), options=("space", "uv_map"), reads_points=True)
+def normal_map(points, strength, colour, *, space="TANGENT", uv_map=""):
+    """Cycles' ``svm_node_normal_map``: the colour's 2 c - 1 as a direction in tangent space
+    (the UV map's MikkTSpace tangent, the bitangent sign x (N x T), the normal), object
+    or world space; mixed with the shading normal by Strength.  Without tangents (a mesh
+    without the UV map, a sphere) the normal is unchanged, as in Cycles."""
+    c = 2 * (np.broadcast_to(colour, points.position.shape) - 0.5)
+    normal = points.normal
+    facing = np.where(points.backfacing, -1.0, 1.0).astype(points.dtype)
+    outward = normal * facing
+    if space == "TANGENT":
+        name = f"tangent:{uv_map}" if uv_map else "tangent"
+        tangent = points.coordinate(name)
+        sign = points.coordinate(f"{name}_sign")[0]
+        has = dot(tangent, tangent) > 0
+        bitangent = sign * _cross(outward, tangent)
+        mapped = c[0] * tangent + c[1] * bitangent + c[2] * outward
+        mapped = np.where(has, mapped, outward)
+    elif space in ("OBJECT", "BLENDER_OBJECT"):
+        if space == "BLENDER_OBJECT":
+            c = np.stack([c[0], c[1], -c[2]])   # Blender's object space flips Z
+        axes = [points.coordinate(f"object_axis_{axis}") for axis in "xyz"]
+        mapped = _object_normal(axes, c)
+    else:
+        if space == "BLENDER_WORLD":
+            c = np.stack([c[0], c[1], -c[2]])
+        mapped = c
+    length = np.sqrt(dot(mapped, mapped))
+    mapped = np.where(length > 0, mapped / np.where(length > 0, length, 1), outward) * facing
+    strength = np.maximum(strength, 0)
+    if np.any(strength != 1):
+        mixed = normal + (mapped - normal) * strength
+        length = np.sqrt(dot(mixed, mixed))
+        mapped = np.where(length > 0, mixed / np.where(length > 0, length, 1), normal)
+    return (mapped,)
+
+
+def _object_normal(axes, n):
+    """An object-space normal n (3, k) in world space, by the inverse transpose of the
+    matrix whose columns are the object's world-space axes (3, k) each."""
+    x, y, z = axes
+    # The inverse transpose's columns are the cofactors: (y x z, z x x, x x y) / det.
+    cx, cy, cz = _cross(y, z), _cross(z, x), _cross(x, y)
+    return n[0] * cx + n[1] * cy + n[2] * cz
