@@ -64,10 +64,12 @@ def _power_heuristic(a, b):
 
 
 def _clamp(values, limit: float):
-    """Cycles' film clamp: a contribution (3, k) whose channels sum above ``limit`` (0: no
-    clamp) is scaled down to it."""
+    """Cycles' film clamp: a contribution (3, k) whose channels sum above three times the
+    user's ``limit`` (0: no clamp; Cycles scales the setting by 3 so that it reads as a
+    per-channel value for grey light) is scaled down to it."""
     if not limit > 0:
         return values
+    limit = 3 * limit
     total = np.abs(values).sum(axis=0)
     return values * np.where(total > limit, limit / np.where(total > 0, total, 1), 1)
 
@@ -524,14 +526,18 @@ _FILTER_TABLES: dict = {}
 
 
 def _filter_table(filter_type: str, width: float) -> np.ndarray:
+    """The inverse cumulative distribution of Cycles' filter (``film.cpp``'s filter table):
+    a box over the width; a Gaussian exp(-2 (6 x / width)^2) over it; Blackman-Harris over
+    twice the width (Cycles doubles it: the window is narrow)."""
     key = (filter_type, width)
     table = _FILTER_TABLES.get(key)
     if table is None:
-        x = np.linspace(-0.5, 0.5, 4097) * width
+        span = 2 * width if filter_type == "BLACKMAN_HARRIS" else width
+        x = np.linspace(-0.5, 0.5, 4097) * span
         if filter_type == "BOX":
             weight = np.ones_like(x)
         elif filter_type == "GAUSSIAN":
-            weight = np.exp(-2 * (x / (width / 2)) ** 2 * 2)
+            weight = np.exp(-2 * (6 * x / width) ** 2)
         else:
             t = np.linspace(0, 1, len(x))
             weight = (0.35875 - 0.48829 * np.cos(2 * np.pi * t)

@@ -110,8 +110,55 @@ def aim(obj, target):
     obj.rotation_euler = direction.to_track_quat('-Z', 'Y').to_euler()
 
 
+#: Where Cycles' references are kept between runs, per Blender version (a fresh clone, as CI
+#: has, renders them all).  GLINT_CYCLES_CACHE overrides it; "off" renders every time.
+CACHE_VARIABLE = "GLINT_CYCLES_CACHE"
+_calls: dict = {}
+
+
+def _cache_path():
+    """The file a reference of the running test's next render is cached in, or None: keyed
+    by the test's id, its render's number within the test, the sources of the test file and
+    of this module (an edit to either renders anew) and the render's size and samples."""
+    import hashlib
+
+    root = os.environ.get(CACHE_VARIABLE, os.path.join(os.path.expanduser("~"), ".cache",
+                                                       "glint", "cycles-references"))
+    current = os.environ.get("PYTEST_CURRENT_TEST")
+    if root == "off" or not current:
+        return None
+    test_id = current.rsplit(" ", 1)[0]
+    count = _calls[test_id] = _calls.get(test_id, 0) + 1
+    digest = hashlib.sha1(f"{test_id} {count}".encode())
+    test_file = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                             test_id.split("::")[0])
+    for path in (__file__, test_file):
+        if path and os.path.exists(path):
+            with open(path, "rb") as source:
+                digest.update(source.read())
+    scene = bpy.context.scene
+    digest.update(f"{scene.render.resolution_x} {scene.render.resolution_y} "
+                  f"{scene.cycles.samples}".encode())
+    folder = os.path.join(root, bpy.app.version_string.replace(" ", "_"))
+    return os.path.join(folder, digest.hexdigest() + ".npy")
+
+
 def render_cycles() -> np.ndarray:
-    """(H, W, 4) float32 scene-linear Cycles render, row 0 = top."""
+    """(H, W, 4) float32 scene-linear Cycles render, row 0 = top (cached: ``_cache_path``)."""
+    cached = _cache_path()
+    if cached is not None and os.path.exists(cached):
+        image = np.load(cached)
+        if image.shape == (HEIGHT, WIDTH, 4):
+            return image
+    image = _render_cycles()
+    if cached is not None:
+        os.makedirs(os.path.dirname(cached), exist_ok=True)
+        np.save(cached + ".tmp.npy", image)
+        os.replace(cached + ".tmp.npy", cached)
+    return image
+
+
+def _render_cycles() -> np.ndarray:
     scene = bpy.context.scene
     scene.render.engine = 'CYCLES'
     settings = scene.render.image_settings
