@@ -1,3 +1,6 @@
 """Shader programs: Blender's node trees, compiled by the add-on into flat lists of node
 evaluations (``core.shader.registry``) that the core runs over arrays of shading points,
 as Cycles' SVM runs a node graph compiled to a list of operations over a stack."""
+
+# Importing the node modules registers their nodes in ``registry.NODES``.
+from . import colour_nodes, converter_nodes, input_nodes  # noqa: E402,F401
