@@ -15,6 +15,7 @@ from __future__ import annotations
 import bpy
 from mathutils import Color, Matrix
 
+from ...core.shader.colour_models import CYCLES_XYZ_TO_REC709, IDENTITY
 from ...core.shader.colour_nodes import RAMP_TABLE_SIZE
 
 
@@ -137,7 +138,16 @@ def rgb_to_bw(node) -> dict:
 
 
 def blackbody(node) -> dict:
-    return dict(rec709_to_scene=_matrix_of(lambda c: c.from_rec709_linear_to_scene_linear()))
+    """Cycles leaves Blackbody's Rec.709 colour as it is in a Rec.709 working space, and
+    otherwise takes it to XYZ with its own Rec.709 matrix and from there to the working
+    space."""
+    rec709_to_scene = _matrix_of(lambda c: c.from_rec709_linear_to_scene_linear())
+    if all(abs(rec709_to_scene[i][j] - IDENTITY[i][j]) < 1e-4
+           for i in range(3) for j in range(3)):
+        return dict(rec709_to_scene=IDENTITY)
+    xyz_to_scene = Matrix(_matrix_of(lambda c: c.from_xyz_d65_to_scene_linear()))
+    matrix = xyz_to_scene @ Matrix(CYCLES_XYZ_TO_REC709).inverted()
+    return dict(rec709_to_scene=tuple(_floats(row) for row in matrix))
 
 
 def wavelength(node) -> dict:

@@ -21,6 +21,12 @@ XYZ_TO_REC709 = ((3.2409704, -1.5373846, -0.4986115),
                  (-0.9692435, 1.875967, 0.0415547),
                  (0.0556299, -0.2039765, 1.0569712))
 
+#: Cycles' own XYZ -> Rec.709 matrix (Bruce Lindbloom's sRGB figures): Cycles moves a
+#: Rec.709 colour (Blackbody's) into another working space through XYZ with it.
+CYCLES_XYZ_TO_REC709 = ((3.2404542, -1.5371385, -0.4985314),
+                        (-0.9692660, 1.8760108, 0.0415560),
+                        (0.0556434, -0.2040259, 1.0572252))
+
 IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 
 
