@@ -59,25 +59,37 @@ class NodeScene:
 
     x_range, y_range: the Object coordinates at the left/right and bottom/top edges.
     turn: the plane turned about Z by this angle (radians), scaled to still fill the view.
+    perspective: a perspective camera (placed so the view spans the same part of the
+    plane), so that the direction to the camera varies over the image; back: the plane
+    faces away from the camera (every hit is backfacing).
     ``x`` and ``y``: sockets giving them; ``X``, ``Y``: (HEIGHT, WIDTH) their exact values
     at the pixel centres (row 0 at the top, as the EXR).
     """
 
-    def __init__(self, x_range=(-2.0, 2.0), y_range=(-1.5, 1.5), turn=0.0):
+    def __init__(self, x_range=(-2.0, 2.0), y_range=(-1.5, 1.5), turn=0.0, perspective=False,
+                 back=False):
         scene = cycles_scene(samples=1)
         scene.render.resolution_x, scene.render.resolution_y = WIDTH, HEIGHT
         for obj in list(scene.objects):
             bpy.data.objects.remove(obj)
         camera = bpy.data.cameras.new("top")
-        camera.type = 'ORTHO'
-        camera.ortho_scale = VIEW_WIDTH
         camera_object = link(bpy.data.objects.new("top", camera))
-        camera_object.location = (0.0, 0.0, CAMERA_HEIGHT)
+        if perspective:
+            # At this height the perspective view spans the same 4 x 3 units of the plane.
+            camera.sensor_fit, camera.sensor_width, camera.lens = 'HORIZONTAL', 36.0, 50.0
+            height = VIEW_WIDTH / 2 * camera.lens / (camera.sensor_width / 2)
+        else:
+            camera.type, camera.ortho_scale = 'ORTHO', VIEW_WIDTH
+            height = CAMERA_HEIGHT
+        camera_object.location = (0.0, 0.0, height)
         scene.camera = camera_object
+        self.eye = np.array([0.0, 0.0, height]) if perspective else None
+        self.back = back
         (x0, x1), (y0, y1) = x_range, y_range
         mesh = bpy.data.meshes.new("plane")
+        corners = [(0, 1, 2, 3)] if not back else [(3, 2, 1, 0)]
         mesh.from_pydata([(x0, y0, 0.0), (x1, y0, 0.0), (x1, y1, 0.0), (x0, y1, 0.0)], [],
-                         [(0, 1, 2, 3)])
+                         corners)
         self.plane = link(bpy.data.objects.new("plane", mesh))
         # Turned by ``turn`` about Z, the plane is scaled to cover the view's rotated extent;
         # its centre sits at the view's centre.
@@ -170,7 +182,8 @@ class NodeScene:
 
     def points(self, X=None, Y=None, sources=None) -> ShadingPoints:
         """ShadingPoints at the pixel centres (or at Object coordinates X, Y): on the plane,
-        normal and incoming direction +Z (towards the camera), Object coordinates given."""
+        normal +Z (facing the camera, on either side), incoming towards the camera, Object
+        coordinates given."""
         X = self.X if X is None else X
         Y = self.Y if Y is None else Y
         local = np.stack([X.ravel(), Y.ravel(), np.zeros(X.size)])
@@ -178,9 +191,15 @@ class NodeScene:
                  + np.array(self.plane.matrix_world)[:3, 3:4])
         up = np.zeros_like(world)
         up[2] = 1.0
+        if self.eye is None:
+            incoming = up.copy()
+        else:
+            incoming = self.eye[:, None] - world
+            incoming /= np.linalg.norm(incoming, axis=0)
         given = {"object": lambda: local}
         given.update(sources or {})
-        return ShadingPoints(world, up, up.copy(), up.copy(), sources=given)
+        return ShadingPoints(world, up, up.copy(), incoming,
+                             backfacing=np.full(X.size, self.back), sources=given)
 
 
 def by_identifier(sockets) -> dict:
