@@ -6,17 +6,20 @@ feeds the node under test inputs that vary over the image: the plane's Object co
 scaled to fill the view whatever the ranges), through nodes the test adds.  Each result goes
 to a shader AOV, so one Cycles render (1 sample per pixel at its centre: ``cycles_scene``'s
 filter_width 0.01) checks many nodes at once; the multilayer OpenEXR holds the AOVs
-scene-linear and unclamped (negative values too, which an Emission shader would not show
-as they are).  The test computes the same inputs at each pixel centre and calls the node's
+scene-linear and unclamped (an Emission shader's pixels would be the same but for negative
+channels, which Cycles' emission turns to 0: seen for a colour of (-0.5, 2, 0.3)).  The test computes the same inputs at each pixel centre and calls the node's
 function from the registry with them, its options read from the Blender node as the add-on
 reads them (``addon.export.node_options``, else the node's properties).
 
 Tolerance (``compare``): Cycles computes in float32, so a value may differ from the float64
 one by a few float32 steps of the quantities involved (``RTOL``, ``ATOL``); and Cycles'
 Object coordinates carry an error of their own (the hit point found in world space and moved
-into object space: ``INPUT_ERROR``, measured under 5e-7 for these planes), so where the
-result is steep or jumps (floor, modulo, a colour ramp's constant steps) the comparison allows
-for any value the function takes within that error of the pixel's inputs.
+into object space: ``INPUT_ERROR``, measured at most 3e-7 of the largest coordinate), so
+where the result is steep or jumps (floor, modulo, a colour ramp's constant steps) the
+comparison allows for the values the function takes within that error of the pixel's
+inputs, and for as much again about its own value (a sawtooth such as Wrap has branches on
+both sides that float32 rounding can land between).  So that this cannot hide a wrong
+function, at most MAX_LOOSE of a node's pixels may have such an allowance above LOOSE.
 """
 
 from __future__ import annotations
@@ -44,7 +47,7 @@ CAMERA_HEIGHT = 10.0
 #: float32 arithmetic: a few units in the last place of values near 1.
 RTOL, ATOL = 2e-6, 2e-6
 #: How far Cycles' Object coordinates may be from the exact pixel centre, relative to the
-#: coordinate ranges (measured: under 5e-7 of a range of 4).
+#: largest coordinate (measured: 2.4e-7 for ranges of 4, 2.9e-7 for 20, 2e-7 for 1).
 INPUT_ERROR = 1e-6
 #: A pixel whose allowance grew past LOOSE (relative to 1 + |value|) is loosely checked (the
 #: function is steep or jumps there); at most MAX_LOOSE of the pixels may be.
@@ -255,8 +258,9 @@ def compare(cycles, compute, scene: NodeScene, label: str, rtol=RTOL, atol=ATOL,
             max_loose=MAX_LOOSE):
     """Assert Cycles' image matches ``compute(X, Y)`` (the function's output at Object
     coordinates X, Y, as an image) within the module docstring's tolerance: float32
-    arithmetic (rtol, atol) plus whatever the function changes within INPUT_ERROR of each
-    pixel's inputs; at most ``max_loose`` of the pixels may be loosely checked (LOOSE)."""
+    arithmetic (rtol, atol) beyond the range of values the function takes within
+    INPUT_ERROR of each pixel's inputs, or that range's width about its own value; at most
+    ``max_loose`` of the pixels may have a range wider than LOOSE."""
     expected = compute(scene.X, scene.Y)
     step = INPUT_ERROR * scene.scale
     low, high = expected.copy(), expected.copy()
@@ -283,3 +287,16 @@ def compare(cycles, compute, scene: NodeScene, label: str, rtol=RTOL, atol=ATOL,
     assert loose.mean() <= max_loose, (
         f"{label}: {loose.mean():.1%} of the pixels are steep or jump within the inputs' "
         "error: the comparison would say little there")
+
+
+def check_outputs(scene: NodeScene, cases):
+    """Render ``scene`` once and ``compare`` each case with Cycles: (label, Blender node,
+    output identifier, compute(X, Y) -> the node function's outputs at Object coordinates
+    X, Y, as ``evaluate`` gives them)."""
+    names = [scene.aov(by_identifier(blender_node.outputs)[output])
+             for _, blender_node, output, _ in cases]
+    rendered = scene.render()
+    for name, (label, blender_node, output, compute) in zip(names, cases):
+        colour = by_identifier(blender_node.outputs)[output].type in ("VECTOR", "RGBA")
+        compare(rendered[name], lambda X, Y: as_image(compute(X, Y)[output], colour), scene,
+                label)

@@ -10,7 +10,7 @@ import bpy
 import numpy as np
 import pytest
 
-from node_support import NodeScene, as_image, by_identifier, compare, evaluate, node_options
+from node_support import NodeScene, by_identifier, check_outputs, evaluate, node_options
 
 from glint.core.shader.colour_nodes import BLEND_MODES, RAMP_TABLE_SIZE, ramp_table  # noqa: E402
 
@@ -21,17 +21,6 @@ HUE_MODES = ("NEAR", "FAR", "CW", "CCW")
 #: Stops of the ramps under test: uneven spacing, hues all round the circle, colours past 1.
 STOPS = ((0.1, (0.9, 0.1, 0.2, 1.0)), (0.35, (0.1, 0.8, 0.3, 0.5)),
          (0.42, (0.2, 0.3, 1.2, 0.8)), (0.8, (1.0, 0.9, 0.1, 0.2)))
-
-
-def check_outputs(scene, cases):
-    """Render once and compare each (label, Blender node, output identifier, compute(X, Y))."""
-    names = [scene.aov(by_identifier(blender_node.outputs)[output])
-             for _, blender_node, output, _ in cases]
-    rendered = scene.render()
-    for name, (label, blender_node, output, compute) in zip(names, cases):
-        colour = by_identifier(blender_node.outputs)[output].type in ("VECTOR", "RGBA")
-        compare(rendered[name], lambda X, Y: as_image(compute(X, Y)[output], colour), scene,
-                label)
 
 
 def set_stops(ramp, stops):

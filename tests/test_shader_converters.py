@@ -5,38 +5,27 @@ from AOVs; tolerances there: float32 arithmetic plus the inputs' own error)."""
 
 from __future__ import annotations
 
-import math
-
+import bpy
 import numpy as np
 import pytest
 
-from node_support import NodeScene, as_image, by_identifier, compare, evaluate
+from node_support import NodeScene, by_identifier, check_outputs, evaluate
 
-from glint.core.shader.registry import NODES  # noqa: E402
+from glint.core.shader import converter_nodes  # noqa: E402
 
 MATH_OPERATIONS = [item.identifier for item in
-                   __import__("bpy").types.ShaderNodeMath.bl_rna.properties["operation"].enum_items]
-VECTOR_OPERATIONS = [item.identifier for item in __import__("bpy").types.ShaderNodeVectorMath
-                     .bl_rna.properties["operation"].enum_items]
+                   bpy.types.ShaderNodeMath.bl_rna.properties["operation"].enum_items]
+VECTOR_OPERATIONS = [item.identifier for item in
+                     bpy.types.ShaderNodeVectorMath.bl_rna.properties["operation"].enum_items]
 #: Math's third input where an operation reads it (Multiply Add, Compare's epsilon, Smooth
 #: Min/Max's distance, Wrap's minimum).
 THIRD = 0.35
 
 
-def check_outputs(scene, cases, tolerances=None):
-    """Render ``scene`` once and compare each (label, Blender node, output identifier,
-    compute(X, Y) -> node outputs) with Cycles."""
-    names = [scene.aov(blender_node.outputs[output]) for _, blender_node, output, _ in cases]
-    rendered = scene.render()
-    for name, (label, blender_node, output, compute) in zip(names, cases):
-        colour = blender_node.outputs[output].type in ("VECTOR", "RGBA")
-        compare(rendered[name], lambda X, Y: as_image(compute(X, Y)[output], colour), scene,
-                label, **(tolerances or {}).get(label, {}))
-
-
-def test_every_math_operation_is_registered():
-    assert set(MATH_OPERATIONS) <= set(__import__("glint.core.shader.converter_nodes",
-                                                  fromlist=["x"]).MATH_OPERATIONS)
+def test_every_math_and_vector_math_operation_of_blender_is_implemented():
+    assert set(MATH_OPERATIONS) == set(converter_nodes.MATH_OPERATIONS)
+    assert set(VECTOR_OPERATIONS) == (set(converter_nodes.VECTOR_OPERATIONS)
+                                      | set(converter_nodes.VECTOR_VALUE_OPERATIONS))
 
 
 @pytest.mark.parametrize("x_range, y_range, use_clamp", [
@@ -56,8 +45,7 @@ def test_math_matches_cycles(x_range, y_range, use_clamp):
                       lambda X, Y, n=blender_node: evaluate(n, scene.points(X, Y),
                                                             Value=X.ravel(),
                                                             Value_001=Y.ravel())))
-    # exp, sinh and cosh of up to 7 reach 1e3: float32's expf/sinhf are within 2 ulp there.
-    check_outputs(scene, cases, {name: dict(rtol=1e-6 * 2 ** 2) for name in ()})
+    check_outputs(scene, cases)
 
 
 def vector_inputs(scene):

@@ -15,27 +15,22 @@ import bpy
 import numpy as np
 import pytest
 
-from node_support import (HEIGHT, VIEW_HEIGHT, VIEW_WIDTH, WIDTH, NodeScene, as_image,
-                          by_identifier, compare, evaluate)
+from node_support import VIEW_HEIGHT, VIEW_WIDTH, NodeScene, check_outputs, evaluate
 
 from glint.addon.export.node_options import world_to_camera  # noqa: E402
 from glint.core.shader.points import ShadingPoints  # noqa: E402
 from glint.core.shader.registry import NODES  # noqa: E402
 
 
-def check_outputs(scene, cases, sources=None):
-    """Render once; compare each (Blender node, output identifier, linked inputs(X, Y))
-    with the node function at ShadingPoints carrying ``sources(X, Y)``."""
-    names = [scene.aov(by_identifier(blender_node.outputs)[output])
-             for blender_node, output, _ in cases]
-    rendered = scene.render()
-    for name, (blender_node, output, inputs) in zip(names, cases):
-        colour = by_identifier(blender_node.outputs)[output].type in ("VECTOR", "RGBA")
-
-        def compute(X, Y, n=blender_node, o=output, given=inputs):
+def cases_of(scene, entries, sources=None):
+    """``check_outputs`` cases for (Blender node, output identifier, linked inputs(X, Y)),
+    the node function run at ShadingPoints carrying ``sources(X, Y)``."""
+    def case(blender_node, output, inputs):
+        def compute(X, Y):
             points = scene.points(X, Y, sources(X, Y) if sources else None)
-            return as_image(evaluate(n, points, **given(X, Y))[o], colour)
-        compare(rendered[name], compute, scene, f"{blender_node.bl_idname} {output}")
+            return evaluate(blender_node, points, **inputs(X, Y))
+        return (f"{blender_node.bl_idname} {output}", blender_node, output, compute)
+    return [case(*entry) for entry in entries]
 
 
 def no_inputs(X, Y):
@@ -48,7 +43,8 @@ def test_value_and_rgb_match_cycles():
     value.outputs[0].default_value = -2.75
     colour = scene.node("ShaderNodeRGB")
     colour.outputs[0].default_value = (0.2, 1.7, 0.05, 1.0)
-    check_outputs(scene, [(value, "Value", no_inputs), (colour, "Color", no_inputs)])
+    check_outputs(scene, cases_of(scene, [(value, "Value", no_inputs),
+                                          (colour, "Color", no_inputs)]))
 
 
 @pytest.mark.parametrize("back", [False, True], ids=["front", "back"])
@@ -83,7 +79,7 @@ def test_fresnel_and_layer_weight_match_cycles(back):
         for output in ("Fresnel", "Facing"):
             cases.append((weight, output,
                           lambda X, Y, n=normal: dict(Blend=X.ravel() * 1.4 - 0.2, **n(X, Y))))
-    check_outputs(scene, cases)
+    check_outputs(scene, cases_of(scene, cases))
 
 
 @pytest.mark.parametrize("back", [False, True], ids=["front", "back"])
@@ -94,9 +90,8 @@ def test_geometry_matches_cycles(back):
     data and read as given (``test_per_hit_data_defaults``)."""
     scene = NodeScene(perspective=True, back=back)
     geometry = scene.node("ShaderNodeNewGeometry")
-    check_outputs(scene, [(geometry, output, no_inputs) for output in
-                          ("Position", "Normal", "True Normal", "Incoming", "Backfacing",
-                           "Pointiness")])
+    outputs = ("Position", "Normal", "True Normal", "Incoming", "Backfacing", "Pointiness")
+    check_outputs(scene, cases_of(scene, [(geometry, output, no_inputs) for output in outputs]))
 
 
 def window_and_camera_sources(scene):
@@ -147,7 +142,7 @@ def test_texture_coordinate_matches_cycles():
     cases = [(plain, output, no_inputs) for output in
              ("Generated", "Normal", "UV", "Object", "Camera", "Window", "Reflection")]
     cases.append((relative, "Object", no_inputs))
-    check_outputs(scene, cases, sources)
+    check_outputs(scene, cases_of(scene, cases, sources))
 
 
 def object_sources(scene, obj, material):
@@ -171,9 +166,9 @@ def test_object_info_matches_cycles():
     scene.plane.pass_index = 5
     scene.material.pass_index = 3
     info = scene.node("ShaderNodeObjectInfo")
-    check_outputs(scene, [(info, output, no_inputs) for output in
-                          ("Location", "Color", "Alpha", "Object Index", "Material Index")],
-                  object_sources(scene, scene.plane, scene.material))
+    outputs = ("Location", "Color", "Alpha", "Object Index", "Material Index")
+    check_outputs(scene, cases_of(scene, [(info, output, no_inputs) for output in outputs],
+                                  object_sources(scene, scene.plane, scene.material)))
 
 
 def test_attribute_matches_cycles():
@@ -214,7 +209,7 @@ def test_attribute_matches_cycles():
                           attribute_name=name)
         outputs = ("Color", "Vector", "Fac", "Alpha") if name == "tint" else ("Color", "Fac")
         cases.extend((node, output, no_inputs) for output in outputs)
-    check_outputs(scene, cases, sources)
+    check_outputs(scene, cases_of(scene, cases, sources))
 
 
 def test_light_path_matches_cycles_for_camera_rays():
@@ -232,8 +227,8 @@ def test_light_path_matches_cycles_for_camera_rays():
         length = distance - clip_start * distance / scene.eye[2]
         return {"ray_length": lambda: np.stack([length] * 3)}
     path = scene.node("ShaderNodeLightPath")
-    check_outputs(scene, [(path, socket.identifier, no_inputs) for socket in path.outputs],
-                  sources)
+    check_outputs(scene, cases_of(scene, [(path, socket.identifier, no_inputs)
+                                          for socket in path.outputs], sources))
 
 
 # --- Per-hit data without Cycles ------------------------------------------------------------------

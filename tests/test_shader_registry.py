@@ -62,13 +62,17 @@ def every_node_of_these_modules():
 
 
 @pytest.mark.parametrize("bl_idname", every_node_of_these_modules())
-@pytest.mark.parametrize("linked", [False, True], ids=["constants", "per point"])
-def test_node_functions_return_one_broadcastable_array_per_output(tree, bl_idname, linked):
+@pytest.mark.parametrize("linked, dtype", [(False, np.float64), (True, np.float64),
+                                           (True, np.float32)],
+                         ids=["constants", "per point", "per point float32"])
+def test_node_functions_return_one_broadcastable_array_per_output(tree, bl_idname, linked,
+                                                                  dtype):
     """Constant inputs (0-d floats, (3, 1) vectors) and per-point ones ((n,), (3, n)) both
-    give outputs that broadcast to (n,) for floats and (3, n) for vectors and colours."""
+    give outputs that broadcast to (n,) for floats and (3, n) for vectors and colours, in
+    the render precision of the points and inputs (float32 stays float32)."""
     n = 7
     rng = np.random.default_rng(1)
-    position = rng.normal(size=(3, n))
+    position = rng.normal(size=(3, n)).astype(dtype)
     normal = position / np.linalg.norm(position, axis=0)
     points = ShadingPoints(position, normal, normal.copy(), normal.copy(),
                            backfacing=rng.random(n) < 0.5)
@@ -78,9 +82,11 @@ def test_node_functions_return_one_broadcastable_array_per_output(tree, bl_idnam
     if linked:
         for identifier, kind in spec.inputs:
             given[identifier] = (rng.uniform(0.1, 1, n) if kind == FLOAT
-                                 else rng.uniform(0.1, 1, (3, n)))
+                                 else rng.uniform(0.1, 1, (3, n))).astype(dtype)
     outputs = evaluate(blender_node, points, **given)
     for identifier, kind in spec.outputs:
         shape = (n,) if kind == FLOAT else (3, n)
         value = np.broadcast_to(outputs[identifier], shape)
         assert np.isfinite(value).all(), (bl_idname, identifier)
+        if linked:
+            assert value.dtype == dtype, (bl_idname, identifier, value.dtype)

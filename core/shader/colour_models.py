@@ -206,7 +206,7 @@ def wavelength_xyz(wavelength):
     index = np.where(inside, step, 0).astype(np.intp)
     table = np.asarray(CIE_1931, lam.dtype)
     low, high = table[index], table[index + 1]
-    fraction = (position - index)[..., None]
+    fraction = (position - index.astype(lam.dtype))[..., None]
     xyz = low + (high - low) * fraction
     xyz = np.where(inside[..., None], xyz, 0)
     return np.moveaxis(xyz, -1, 0)

@@ -339,11 +339,11 @@ def mix(points, factor, factor_vector, a_float, b_float, a_vector, b_vector, a_c
         b_colour, *, data_type="FLOAT", factor_mode="UNIFORM", blend_type="MIX",
         clamp_factor=True, clamp_result=False):
     """The output of ``data_type`` is computed; the other two are zero (Blender hides them)."""
-    zero_float, zero_vector = np.zeros(()), np.zeros((3, 1))
     if data_type == "VECTOR" and factor_mode == "NON_UNIFORM":
         factor = _array(factor_vector)
     else:
         factor = _array(factor)
+    zero_float, zero_vector = np.zeros((), factor.dtype), np.zeros((3, 1), factor.dtype)
     if clamp_factor:
         factor = np.clip(factor, 0, 1)
     if data_type == "FLOAT":
