@@ -175,7 +175,8 @@ def test_attribute_matches_cycles():
     """A colour attribute (positive: Blender clamps colour attributes at 0) and a float
     attribute on the plane's corners (linear in x and y, so Cycles' interpolation over
     either triangle of the quad gives the same value), a missing one, and the object's
-    Color through an Object attribute."""
+    Color through an Object attribute and a missing Object attribute (Alpha 0, where a
+    missing geometry attribute's is 1)."""
     scene = NodeScene((-2.0, 2.0), (-1.5, 1.5))
     mesh = scene.plane.data
     mesh.color_attributes.new("tint", 'FLOAT_COLOR', 'POINT')
@@ -204,10 +205,12 @@ def test_attribute_matches_cycles():
 
     cases = []
     for attribute_type, name in (("GEOMETRY", "tint"), ("GEOMETRY", "weight"),
-                                 ("GEOMETRY", "nothing"), ("OBJECT", "color")):
+                                 ("GEOMETRY", "nothing"), ("OBJECT", "color"),
+                                 ("OBJECT", "nothing")):
         node = scene.node("ShaderNodeAttribute", attribute_type=attribute_type,
                           attribute_name=name)
-        outputs = ("Color", "Vector", "Fac", "Alpha") if name == "tint" else ("Color", "Fac")
+        outputs = ("Color", "Vector", "Fac", "Alpha") if name == "tint" else ("Color", "Fac",
+                                                                              "Alpha")
         cases.extend((node, output, no_inputs) for output in outputs)
     check_outputs(scene, cases_of(scene, cases, sources))
 

@@ -90,3 +90,31 @@ def test_node_functions_return_one_broadcastable_array_per_output(tree, bl_idnam
         assert np.isfinite(value).all(), (bl_idname, identifier)
         if linked:
             assert value.dtype == dtype, (bl_idname, identifier, value.dtype)
+
+
+@pytest.mark.parametrize("bl_idname, options, words", [
+    ("ShaderNodeMath", dict(operation="CUBE"), ["Math", "operation", "'CUBE'"]),
+    ("ShaderNodeVectorMath", dict(operation="CURL"), ["Vector Math", "'CURL'"]),
+    ("ShaderNodeMapRange", dict(interpolation_type="CUBIC"), ["Map Range", "'CUBIC'"]),
+    ("ShaderNodeMapRange", dict(data_type="COLOR"), ["Map Range", "data_type"]),
+    ("ShaderNodeClamp", dict(clamp_type="SOFT"), ["Clamp", "clamp_type"]),
+    ("ShaderNodeSeparateColor", dict(mode="CMYK"), ["Separate Color", "'CMYK'"]),
+    ("ShaderNodeVectorRotate", dict(rotation_type="QUATERNION"), ["Vector Rotate"]),
+    ("ShaderNodeMapping", dict(vector_type="UV"), ["Mapping", "vector_type"]),
+    ("ShaderNodeVectorTransform", dict(convert_to="SCREEN"), ["Vector Transform", "convert_to"]),
+    ("ShaderNodeMix", dict(data_type="RGBA", blend_type="GLOW"), ["Mix", "blend_type"]),
+    ("ShaderNodeMix", dict(data_type="ROTATION"), ["Mix", "'ROTATION'"]),
+    ("ShaderNodeValToRGB", dict(interpolation="CUBIC"), ["Color Ramp", "interpolation"]),
+    ("ShaderNodeValToRGB", dict(elements=()), ["Color Ramp", "elements"]),
+    ("ShaderNodeAttribute", dict(attribute_type="SCENE"), ["Attribute", "attribute_type"]),
+])
+def test_bad_options_give_one_line_naming_the_node_and_option(tree, bl_idname, options, words):
+    spec = NODES[bl_idname]
+    blender_node = tree.nodes.new(bl_idname)
+    points = ShadingPoints(np.zeros((3, 2)), np.zeros((3, 2)), np.zeros((3, 2)),
+                           np.zeros((3, 2)))
+    arguments = [np.zeros(()) if kind == FLOAT else np.zeros((3, 1)) for _, kind in spec.inputs]
+    with pytest.raises(ValueError) as raised:
+        spec.function(points, *arguments, **options)
+    message = str(raised.value)
+    assert "\n" not in message and all(word in message for word in words), message

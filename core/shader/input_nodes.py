@@ -152,14 +152,17 @@ ATTRIBUTE_PREFIXES = {"GEOMETRY": "attribute", "OBJECT": "object_attribute",
 def attribute(points, *, attribute_type="GEOMETRY", attribute_name=""):
     """The integrator's coordinate '<prefix>:<name>' (prefix by type: ``ATTRIBUTE_PREFIXES``)
     as Color and Vector, its channel mean as Fac (Cycles' float of a vector attribute: a
-    float attribute given as (f, f, f) reads back f) and '<prefix>_alpha:<name>' as Alpha (1
-    without it).  An attribute the integrator does not have reads as zero, as in Cycles."""
+    float attribute given as (f, f, f) reads back f) and '<prefix>_alpha:<name>' as Alpha.
+    An attribute the integrator does not have reads as zero, as in Cycles, with Alpha 1 for
+    a geometry attribute and 0 for the others (Cycles' values, seen in renders)."""
     try:
         prefix = ATTRIBUTE_PREFIXES[attribute_type]
     except KeyError:
         raise ValueError(f"Attribute: unknown attribute_type {attribute_type!r}") from None
-    data = points.coordinate(f"{prefix}:{attribute_name}")
-    alpha = point_data.scalar(points, f"{prefix}_alpha:{attribute_name}", 1.0)
+    name = f"{prefix}:{attribute_name}"
+    data = points.coordinate(name)
+    known = attribute_type == "GEOMETRY" or point_data.provided(points, name)
+    alpha = point_data.scalar(points, f"{prefix}_alpha:{attribute_name}", 1.0 if known else 0.0)
     return data, data, (data[0] + data[1] + data[2]) * (1 / 3), alpha
 
 
