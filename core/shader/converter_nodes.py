@@ -5,8 +5,9 @@ Separate/Combine XYZ and Color, Vector Rotate, Mapping and Vector Transform.
 
 Each operation keeps Cycles' guards ("safe" divisions, powers, logarithms: 0 where the
 plain expression has no value), so a program gives the numbers Cycles gives, not NaNs.
-Blender 5 no longer defines the legacy Separate/Combine RGB and HSV nodes (bpy cannot make
-them), so they are not registered.
+Blender 5 no longer defines the legacy Separate/Combine RGB and HSV nodes: files that have
+them load them as Separate/Combine Color in RGB or HSV mode (Blender's versioning), so they
+are not registered.
 """
 
 from __future__ import annotations
