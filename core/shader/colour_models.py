@@ -62,19 +62,19 @@ def rgb_to_hsv(rgb):
 
 
 def hsv_to_rgb(hsv):
-    """Cycles' ``hsv_to_rgb`` (a hue of exactly 1 is 0; hue outside [0, 1] keeps Cycles'
-    sector choice: the first sector below 0, the last above 1)."""
+    """Cycles' ``hsv_to_rgb`` (a hue of exactly 1 is 0; a hue outside [0, 1) takes the last
+    sector's formula, as in Cycles)."""
     h, s, v = _channels(hsv)
     h = np.where(h == 1, 0, h) * 6
     sector = np.floor(h)
     f = h - sector
-    p = v * (1 - s)
-    q = v * (1 - s * f)
-    t = v * (1 - s * (1 - f))
-    choices = [sector == 0, sector == 1, sector == 2, sector == 3, sector == 4]
-    r = np.select(choices, [v, q, p, p, t], v)
-    g = np.select(choices, [t, v, v, q, p], p)
-    b = np.select(choices, [p, p, t, v, v], q)
+    p, q, t = v * (1 - s), v * (1 - s * f), v * (1 - s * (1 - f))
+    # Sectors 0-4 as Cycles names them; anything else (5, or a hue outside [0, 1]) is 5.
+    sector = np.where((sector >= 0) & (sector <= 4), sector, 5)
+    r = np.where(sector == 1, q, np.where(sector == 4, t,
+                                          np.where((sector == 2) | (sector == 3), p, v)))
+    g = np.where(sector == 0, t, np.where(sector == 3, q, np.where(sector >= 4, p, v)))
+    b = np.where(sector <= 1, p, np.where(sector == 2, t, np.where(sector == 5, q, v)))
     grey = s == 0
     return np.stack(np.broadcast_arrays(np.where(grey, v, r), np.where(grey, v, g),
                                         np.where(grey, v, b)))

@@ -39,22 +39,27 @@ def table_lookup(table, position, interpolate=True, extrapolate=False):
     """(k, ...) rows of ``table`` (m, k) at ``position`` (...) in [0, 1] (Cycles'
     ``rgb_ramp_lookup``): clamped to the ends, or, with ``extrapolate``, continued outside
     [0, 1] along the slope of the two entries at that end."""
-    table = np.asarray(table)
     position = _array(position)
-    size = len(table)
-    scaled = np.clip(np.nan_to_num(position, nan=0.0), 0, 1) * (size - 1)
+    # One row per channel, so each channel's look-up is one gather of contiguous values.
+    rows = np.ascontiguousarray(np.asarray(table, position.dtype).T)
+    size = rows.shape[1]
+    shape = (len(rows),) + (1,) * position.ndim
+    # fmax first: a NaN position reads entry 0, as Cycles' clamp gives.
+    scaled = np.fmin(np.fmax(position, 0), 1) * (size - 1)
     index = np.minimum(scaled.astype(np.intp), size - 1)
-    values = table[index]
+    values = np.take(rows, index, axis=1)
     if interpolate:
-        fraction = (scaled - index)[..., None]
-        following = table[np.minimum(index + 1, size - 1)]
-        values = values + (following - values) * fraction
+        fraction = scaled - index
+        following = np.take(rows, np.minimum(index + 1, size - 1), axis=1)
+        following -= values
+        following *= fraction
+        values += following
     if extrapolate:
-        below, above = (position < 0)[..., None], (position > 1)[..., None]
-        low = table[0] + (table[0] - table[1]) * (-position[..., None] * (size - 1))
-        high = table[-1] + (table[-1] - table[-2]) * ((position[..., None] - 1) * (size - 1))
-        values = np.where(below, low, np.where(above, high, values))
-    return np.moveaxis(values.astype(position.dtype, copy=False), -1, 0)
+        first, last = rows[:, 0].reshape(shape), rows[:, -1].reshape(shape)
+        low = first + (first - rows[:, 1].reshape(shape)) * (-position * (size - 1))
+        high = last + (last - rows[:, -2].reshape(shape)) * ((position - 1) * (size - 1))
+        values = np.where(position < 0, low, np.where(position > 1, high, values))
+    return values
 
 
 # --- Color Ramp --------------------------------------------------------------------------------
