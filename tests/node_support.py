@@ -7,9 +7,10 @@ scaled to fill the view whatever the ranges), through nodes the test adds.  Each
 to a shader AOV, so one Cycles render (1 sample per pixel at its centre: ``cycles_scene``'s
 filter_width 0.01) checks many nodes at once; the multilayer OpenEXR holds the AOVs
 scene-linear and unclamped (an Emission shader's pixels would be the same but for negative
-channels, which Cycles' emission turns to 0: seen for a colour of (-0.5, 2, 0.3)).  The test computes the same inputs at each pixel centre and calls the node's
-function from the registry with them, its options read from the Blender node as the add-on
-reads them (``addon.export.node_options``, else the node's properties).
+channels, which Cycles' emission turns to 0: seen for a colour of (-0.5, 2, 0.3)).  The
+test computes the same inputs at each pixel centre and calls the node's function from the
+registry with them, its options read from the Blender node as the add-on reads them
+(``addon.export.node_options``, else the node's properties).
 
 Tolerance (``compare``): Cycles computes in float32, so a value may differ from the float64
 one by a few float32 steps of the quantities involved (``RTOL``, ``ATOL``); and Cycles'
@@ -32,7 +33,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
-from addon_support import glint, link
+from addon_support import link
 from cycles_support import cycles_scene
 from exr import read_exr
 

@@ -234,7 +234,7 @@ def test_light_path_matches_cycles_for_camera_rays():
                                           for socket in path.outputs], sources))
 
 
-# --- Per-hit data without Cycles ------------------------------------------------------------------
+# --- Per-hit data without Cycles -----------------------------------------------------------
 
 def bare_points(n=4, sources=None, backfacing=None):
     position = np.arange(3 * n, dtype=np.float64).reshape(3, n)
@@ -277,6 +277,13 @@ def test_per_hit_data_defaults():
     info = call("ShaderNodeObjectInfo", given)
     np.testing.assert_array_equal(info[1], values)
     np.testing.assert_array_equal(info[5], values[0])
+
+    instanced = bare_points(sources={"instancer_generated": lambda: values,
+                                     "instancer_uv": lambda: 2 * values})
+    generated, _, uv = call("ShaderNodeTexCoord", instanced, from_instancer=True)[:3]
+    np.testing.assert_array_equal(generated, values)
+    np.testing.assert_array_equal(uv, 2 * values)
+    assert np.all(call("ShaderNodeTexCoord", instanced)[0] == 0)    # its own Generated
 
 
 def test_light_path_reads_the_ray_type_bits():
