@@ -384,7 +384,7 @@ def sample(closures: Closures, choice: LobeChoice, normal, to_view, entering, u_
     cumulative = np.cumsum(choice.probability, axis=0)
     lobe = (u_lobe[None, :] >= cumulative).sum(axis=0)
     lobe = np.where(cumulative[-1] > 0, np.minimum(lobe, 4), -1)
-    directions = np.empty((3, k), dtype)
+    directions = np.zeros((3, k), dtype)   # (paths whose surface has no lobe keep 0)
     weight = np.zeros((3, k), dtype)
     through = np.zeros(k, bool)
     reflected = to_view * -1 + normal * (2 * dot(normal, to_view))

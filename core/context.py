@@ -134,12 +134,13 @@ class TraceContext:
 
 def make_context(scene: Scene, settings: RenderSettings, dtype, *,
                  root_formula: str | None = None, threads: int = 1,
-                 world_scale: float = 1.0) -> TraceContext:
+                 frame=None) -> TraceContext:
     """The context of a render of ``scene`` in precision ``dtype``.  root_formula:
     'textbook' or 'stable' ray/sphere roots (``core.aggregate.ROOT_FORMULAS``); None picks
     the article's textbook formula in article semantics and the stable one otherwise.
     threads: how many threads the geometry's tree may be built on (the same tree for any).
-    world_scale: scene units per unit of ``scene``'s (canonical) frame."""
+    frame: the ``core.frame.Frame`` that took the scene to ``scene`` (its canonical frame),
+    so that shader programs see positions in the scene's own units; None: the same."""
     arrays = scene_arrays(scene)
     lights, table = arrays.lights, arrays.materials
     article = settings.semantics == "article"
@@ -180,7 +181,7 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
             # unit intensities): paths then stop only where their weight is zero.
             gain = np.inf
             if settings.integrator == "path":
-                paths = _path_setup(scene, settings, arrays, surfaces, world_scale)
+                paths = _path_setup(scene, settings, arrays, surfaces, frame)
     cast = lambda a: np.ascontiguousarray(a, dtype)  # noqa: E731
     materials = Materials(cast(table.ambient.T), cast(table.diffuse.T), cast(table.specular.T),
                           cast(table.exponent), cast(table.reflection))
@@ -208,8 +209,7 @@ def path_traced(scene: Scene, settings: RenderSettings) -> bool:
     return any(isinstance(material, SurfaceMaterial) for material in materials)
 
 
-def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces,
-                world_scale: float):
+def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces, frame):
     """The path integrator's frame (``core.path.PathSetup``): Blender's lights, the
     emitting triangles, the materials' and the world's programs."""
     from .emitters import mesh_lights, prepare_lights
@@ -220,7 +220,7 @@ def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces,
                        surfaces.emission.astype(np.float64))
     programs = {row: material.program for row, material in enumerate(arrays.materials.entries)
                 if getattr(material, "program", None) is not None}
-    tables = SurfaceTables.of(scene, world_scale) if programs else None
+    tables = SurfaceTables.of(scene, frame) if programs else None
     return path_setup(settings, lights, mesh, arrays.background,
                       any_holdout=surfaces.any_holdout, programs=programs,
                       surface_tables=tables, world_program=scene.world,

@@ -289,7 +289,7 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
         if depth == 0:
             first_normal[:, path] = normal
         # Emission, weighted against the light samples that could have found it.
-        emits = np.flatnonzero(closures.emission.max(axis=0) > 0)
+        emits = np.flatnonzero(np.abs(closures.emission).max(axis=0) > 0)
         if len(emits):
             weight = np.ones(len(emits), dtype)
             mesh = setup.mesh_lights

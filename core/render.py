@@ -576,7 +576,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
         workers.prestart(threads)  # they start while the context is built
         tiles = _even_tail(tiles, threads)
     ctx = make_context(scene, settings, dtype, threads=threads,   # (the tree: on threads)
-                       world_scale=1.0 if world is None else 1.0 / world.scale)
+                       frame=world)
     # What the frame's tiles would each build on first use (in every worker process), built
     # once here on the render's threads: the eye's bins, the occlusion trails' tables.
     shared_eye = ctx.camera_origin is not None and not has_aperture(scene.camera)

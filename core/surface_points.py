@@ -13,7 +13,7 @@ axes and location of each hit's object go to the nodes that read them
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -39,9 +39,18 @@ class SurfaceTables:
     world_scale: float
     meshes: tuple = ()
     tangent_maps: tuple = ()
+    world_centre: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    camera: object = None
+
+    def to_world(self, points) -> np.ndarray:
+        """Canonical points (3, k) in the scene's own units (``core.frame``)."""
+        return points * self.world_scale + self.world_centre[:, None]
 
     @classmethod
-    def of(cls, scene, world_scale: float = 1.0) -> "SurfaceTables":
+    def of(cls, scene, frame=None) -> "SurfaceTables":
+        """The tables of a canonical scene; frame: the ``core.frame.Frame`` that made it."""
+        world_scale = 1.0 if frame is None else 1.0 / frame.scale
+        centre = np.zeros(3) if frame is None else np.asarray(frame.centre, np.float64)
         counts = np.array([len(mesh.triangles) for mesh in scene.meshes], np.int64)
         instances = np.array([len(mesh.transforms) for mesh in scene.meshes], np.int64)
         starts = scene.sphere_count + np.concatenate([[0], np.cumsum(counts * instances)[:-1]])
@@ -51,12 +60,15 @@ class SurfaceTables:
             inverses.append(np.linalg.inv(mesh.transforms)[:, :3, :])
             low = mesh.vertices.min(axis=0) if len(mesh.vertices) else np.zeros(3)
             high = mesh.vertices.max(axis=0) if len(mesh.vertices) else np.ones(3)
-            size = high - low
-            boxes.append((low, np.where(size > 0, size, 1.0)))
+            # Blender's automatic texture space: the bounds, a flat side widened to 2 about
+            # its centre (so a plane's Generated z is 0.5, as in Cycles).
+            centre, half = (low + high) / 2, (high - low) / 2
+            half = np.where(half > 0, half, 1.0)
+            boxes.append((centre - half, 2 * half))
         return cls(scene.sphere_count, starts.astype(np.int64), counts, tuple(transforms),
                    tuple(inverses), tuple(boxes), tuple(mesh.uv_maps for mesh in scene.meshes),
                    float(world_scale), tuple(scene.meshes),
-                   tuple(mesh.tangent_maps for mesh in scene.meshes))
+                   tuple(mesh.tangent_maps for mesh in scene.meshes), centre, scene.camera)
 
 
 def _triangle_hits(tables: SurfaceTables, primitive):
@@ -217,22 +229,25 @@ class _HitSources:
         return result
 
     def object_axis(self, axis: int) -> np.ndarray:
+        """(3, k) the world-space image of each hit's object's local axis (scene units)."""
         result = np.zeros_like(self.points)
         rows = self._spheres()
         if len(rows):
             result[axis, rows] = 1.0
         for m, rows in self._groups():
-            result[:, rows] = self.tables.transforms[m][self.instance[rows]][:, :, axis].T
+            result[:, rows] = (self.tables.transforms[m][self.instance[rows]][:, :, axis].T
+                               * self.tables.world_scale)
         return result
 
     def object_location(self) -> np.ndarray:
+        """(3, k) each hit's object's location in the scene's own units."""
         result = np.zeros_like(self.points)
         rows = self._spheres()
         if len(rows):
             result[:, rows] = self.geometry.spheres.centers[self.primitive[rows]].T
         for m, rows in self._groups():
             result[:, rows] = self.tables.transforms[m][self.instance[rows]][:, :, 3].T
-        return result
+        return self.tables.to_world(result)
 
 
 def surface_points(tables: SurfaceTables, geometry, points, normal, true_normal, incoming,
@@ -249,16 +264,54 @@ def surface_points(tables: SurfaceTables, geometry, points, normal, true_normal,
                "object_axis_x": lambda: hits.object_axis(0),
                "object_axis_y": lambda: hits.object_axis(1),
                "object_axis_z": lambda: hits.object_axis(2)}
-    jacobians = {"object": hits.object_jacobian, "generated": hits.generated_jacobian,
-                 "uv": hits.uv_jacobian}
+    # Programs see the scene in its own units (Cycles' world): positions, footprints and
+    # the coordinates' derivatives by them are taken out of the canonical frame.
+    per_unit = 1.0 / tables.world_scale
+
+    def by_world(jacobian):
+        return lambda: jacobian() * per_unit
+
+    jacobians = {"object": by_world(hits.object_jacobian),
+                 "generated": by_world(hits.generated_jacobian),
+                 "uv": by_world(hits.uv_jacobian)}
+    sources["camera"] = lambda: camera_coordinates(tables, points)[0]
+    sources["window"] = lambda: camera_coordinates(tables, points)[1]
     names = {name for maps in tables.uv_maps for name, _ in maps}
     for name in names:
         sources[f"uv:{name}"] = (lambda name=name: hits.uv(name))
-        jacobians[f"uv:{name}"] = (lambda name=name: hits.uv_jacobian(name))
+        jacobians[f"uv:{name}"] = by_world(lambda name=name: hits.uv_jacobian(name))
     sources["tangent"] = lambda: hits.tangent(None, False)
     sources["tangent_sign"] = lambda: hits.tangent(None, True)
     for name in {name for maps in tables.tangent_maps for name, _ in maps}:
         sources[f"tangent:{name}"] = (lambda name=name: hits.tangent(name, False))
         sources[f"tangent:{name}_sign"] = (lambda name=name: hits.tangent(name, True))
-    return ShadingPoints(points, normal, true_normal, incoming, backfacing, sources,
-                         jacobians, footprint)
+    if footprint is not None:
+        footprint = footprint * tables.world_scale
+    return ShadingPoints(tables.to_world(points).astype(points.dtype), normal, true_normal,
+                         incoming, backfacing, sources, jacobians, footprint)
+
+
+def camera_coordinates(tables: SurfaceTables, points):
+    """((3, k) Cycles' Camera coordinates (camera space: x right, y up, z along the view,
+    scene units), (3, k) its Window coordinates ([0, 1] over the frame, z 0)) of canonical
+    points."""
+    from .camera import blender_view_plane, camera_to_world
+    from .scene import BlenderCamera
+    camera = tables.camera
+    result = np.zeros_like(points)
+    window = np.zeros_like(points)
+    if not isinstance(camera, BlenderCamera):
+        return result, window
+    rotation, translation = camera_to_world(camera)
+    local = rotation.T @ (points - translation[:, None])
+    result[0], result[1], result[2] = local[0], local[1], -local[2]
+    result *= tables.world_scale
+    plane = blender_view_plane(camera)
+    if camera.projection == "ORTHO":
+        u, v = local[0], local[1]
+    else:
+        depth = np.where(np.abs(local[2]) > 0, -local[2], 1e-30)
+        u, v = local[0] / depth, local[1] / depth
+    window[0] = (u - plane.offset_x) / (2 * plane.half_width) + 0.5
+    window[1] = (v - plane.offset_y) / (2 * plane.half_height) + 0.5
+    return result, window

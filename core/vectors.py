@@ -52,3 +52,15 @@ def facing(vectors, front):
     """(3, n) vectors turned to the viewer's side: kept where ``front`` (n,) (the ray met the
     side they point to), negated elsewhere (inside a sphere, behind a triangle)."""
     return vectors * np.where(front, 1, -1).astype(vectors.dtype)
+
+
+def cross(a, b):
+    """Component-wise cross product over the first axis: (3, ...) x (3, ...) -> (3, ...)."""
+    return np.stack(np.broadcast_arrays(a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                                        a[0] * b[1] - a[1] * b[0]))
+
+
+def safe_normalize(a):
+    """a / |a|, and a itself where |a| is 0 (Cycles' ``safe_normalize``: no NaN)."""
+    size = length(a)
+    return a * np.where(size != 0, 1 / np.where(size != 0, size, 1), 1)

@@ -1,7 +1,169 @@
 """Readers of the shader nodes whose options are more than plain properties: what the core's
-node functions (``core.shader.registry``) take by keyword, as plain Python values.
-``OPTION_READERS[bl_idname](node)`` (or ``(node, context)``, for readers that need the
-export context's caches) returns all the options of that node type; nodes without a reader
-have their ``NodeSpec.options`` read with ``getattr``."""
+node functions (``core.shader.registry``) take by keyword, as plain Python values (floats,
+tuples, strings).  ``OPTION_READERS[bl_idname](node)`` returns all the options of that node
+type; nodes without a reader have their ``NodeSpec.options`` read with ``getattr``.
 
-OPTION_READERS: dict = {}
+A Color Ramp goes as its stops (the core bakes Cycles' table from them); a curve goes as
+Cycles' table of it, evaluated by Blender here (``CurveMapping.evaluate``, the call Cycles'
+export makes), with its range and whether it extrapolates.  Blackbody, Wavelength and RGB
+to BW get the file's working colour space (Linear Rec.709, Rec.2020, ACEScg...) as
+matrices or weights, which Blender's colour management gives through ``mathutils.Color``.
+"""
+
+from __future__ import annotations
+
+import bpy
+from mathutils import Color, Matrix
+
+from ...core.shader.colour_models import CYCLES_XYZ_TO_REC709, IDENTITY
+from ...core.shader.colour_nodes import RAMP_TABLE_SIZE
+
+
+def _floats(values) -> tuple:
+    return tuple(float(v) for v in values)
+
+
+def color_ramp(node) -> dict:
+    ramp = node.color_ramp
+    return dict(elements=tuple((float(element.position), _floats(element.color))
+                               for element in ramp.elements),
+                interpolation=ramp.interpolation, color_mode=ramp.color_mode,
+                hue_interpolation=ramp.hue_interpolation)
+
+
+def _curve_range(curves) -> tuple[float, float]:
+    """The x range Cycles bakes a set of curves over: the first point of any of them to the
+    last point of any."""
+    return (min(curve.points[0].location[0] for curve in curves),
+            max(curve.points[-1].location[0] for curve in curves))
+
+
+def _positions(low: float, high: float):
+    steps = RAMP_TABLE_SIZE - 1
+    return [low + i / steps * (high - low) for i in range(RAMP_TABLE_SIZE)]
+
+
+def _curve_options(mapping, table, low, high) -> dict:
+    return dict(curve_table=table, curve_min=float(low), curve_max=float(high),
+                extrapolate=mapping.extend == 'EXTRAPOLATED')
+
+
+def rgb_curves(node) -> dict:
+    """R, G and B each applied over the combined curve, as Cycles bakes them."""
+    mapping = node.mapping
+    mapping.update()
+    red, green, blue, combined = mapping.curves[:4]
+    low, high = _curve_range((red, green, blue, combined))
+    table = []
+    for x in _positions(low, high):
+        under = mapping.evaluate(combined, x)
+        table.append((mapping.evaluate(red, under), mapping.evaluate(green, under),
+                      mapping.evaluate(blue, under)))
+    return _curve_options(mapping, tuple(table), low, high)
+
+
+def vector_curves(node) -> dict:
+    mapping = node.mapping
+    mapping.update()
+    curves = mapping.curves[:3]
+    low, high = _curve_range(curves)
+    table = tuple(tuple(mapping.evaluate(curve, x) for curve in curves)
+                  for x in _positions(low, high))
+    return _curve_options(mapping, table, low, high)
+
+
+def float_curve(node) -> dict:
+    mapping = node.mapping
+    mapping.update()
+    curve = mapping.curves[0]
+    low, high = _curve_range((curve,))
+    table = tuple((mapping.evaluate(curve, x),) for x in _positions(low, high))
+    return _curve_options(mapping, table, low, high)
+
+
+def value(node) -> dict:
+    return dict(value=float(node.outputs[0].default_value))
+
+
+def rgb(node) -> dict:
+    return dict(color=_floats(node.outputs[0].default_value[:3]))
+
+
+def _rows(matrix, count: int = 4) -> tuple:
+    return tuple(_floats(matrix[row][:count]) for row in range(3))
+
+
+def texture_coordinate(node) -> dict:
+    """The chosen object's world -> local matrix, for the Object output."""
+    chosen = node.object
+    return dict(object_matrix=None if chosen is None else _rows(chosen.matrix_world.inverted()),
+                from_instancer=bool(node.from_instancer))
+
+
+def world_to_camera(scene) -> tuple | None:
+    """The 3 x 4 world -> camera matrix of Cycles' camera space (x right, y up, z into the
+    view) for the scene's camera, its scale removed as Cycles does; None without a camera."""
+    camera = scene.camera if scene is not None else None
+    if camera is None:
+        return None
+    location, rotation, _scale = camera.matrix_world.decompose()
+    camera_to_world = Matrix.Translation(location) @ rotation.to_matrix().to_4x4()
+    camera_to_world = camera_to_world @ Matrix.Diagonal((1.0, 1.0, -1.0, 1.0))
+    return _rows(camera_to_world.inverted())
+
+
+def vector_transform(node, scene=None) -> dict:
+    """``scene``: whose camera defines camera space (the context's scene by default)."""
+    scene = scene if scene is not None else bpy.context.scene
+    return dict(vector_type=node.vector_type, convert_from=node.convert_from,
+                convert_to=node.convert_to, world_to_camera=world_to_camera(scene))
+
+
+_BASIS = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+
+
+def _matrix_of(convert) -> tuple:
+    """The 3 x 3 matrix (rows) of a linear colour conversion ``Color -> Color``."""
+    columns = [tuple(convert(Color(axis))) for axis in _BASIS]
+    return tuple(tuple(float(columns[col][row]) for col in range(3)) for row in range(3))
+
+
+def working_space_luminance() -> tuple:
+    """The Y (luminance) weights of the working space's RGB."""
+    return tuple(float(Color(axis).from_scene_linear_to_xyz_d65()[1]) for axis in _BASIS)
+
+
+def rgb_to_bw(node) -> dict:
+    return dict(luminance=working_space_luminance())
+
+
+def blackbody(node) -> dict:
+    """Cycles leaves Blackbody's Rec.709 colour as it is in a Rec.709 working space, and
+    otherwise takes it to XYZ with its own Rec.709 matrix and from there to the working
+    space."""
+    rec709_to_scene = _matrix_of(lambda c: c.from_rec709_linear_to_scene_linear())
+    if all(abs(rec709_to_scene[i][j] - IDENTITY[i][j]) < 1e-4
+           for i in range(3) for j in range(3)):
+        return dict(rec709_to_scene=IDENTITY)
+    xyz_to_scene = Matrix(_matrix_of(lambda c: c.from_xyz_d65_to_scene_linear()))
+    matrix = xyz_to_scene @ Matrix(CYCLES_XYZ_TO_REC709).inverted()
+    return dict(rec709_to_scene=tuple(_floats(row) for row in matrix))
+
+
+def wavelength(node) -> dict:
+    return dict(xyz_to_scene=_matrix_of(lambda c: c.from_xyz_d65_to_scene_linear()))
+
+
+OPTION_READERS = {
+    "ShaderNodeValToRGB": color_ramp,
+    "ShaderNodeRGBCurve": rgb_curves,
+    "ShaderNodeVectorCurve": vector_curves,
+    "ShaderNodeFloatCurve": float_curve,
+    "ShaderNodeValue": value,
+    "ShaderNodeRGB": rgb,
+    "ShaderNodeTexCoord": texture_coordinate,
+    "ShaderNodeVectorTransform": vector_transform,
+    "ShaderNodeRGBToBW": rgb_to_bw,
+    "ShaderNodeBlackbody": blackbody,
+    "ShaderNodeWavelength": wavelength,
+}

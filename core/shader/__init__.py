@@ -2,5 +2,6 @@
 evaluations (``core.shader.registry``) that the core runs over arrays of shading points,
 as Cycles' SVM runs a node graph compiled to a list of operations over a stack."""
 
-# The node families register themselves on import.
-from . import bsdf_nodes, conversions, vector_nodes  # noqa: E402,F401
+# Importing the node modules registers their nodes in ``registry.NODES``.
+from . import (bsdf_nodes, colour_nodes, conversions, converter_nodes,  # noqa: E402,F401
+               input_nodes, vector_nodes)

@@ -113,7 +113,8 @@ class LobeSum:
             alpha=np.maximum(roughness ** 2, MIN_ALPHA).astype(dtype),
             transmission=colour(self.transmission), transmission_fresnel=fresnel, ior=ior,
             translucency=colour(self.translucency), transparency=colour(self.transparency),
-            emission=colour(self.emission), holdout=holdout,
+            emission=np.ascontiguousarray(np.broadcast_to(self.emission, (3, n)), dtype),
+            holdout=holdout,
             holdout_object=np.zeros(n, bool), normal=bumped)
 
 

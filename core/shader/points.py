@@ -4,6 +4,28 @@ and (n,) arrays in the render precision.
 Attributes a program does not read are never computed: each is made on first use and kept
 for the rest of the program's run (``functools.cached_property``).  The hits of one batch
 share one ``ShadingPoints``; ``take`` makes the points of a subset (one material's hits).
+
+Named coordinates the input nodes read (``coordinate(name)``, each (3, n); a per-hit number
+is given as a coordinate and read from its first row).  Where a node's default is not zero
+it applies only when the integrator gives no source of that name (``point_data``):
+
+* Texture Coordinate: 'generated' (the mesh's texture space: (local - (location - size)) /
+  (2 size)), 'uv', 'object' (local position), 'camera' (Cycles' camera space: x right, y
+  up, z along the view), 'window' (the frame, 0 to 1 across and up, z 0); with From
+  Instancer 'instancer_generated' and 'instancer_uv'.
+* Geometry: 'tangent', 'parametric' (Cycles' (1 - u - v, u, 0)), 'pointiness' (0.5
+  without), 'random_per_island'.
+* The hit's object: 'object_axis_x', 'object_axis_y', 'object_axis_z' (its world matrix's
+  columns: Vector Transform and Texture Coordinate's Normal; world space without them),
+  'object_location', 'object_color' (white without), 'object_alpha' (1 without),
+  'object_index', 'material_index' (pass indices), 'object_random'.
+* Attribute: '<prefix>:<name>' and '<prefix>_alpha:<name>' (alpha 1 without) with prefix
+  'attribute', 'object_attribute', 'instancer_attribute' or 'view_layer_attribute' by the
+  node's type.
+* Light Path: 'ray_type' (the ray's ``input_nodes.RAY_*`` bits; a camera ray without),
+  'ray_length' (from the ray's origin: a camera ray starts on the near clipping plane),
+  'ray_depth', 'diffuse_depth', 'glossy_depth', 'transparent_depth', 'transmission_depth',
+  'portal_depth'.
 """
 
 from __future__ import annotations
