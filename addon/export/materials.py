@@ -45,12 +45,11 @@ from typing import Optional
 import numpy as np
 
 from ...core import Material, SceneError, SurfaceMaterial
-from ...core.scene import MAX_COLOUR, dielectric_f0, principled_fresnel
+from ...core.reflectance import blinn_exponent, dielectric_f0, principled_fresnel
+from ...core.validation import MAX_COLOUR
 from ..utils.colour import colour_from_blender, srgb_to_linear
 
 AMBIENT_FRACTION = 0.1
-#: alpha = roughness^2 is clamped here so a roughness of 0 gives a finite exponent.
-MIN_ALPHA = 1e-3
 #: Blinn exponent of the default roughness 0.5 (alpha 0.25): 2 / 0.25^2 - 2.
 REFERENCE_EXPONENT = 30.0
 
@@ -66,11 +65,6 @@ class SurfaceValues:
     metallic: float
     roughness: float
     specular_level: float
-
-
-def blinn_exponent(roughness: float) -> float:
-    alpha = max(float(roughness) ** 2, MIN_ALPHA)
-    return 2.0 / alpha ** 2 - 2.0
 
 
 def material_from_surface(values: SurfaceValues) -> Material:
