@@ -38,7 +38,7 @@ from .validation import (BLOCK_ROWS, MAX_COLOUR, MAX_DEPTH, MAX_LIGHT_SAMPLES,  
                          MAX_TILE_SIZE, SceneError, Vec3, _checked_array, _choice, _colour,
                          _count, _finite, _first_bad, _fraction, _frozen_array, _index_text,
                          _non_negative, _positive, _require_finite, _require_indices, _unit,
-                         _unit_rows, _vec3, row_blocks)
+                         _unit_rows, _vec3, row_blocks, value_text)
 
 PROJECTIONS = ("PERSP", "ORTHO")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
@@ -74,7 +74,8 @@ class Material:
              _non_negative(f"{where}.shininess", self.shininess, MAX_SHININESS))
         reflection = _finite(f"{where}.reflection", self.reflection)
         if not 0.0 <= reflection <= 1.0:
-            raise SceneError(f"{where}.reflection must be in [0, 1], got {self.reflection!r}")
+            raise SceneError(f"{where}.reflection must be in [0, 1], got "
+                             f"{value_text(self.reflection)}")
         _set(self, "reflection", reflection)
         return self
 
@@ -157,14 +158,15 @@ class SurfaceMaterial:
              _fraction(f"{where}.specular_dielectric", self.specular_dielectric))
         _set(self, "specular_ior", _finite(f"{where}.specular_ior", self.specular_ior))
         if self.specular_ior < 1.0:
-            raise SceneError(f"{where}.specular_ior must be >= 1, got {self.specular_ior!r}")
+            raise SceneError(f"{where}.specular_ior must be >= 1, got "
+                             f"{value_text(self.specular_ior)}")
         _set(self, "transmission_fresnel",
              _fraction(f"{where}.transmission_fresnel", self.transmission_fresnel))
         _set(self, "ior", _positive(f"{where}.ior", self.ior))
         _set(self, "holdout", _fraction(f"{where}.holdout", self.holdout))
         if not isinstance(self.holdout_object, (bool, np.bool_)):
             raise SceneError(f"{where}.holdout_object must be True or False, got "
-                             f"{self.holdout_object!r}")
+                             f"{value_text(self.holdout_object)}")
         _set(self, "holdout_object", bool(self.holdout_object))
         return self
 
@@ -244,12 +246,12 @@ class Sphere:
     name: str = ""
 
     def __post_init__(self):
-        where = f"sphere {self.name!r}" if self.name else "sphere"
+        where = f"sphere {value_text(self.name)}" if self.name else "sphere"
         _set(self, "center", _vec3(f"{where}.center", self.center))
         _set(self, "radius", _positive(f"{where}.radius", self.radius))
         if not isinstance(self.material, (Material, SurfaceMaterial)):
             raise SceneError(f"{where}.material must be a Material or SurfaceMaterial, "
-                             f"got {self.material!r}")
+                             f"got {value_text(self.material)}")
         # Named here: a material shared by many spheres is checked again for each, so an
         # invalid one (built past its own check) names the sphere that uses it.
         self.material.validate(f"{where}.material")
@@ -278,7 +280,7 @@ class PointLight:
     REFERENCE_POWER_W = 1000.0
 
     def __post_init__(self):
-        where = f"light {self.name!r}" if self.name else "light"
+        where = f"light {value_text(self.name)}" if self.name else "light"
         _set(self, "position", _vec3(f"{where}.position", self.position))
         for name in ("ambient", "diffuse", "specular"):
             _set(self, name, _colour(f"{where}.{name}", getattr(self, name)))
@@ -294,7 +296,7 @@ class PointLight:
         scales it linearly with power, so Blender's default 1000 W white light *is* the
         article's light, 500 W is half as bright, and a red light tints all three terms.
         """
-        where = f"light {name!r}" if name else "light"
+        where = f"light {value_text(name)}" if name else "light"
         rgb = _colour(f"{where}.color", colour)
         scale = _non_negative(f"{where}.energy", power_w,
                               MAX_COLOUR * cls.REFERENCE_POWER_W) / cls.REFERENCE_POWER_W
@@ -316,7 +318,7 @@ class SphereLight:
     name: str = ""
 
     def __post_init__(self):
-        where = f"light {self.name!r}" if self.name else "light"
+        where = f"light {value_text(self.name)}" if self.name else "light"
         _set(self, "position", _vec3(f"{where}.position", self.position))
         _set(self, "colour", _colour(f"{where}.colour", self.colour))
         _set(self, "power", _non_negative(f"{where}.power", self.power))
@@ -339,7 +341,7 @@ class SpotLight:
     name: str = ""
 
     def __post_init__(self):
-        where = f"light {self.name!r}" if self.name else "light"
+        where = f"light {value_text(self.name)}" if self.name else "light"
         _set(self, "position", _vec3(f"{where}.position", self.position))
         _set(self, "direction", _unit(f"{where}.direction", self.direction))
         _set(self, "colour", _colour(f"{where}.colour", self.colour))
@@ -347,7 +349,7 @@ class SpotLight:
         _set(self, "radius", _non_negative(f"{where}.radius", self.radius))
         size = _positive(f"{where}.spot_size", self.spot_size)
         if size > math.pi + 1e-9:
-            raise SceneError(f"{where}.spot_size must be <= pi, got {self.spot_size!r}")
+            raise SceneError(f"{where}.spot_size must be <= pi, got {value_text(self.spot_size)}")
         _set(self, "spot_size", min(size, math.pi))
         _set(self, "spot_blend", _fraction(f"{where}.spot_blend", self.spot_blend))
 
@@ -365,13 +367,13 @@ class SunLight:
     name: str = ""
 
     def __post_init__(self):
-        where = f"light {self.name!r}" if self.name else "light"
+        where = f"light {value_text(self.name)}" if self.name else "light"
         _set(self, "direction", _unit(f"{where}.direction", self.direction))
         _set(self, "colour", _colour(f"{where}.colour", self.colour))
         _set(self, "strength", _non_negative(f"{where}.strength", self.strength))
         angle = _non_negative(f"{where}.angle", self.angle)
         if angle >= math.pi:
-            raise SceneError(f"{where}.angle must be < pi, got {self.angle!r}")
+            raise SceneError(f"{where}.angle must be < pi, got {value_text(self.angle)}")
         _set(self, "angle", angle)
 
     # A sun has no place; these let code that measures the scene's extent treat all lights
@@ -400,7 +402,7 @@ class AreaLight:
     name: str = ""
 
     def __post_init__(self):
-        where = f"light {self.name!r}" if self.name else "light"
+        where = f"light {value_text(self.name)}" if self.name else "light"
         _set(self, "position", _vec3(f"{where}.position", self.position))
         for name in ("direction", "axis_x", "axis_y"):
             _set(self, name, _unit(f"{where}.{name}", getattr(self, name)))
@@ -508,9 +510,11 @@ class BlenderCamera:
         try:
             rows = tuple(tuple(row) for row in self.matrix_world)
         except TypeError:
-            raise SceneError(f"camera.matrix_world must be 4x4, got {self.matrix_world!r}") from None
+            raise SceneError(f"camera.matrix_world must be 4x4, got "
+                             f"{value_text(self.matrix_world)}") from None
         if len(rows) != 4 or any(len(row) != 4 for row in rows):
-            raise SceneError(f"camera.matrix_world must be 4x4, got {self.matrix_world!r}")
+            raise SceneError(f"camera.matrix_world must be 4x4, got "
+                             f"{value_text(self.matrix_world)}")
         _set(self, "matrix_world", tuple(
             tuple(_finite(f"camera.matrix_world[{r}][{c}]", v) for c, v in enumerate(row))
             for r, row in enumerate(rows)))
@@ -531,8 +535,8 @@ class BlenderCamera:
             _count("camera.aperture_blades", self.aperture_blades, minimum=3)
         _set(self, "clip_end", _positive("camera.clip_end", self.clip_end))
         if self.clip_end <= self.clip_start:
-            raise SceneError(f"camera.clip_end ({self.clip_end!r}) must be greater than "
-                             f"camera.clip_start ({self.clip_start!r})")
+            raise SceneError(f"camera.clip_end ({value_text(self.clip_end)}) must be greater than "
+                             f"camera.clip_start ({value_text(self.clip_start)})")
         if self.width < 1 or self.height < 1:
             raise SceneError(
                 f"camera resolution {self.resolution_x}x{self.resolution_y} at "
@@ -567,7 +571,7 @@ MATERIAL_TYPES = (Material, SurfaceMaterial)
 
 
 def _set_label(kind: str, name: str) -> str:
-    return f"{kind} {name!r}" if name else kind
+    return f"{kind} {value_text(name)}" if name else kind
 
 
 def _materials(where: str, materials) -> tuple:
@@ -575,12 +579,13 @@ def _materials(where: str, materials) -> tuple:
         table = tuple(materials)
     except TypeError:
         raise SceneError(f"{where}: materials must be a sequence of materials, "
-                         f"got {materials!r}") from None
+                         f"got {value_text(materials)}") from None
     if not table:
         raise SceneError(f"{where}: materials must hold at least one material")
     for i, material in enumerate(table):
         if not isinstance(material, MATERIAL_TYPES):
-            raise SceneError(f"{where}: materials[{i}] must be a material, got {material!r}")
+            raise SceneError(f"{where}: materials[{i}] must be a material, got "
+                             f"{value_text(material)}")
     return table
 
 
@@ -607,7 +612,8 @@ class SphereSet:
         _require_finite(where, "radii", radii)
         bad = _first_bad(radii <= 0)
         if bad is not None:
-            raise SceneError(f"{where}: radii{_index_text(bad)} must be > 0, got {radii[bad]!r}")
+            raise SceneError(f"{where}: radii{_index_text(bad)} must be > 0, got "
+                             f"{value_text(radii[bad])}")
         _require_indices(where, "material_indices", indices, len(materials), "materials")
         for name, value in (("centers", centers), ("radii", radii),
                             ("material_indices", indices), ("materials", materials)):
@@ -665,7 +671,7 @@ class TriangleMesh:
         bad = _first_bad(np.any(transforms[:, 3, :] != (0.0, 0.0, 0.0, 1.0), axis=1))
         if bad is not None:
             raise SceneError(f"{where}: transforms{_index_text(bad)} must be affine (last row "
-                             f"0 0 0 1), got {transforms[bad][3].tolist()}")
+                             f"0 0 0 1), got {value_text(transforms[bad][3])}")
         linear = transforms[:, :3, :3]
         # Judged on the matrix divided by its largest entry, so that a scene modelled at any
         # scale (1e-150 or 1e155) is not singular through under- or overflow of the det.
@@ -720,24 +726,26 @@ class Scene:
     def __post_init__(self):
         if not isinstance(self.camera, (ScreenCamera, BlenderCamera)):
             raise SceneError(f"scene.camera must be a ScreenCamera or BlenderCamera, "
-                             f"got {self.camera!r}")
+                             f"got {value_text(self.camera)}")
         _set(self, "spheres", tuple(self.spheres))
         _set(self, "lights", tuple(self.lights))
         for i, sphere in enumerate(self.spheres):
             if not isinstance(sphere, Sphere):
-                raise SceneError(f"scene.spheres[{i}] must be a Sphere, got {sphere!r}")
+                raise SceneError(f"scene.spheres[{i}] must be a Sphere, got {value_text(sphere)}")
         for i, light in enumerate(self.lights):
             if not isinstance(light, LIGHT_TYPES):
                 raise SceneError(f"scene.lights[{i}] must be a PointLight, SphereLight, "
-                                 f"SpotLight, SunLight or AreaLight, got {light!r}")
+                                 f"SpotLight, SunLight or AreaLight, got {value_text(light)}")
         _set(self, "sphere_sets", tuple(self.sphere_sets))
         _set(self, "meshes", tuple(self.meshes))
         for i, sphere_set in enumerate(self.sphere_sets):
             if not isinstance(sphere_set, SphereSet):
-                raise SceneError(f"scene.sphere_sets[{i}] must be a SphereSet, got {sphere_set!r}")
+                raise SceneError(f"scene.sphere_sets[{i}] must be a SphereSet, got "
+                                 f"{value_text(sphere_set)}")
         for i, mesh in enumerate(self.meshes):
             if not isinstance(mesh, TriangleMesh):
-                raise SceneError(f"scene.meshes[{i}] must be a TriangleMesh, got {mesh!r}")
+                raise SceneError(f"scene.meshes[{i}] must be a TriangleMesh, got "
+                                 f"{value_text(mesh)}")
         _set(self, "background", _colour("scene.background", self.background))
         _set(self, "ambient", _colour("scene.ambient", self.ambient))
 

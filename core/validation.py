@@ -10,6 +10,7 @@ modules' (``core.scene``); ``SceneError`` and the limits are public.
 from __future__ import annotations
 
 import math
+import numbers
 from typing import Sequence
 
 import numpy as np
@@ -19,6 +20,64 @@ Vec3 = tuple[float, float, float]
 
 class SceneError(ValueError):
     """Invalid scene or settings; the message names the field and the offending value."""
+
+
+# --------------------------------------------------------------------------------------------
+# How messages show values.  Every error and warning that quotes a value of the scene goes
+# through ``value_text``, so the user reads "got -1.0" whatever type the value came in and
+# whatever NumPy version runs (NumPy 2's reprs are "np.float64(-1.0)"), on one line.
+
+#: Items of a sequence or array a message shows before it elides the rest.
+SHOWN_ITEMS = 6
+#: Characters of any other object's repr a message shows.
+SHOWN_CHARACTERS = 120
+
+
+def value_text(value) -> str:
+    """``value`` as a message shows it: numbers as Python writes them (-1.0, nan, 3, True),
+    float32 ones in their shortest form (0.1, not 0.10000000149011612); 0-d arrays as their
+    number; sequences and arrays as ``[a, b, ...]`` (tuples in parentheses), the first
+    SHOWN_ITEMS items of each level and how many there are; text quoted; anything else as its
+    repr, on one line and cut at SHOWN_CHARACTERS."""
+    if isinstance(value, (str, np.str_)):
+        return repr(str(value))
+    if isinstance(value, (bool, np.bool_)):
+        return str(bool(value))
+    if isinstance(value, numbers.Integral):
+        return str(int(value))
+    if isinstance(value, np.floating) and value.dtype.itemsize < 8:
+        return _short_float_text(value)
+    if isinstance(value, numbers.Real):
+        return repr(float(value))
+    if isinstance(value, numbers.Complex):
+        return repr(complex(value))
+    if isinstance(value, np.ndarray):
+        return value_text(value[()]) if value.ndim == 0 else _items_text(value, "[", "]")
+    if isinstance(value, list):
+        return _items_text(value, "[", "]")
+    if isinstance(value, tuple):
+        return _items_text(value, "(", ",)" if len(value) == 1 else ")")
+    text = " ".join(repr(value).split())
+    return text if len(text) <= SHOWN_CHARACTERS else text[:SHOWN_CHARACTERS - 3] + "..."
+
+
+def _short_float_text(value) -> str:
+    """The fewest digits that read back as the same float32 (or float16), as a Python float's
+    repr writes them."""
+    number = float(value)
+    if math.isfinite(number):
+        for digits in range(1, 18):
+            text = f"{number:.{digits}g}"
+            if type(value)(text) == value:
+                return repr(float(text))
+    return repr(number)
+
+
+def _items_text(items, opening: str, closing: str) -> str:
+    shown = [value_text(item) for item in items[:SHOWN_ITEMS]]
+    if len(items) > SHOWN_ITEMS:
+        shown.append(f"... ({len(items)} items)")
+    return opening + ", ".join(shown) + closing
 
 
 # --------------------------------------------------------------------------------------------
@@ -46,25 +105,25 @@ def _finite(name: str, value, limit: float = MAX_MAGNITUDE) -> float:
     try:
         number = float(value)
     except (TypeError, ValueError):
-        raise SceneError(f"{name} must be a number, got {value!r}") from None
+        raise SceneError(f"{name} must be a number, got {value_text(value)}") from None
     if not math.isfinite(number):
-        raise SceneError(f"{name} must be finite, got {value!r}")
+        raise SceneError(f"{name} must be finite, got {value_text(value)}")
     if abs(number) > limit:
-        raise SceneError(f"{name} must be at most {limit:g} in size, got {value!r}")
+        raise SceneError(f"{name} must be at most {limit:g} in size, got {value_text(value)}")
     return number
 
 
 def _positive(name: str, value) -> float:
     number = _finite(name, value)
     if number <= 0.0:
-        raise SceneError(f"{name} must be > 0, got {value!r}")
+        raise SceneError(f"{name} must be > 0, got {value_text(value)}")
     return number
 
 
 def _non_negative(name: str, value, limit: float = MAX_MAGNITUDE) -> float:
     number = _finite(name, value, limit)
     if number < 0.0:
-        raise SceneError(f"{name} must be >= 0, got {value!r}")
+        raise SceneError(f"{name} must be >= 0, got {value_text(value)}")
     return number
 
 
@@ -72,9 +131,9 @@ def _vec3(name: str, value, limit: float = MAX_MAGNITUDE) -> Vec3:
     try:
         items = tuple(value)
     except TypeError:
-        raise SceneError(f"{name} must be 3 numbers, got {value!r}") from None
+        raise SceneError(f"{name} must be 3 numbers, got {value_text(value)}") from None
     if len(items) != 3:
-        raise SceneError(f"{name} must be 3 numbers, got {len(items)}: {value!r}")
+        raise SceneError(f"{name} must be 3 numbers, got {len(items)}: {value_text(value)}")
     return tuple(_finite(f"{name}[{i}]", v, limit) for i, v in enumerate(items))
 
 
@@ -82,21 +141,22 @@ def _colour(name: str, value) -> Vec3:
     rgb = _vec3(name, value, MAX_COLOUR)
     for i, channel in enumerate(rgb):
         if channel < 0.0:
-            raise SceneError(f"{name}[{i}] must be >= 0, got {channel!r}")
+            raise SceneError(f"{name}[{i}] must be >= 0, got {value_text(channel)}")
     return rgb
 
 
 def _choice(name: str, value, allowed: Sequence[str]) -> str:
     if value not in allowed:
-        raise SceneError(f"{name} must be one of {', '.join(map(repr, allowed))}; got {value!r}")
+        raise SceneError(f"{name} must be one of {', '.join(map(value_text, allowed))}; "
+                         f"got {value_text(value)}")
     return value
 
 
 def _count(name: str, value, minimum: int = 1, maximum: int | None = None) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise SceneError(f"{name} must be a whole number >= {minimum}, got {value!r}")
+        raise SceneError(f"{name} must be a whole number >= {minimum}, got {value_text(value)}")
     if maximum is not None and value > maximum:
-        raise SceneError(f"{name} must be at most {maximum}, got {value!r}")
+        raise SceneError(f"{name} must be at most {maximum}, got {value_text(value)}")
     return value
 
 
@@ -104,14 +164,14 @@ def _unit(name: str, value) -> Vec3:
     vector = _vec3(name, value)
     norm = math.sqrt(sum(c * c for c in vector))
     if norm < 1e-12:
-        raise SceneError(f"{name} must be a non-zero direction, got {value!r}")
+        raise SceneError(f"{name} must be a non-zero direction, got {value_text(value)}")
     return tuple(c / norm for c in vector)
 
 
 def _fraction(name: str, value) -> float:
     number = _finite(name, value)
     if not 0.0 <= number <= 1.0:
-        raise SceneError(f"{name} must be in [0, 1], got {value!r}")
+        raise SceneError(f"{name} must be in [0, 1], got {value_text(value)}")
     return number
 
 
@@ -135,7 +195,8 @@ def _checked_array(where: str, field_name: str, value, dtype, shape: tuple,
     try:
         array = np.array(value, copy=copy)
     except (TypeError, ValueError):
-        raise SceneError(f"{where}: {field_name} must be an array, got {value!r}") from None
+        raise SceneError(f"{where}: {field_name} must be an array, got "
+                         f"{value_text(value)}") from None
     if np.issubdtype(dtype, np.integer):
         if array.size and not np.issubdtype(array.dtype, np.integer):
             raise SceneError(f"{where}: {field_name} must hold integers, got {array.dtype}")
@@ -193,7 +254,7 @@ def _require_finite(where: str, field_name: str, array: np.ndarray) -> None:
     bad = _first_bad(~np.isfinite(array))
     if bad is not None:
         raise SceneError(f"{where}: {field_name}{_index_text(bad)} must be finite, "
-                         f"got {array[bad]!r}")
+                         f"got {value_text(array[bad])}")
 
 
 def _require_indices(where: str, field_name: str, array: np.ndarray, count: int,
@@ -201,4 +262,4 @@ def _require_indices(where: str, field_name: str, array: np.ndarray, count: int,
     bad = _first_bad((array < 0) | (array >= count))
     if bad is not None:
         raise SceneError(f"{where}: {field_name}{_index_text(bad)} must be in [0, {count}) "
-                         f"({what}), got {int(array[bad])}")
+                         f"({what}), got {value_text(array[bad])}")

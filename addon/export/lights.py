@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 
 from ...core import AreaLight, PointLight, SceneError, SphereLight, SpotLight, SunLight
-from ...core.scene import MAX_COLOUR
+from ...core.validation import MAX_COLOUR, value_text
 
 #: The most power (W) or sun strength (W/m^2) a light may have: as for the article's lights
 #: (``PointLight.from_power``), colour x power stays within the core's colour range.
@@ -59,16 +59,16 @@ def export_article_light(light, matrix_world, name: str) -> PointLight | None:
 def check_light(light, name: str) -> None:
     """Raise SceneError naming Blender's field (energy, color) when a light's power or colour
     is not finite or too large, before the core would name its own."""
-    where = f"light {name!r}"
+    where = f"light {value_text(name)}"
     power = light_power(light)
     if not math.isfinite(power):
-        raise SceneError(f"{where}.energy must be finite, got {power!r}")
+        raise SceneError(f"{where}.energy must be finite, got {value_text(power)}")
     if abs(power) > MAX_POWER:
-        raise SceneError(f"{where}.energy must be at most {MAX_POWER:g}, got {power!r}")
+        raise SceneError(f"{where}.energy must be at most {MAX_POWER:g}, got {value_text(power)}")
     for i, channel in enumerate(light_colour(light)):
         if not math.isfinite(channel) or abs(channel) > MAX_COLOUR:
             raise SceneError(f"{where}.color[{i}] must be finite and at most "
-                             f"{MAX_COLOUR:g}, got {channel!r}")
+                             f"{MAX_COLOUR:g}, got {value_text(channel)}")
 
 
 def export_light(light, matrix_world, name: str):

@@ -46,7 +46,7 @@ import numpy as np
 
 from ...core import Material, SceneError, SurfaceMaterial
 from ...core.reflectance import blinn_exponent, dielectric_f0, principled_fresnel
-from ...core.validation import MAX_COLOUR
+from ...core.validation import MAX_COLOUR, value_text
 from ..utils.colour import colour_from_blender, srgb_to_linear
 
 AMBIENT_FRACTION = 0.1
@@ -157,7 +157,7 @@ def check_finite(values: SurfaceValues) -> None:
     for name in ("base_colour", "metallic", "roughness", "specular_level"):
         value = getattr(values, name)
         if not np.all(np.isfinite(value)):
-            raise SceneError(f"{name.replace('_', ' ')} must be finite, got {value!r}")
+            raise SceneError(f"{name.replace('_', ' ')} must be finite, got {value_text(value)}")
 
 
 # --------------------------------------------------------------------------------------------
@@ -433,7 +433,7 @@ class NodeEvaluator:
                 if not np.all(np.isfinite(reading)) or too_large:
                     raise SceneError(f"{label} ('{name}' of '{node.name}') must be finite "
                                      f"and at most {MAX_COLOUR:g}, got "
-                                     f"{tuple(float(v) for v in np.atleast_1d(reading))!r}")
+                                     f"{value_text(reading)}")
             for name in ("Coat Weight", "Sheen Weight"):
                 if name in node.inputs and value(name) > 0:
                     self.note(f"{self.owner}: Principled '{node.name}': {name} is not "
