@@ -166,10 +166,13 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
     look = None
     if not article:
         surfaces = surface_arrays(table.entries, dtype)
+        blender = [light for light in scene.lights if not isinstance(light, PointLight)]
+        # (A light that emits nothing, ``core.scene``, is not sampled; it still makes the
+        # scene one of Blender's lights.)
         blender_lights = tuple(prepare_light(light, settings.light_samples, geometry)
-                               for light in scene.lights if not isinstance(light, PointLight))
+                               for light in blender if light.emits)
         look = LookContext(surfaces, blender_lights,
-                           active=bool(blender_lights) or surfaces.any_physical,
+                           active=bool(blender) or surfaces.any_physical,
                            translucent=translucent_view(surfaces))
         if look.active:
             # Blender's lights have no bound on what a bounce adds (watts, not the article's

@@ -34,11 +34,11 @@ from .reflectance import (MIN_ALPHA, blinn_exponent, dielectric_f0,  # noqa: F40
                           ior_from_f0, principled_fresnel)
 from .terminator import DEFAULT_GEOMETRY_OFFSET
 from .validation import (BLOCK_ROWS, MAX_COLOUR, MAX_DEPTH, MAX_LIGHT_SAMPLES,  # noqa: F401
-                         MAX_MAGNITUDE, MAX_SAMPLES, MAX_SHININESS, MAX_THREADS,
-                         MAX_TILE_SIZE, SceneError, Vec3, _checked_array, _choice, _colour,
-                         _count, _finite, _first_bad, _fraction, _frozen_array, _index_text,
-                         _non_negative, _positive, _require_finite, _require_indices, _unit,
-                         _unit_rows, _vec3, row_blocks, value_text)
+                         MAX_MAGNITUDE, MAX_SAMPLES, MAX_SHININESS, MAX_THREADS, MAX_TILE_SIZE,
+                         SceneError, Vec3, row_blocks, usable_triangles, value_text, _at_most_pi,
+                         _checked_array, _choice, _colour, _count, _finite, _first_bad, _fraction,
+                         _frozen, _frozen_array, _index_text, _LightFields, _non_negative,
+                         _positive, _require_finite, _require_indices, _unit_rows, _vec3)
 
 PROJECTIONS = ("PERSP", "ORTHO")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
@@ -305,6 +305,12 @@ class PointLight:
                    specular=intensity, radius=radius, name=name)
 
 
+# Blender's lights take whatever Blender holds, as Cycles renders it (docs/invalid-data.md): a
+# negative power or strength subtracts light; a light whose position, direction, colour or
+# power is not finite, whose object is scaled to 0 (a zero direction or axis) or whose area
+# is 0 emits nothing (its power or strength is stored as 0); ``warnings`` holds the one line
+# that names those fields.
+
 @dataclass(frozen=True)
 class SphereLight:
     """Blender's point light in Cycles' units: ``power`` W of ``colour`` from a sphere of
@@ -316,13 +322,19 @@ class SphereLight:
     power: float = 1000.0
     radius: float = 0.0
     name: str = ""
+    warnings: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        where = f"light {value_text(self.name)}" if self.name else "light"
-        _set(self, "position", _vec3(f"{where}.position", self.position))
-        _set(self, "colour", _colour(f"{where}.colour", self.colour))
-        _set(self, "power", _non_negative(f"{where}.power", self.power))
-        _set(self, "radius", _non_negative(f"{where}.radius", self.radius))
+        fields = _LightFields(f"light {value_text(self.name)}" if self.name else "light")
+        _set(self, "position", fields.position(self.position))
+        _set(self, "colour", fields.colour(self.colour))
+        _set(self, "power", fields.amount("power", self.power))
+        _set(self, "radius", _non_negative(f"{fields.where}.radius", self.radius))
+        _finish_light(self, fields, "power")
+
+    @property
+    def emits(self) -> bool:
+        return self.power != 0.0
 
 
 @dataclass(frozen=True)
@@ -339,19 +351,24 @@ class SpotLight:
     spot_size: float = math.radians(45.0)
     spot_blend: float = 0.15
     name: str = ""
+    warnings: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        where = f"light {value_text(self.name)}" if self.name else "light"
-        _set(self, "position", _vec3(f"{where}.position", self.position))
-        _set(self, "direction", _unit(f"{where}.direction", self.direction))
-        _set(self, "colour", _colour(f"{where}.colour", self.colour))
-        _set(self, "power", _non_negative(f"{where}.power", self.power))
+        fields = _LightFields(f"light {value_text(self.name)}" if self.name else "light")
+        where = fields.where
+        _set(self, "position", fields.position(self.position))
+        _set(self, "direction", fields.direction("direction", self.direction))
+        _set(self, "colour", fields.colour(self.colour))
+        _set(self, "power", fields.amount("power", self.power))
         _set(self, "radius", _non_negative(f"{where}.radius", self.radius))
-        size = _positive(f"{where}.spot_size", self.spot_size)
-        if size > math.pi + 1e-9:
-            raise SceneError(f"{where}.spot_size must be <= pi, got {value_text(self.spot_size)}")
-        _set(self, "spot_size", min(size, math.pi))
+        _set(self, "spot_size", _at_most_pi(f"{where}.spot_size",
+                                            _positive(f"{where}.spot_size", self.spot_size)))
         _set(self, "spot_blend", _fraction(f"{where}.spot_blend", self.spot_blend))
+        _finish_light(self, fields, "power")
+
+    @property
+    def emits(self) -> bool:
+        return self.power != 0.0
 
 
 @dataclass(frozen=True)
@@ -365,16 +382,20 @@ class SunLight:
     strength: float = 1.0
     angle: float = 0.0
     name: str = ""
+    warnings: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        where = f"light {value_text(self.name)}" if self.name else "light"
-        _set(self, "direction", _unit(f"{where}.direction", self.direction))
-        _set(self, "colour", _colour(f"{where}.colour", self.colour))
-        _set(self, "strength", _non_negative(f"{where}.strength", self.strength))
-        angle = _non_negative(f"{where}.angle", self.angle)
-        if angle >= math.pi:
-            raise SceneError(f"{where}.angle must be < pi, got {value_text(self.angle)}")
-        _set(self, "angle", angle)
+        fields = _LightFields(f"light {value_text(self.name)}" if self.name else "light")
+        _set(self, "direction", fields.direction("direction", self.direction))
+        _set(self, "colour", fields.colour(self.colour))
+        _set(self, "strength", fields.amount("strength", self.strength))
+        _set(self, "angle", _at_most_pi(f"{fields.where}.angle",
+                                        _non_negative(f"{fields.where}.angle", self.angle)))
+        _finish_light(self, fields, "strength")
+
+    @property
+    def emits(self) -> bool:
+        return self.strength != 0.0
 
     # A sun has no place; these let code that measures the scene's extent treat all lights
     # alike (``core.precision``).
@@ -400,19 +421,28 @@ class AreaLight:
     colour: Vec3 = (1.0, 1.0, 1.0)
     power: float = 1000.0
     name: str = ""
+    warnings: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        where = f"light {value_text(self.name)}" if self.name else "light"
-        _set(self, "position", _vec3(f"{where}.position", self.position))
+        fields = _LightFields(f"light {value_text(self.name)}" if self.name else "light")
+        where = fields.where
+        _set(self, "position", fields.position(self.position))
         for name in ("direction", "axis_x", "axis_y"):
-            _set(self, name, _unit(f"{where}.{name}", getattr(self, name)))
+            _set(self, name, fields.direction(name, getattr(self, name)))
         _choice(f"{where}.shape", self.shape, AREA_SHAPES)
-        _set(self, "size_x", _positive(f"{where}.size_x", self.size_x))
-        _set(self, "size_y", _positive(f"{where}.size_y", self.size_y))
+        _set(self, "size_x", fields.size("size_x", self.size_x))
         if self.shape in ("SQUARE", "DISK"):
+            _non_negative(f"{where}.size_y", self.size_y)
             _set(self, "size_y", self.size_x)
-        _set(self, "colour", _colour(f"{where}.colour", self.colour))
-        _set(self, "power", _non_negative(f"{where}.power", self.power))
+        else:
+            _set(self, "size_y", fields.size("size_y", self.size_y))
+        _set(self, "colour", fields.colour(self.colour))
+        _set(self, "power", fields.amount("power", self.power))
+        _finish_light(self, fields, "power")
+
+    @property
+    def emits(self) -> bool:
+        return self.power != 0.0
 
     @property
     def area(self) -> float:
@@ -423,6 +453,13 @@ class AreaLight:
     def radius(self) -> float:
         """Half the diagonal: how far the light reaches from its centre."""
         return 0.5 * math.hypot(self.size_x, self.size_y)
+
+
+def _finish_light(light, fields: _LightFields, amount: str) -> None:
+    """A dark light's power (or strength) is 0; its warning, if any, is kept."""
+    if fields.dark:
+        _set(light, amount, 0.0)
+    _set(light, "warnings", fields.warnings())
 
 
 #: The light types a Scene holds: the article's, and Blender's in Cycles' units.
@@ -483,6 +520,14 @@ class BlenderCamera:
         polygon turned by the rotation) of that radius around the eye (orthographic: around
         the pixel's point on the camera plane) and meet at the plane at focus_distance along
         the view axis; 0 radius is a pinhole.
+    name: the camera object's name, for warnings.
+
+    A camera through which Cycles renders a black frame (measured: its matrix scaled to 0,
+    clip_end not past clip_start, an orthographic camera of ortho_scale 0, depth of field
+    focused at 0; alpha 1, or 0 with a transparent film) renders one too (``sees_nothing``:
+    ``core.render`` renders nothing through it), with one warning naming the fields; its
+    stored values are then stand-ins that let the view be worked out (an unscaled matrix, a
+    clip range, a scale and a focus of 1).
     """
 
     matrix_world: tuple
@@ -505,6 +550,9 @@ class BlenderCamera:
     focus_distance: float = 10.0
     aperture_blades: int = 0
     aperture_rotation: float = 0.0
+    name: str = ""
+    sees_nothing: bool = field(default=False, init=False, repr=False, compare=False)
+    warnings: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self):
         try:
@@ -523,29 +571,47 @@ class BlenderCamera:
         _count("camera.resolution_percentage", self.resolution_percentage)
         _choice("camera.projection", self.projection, PROJECTIONS)
         _choice("camera.sensor_fit", self.sensor_fit, SENSOR_FITS)
-        for name in ("lens", "ortho_scale", "sensor_width", "sensor_height",
-                     "pixel_aspect_x", "pixel_aspect_y", "clip_start"):
+        for name in ("lens", "sensor_width", "sensor_height", "pixel_aspect_x",
+                     "pixel_aspect_y", "clip_start"):
             _set(self, name, _positive(f"camera.{name}", getattr(self, name)))
         for name in ("shift_x", "shift_y", "aperture_rotation"):
             _set(self, name, _finite(f"camera.{name}", getattr(self, name)))
         _set(self, "aperture_radius", _non_negative("camera.aperture_radius",
                                                     self.aperture_radius))
-        _set(self, "focus_distance", _positive("camera.focus_distance", self.focus_distance))
         if self.aperture_blades != 0:
             _count("camera.aperture_blades", self.aperture_blades, minimum=3)
-        _set(self, "clip_end", _positive("camera.clip_end", self.clip_end))
-        if self.clip_end <= self.clip_start:
-            raise SceneError(f"camera.clip_end ({value_text(self.clip_end)}) must be greater than "
-                             f"camera.clip_start ({value_text(self.clip_start)})")
         if self.width < 1 or self.height < 1:
             raise SceneError(
                 f"camera resolution {self.resolution_x}x{self.resolution_y} at "
                 f"{self.resolution_percentage}% gives a {self.width}x{self.height} image")
-        axes = [[self.matrix_world[r][c] for r in range(3)] for c in range(3)]
-        for c, axis in enumerate(axes):
-            if math.sqrt(sum(v * v for v in axis)) < 1e-12:
-                raise SceneError(f"camera.matrix_world column {c} is zero: the camera has "
-                                 f"no orientation")
+        blind = []   # why Cycles renders this camera's frame black
+        rows = [list(row) for row in self.matrix_world]
+        axes = [[rows[r][c] for r in range(3)] for c in range(3)]
+        if any(math.sqrt(sum(v * v for v in axis)) < 1e-12 for axis in axes):
+            blind.append("matrix_world is scaled to 0")
+            for r in range(3):
+                rows[r][:3] = [float(r == c) for c in range(3)]
+            _set(self, "matrix_world", tuple(tuple(row) for row in rows))
+        _set(self, "clip_end", _positive("camera.clip_end", self.clip_end))
+        if self.clip_end <= self.clip_start:
+            blind.append(f"clip_end {value_text(self.clip_end)} is not past clip_start "
+                         f"{value_text(self.clip_start)}")
+            _set(self, "clip_end", self.clip_start + 1.0)
+        _set(self, "ortho_scale", _non_negative("camera.ortho_scale", self.ortho_scale))
+        if self.ortho_scale == 0.0:
+            if self.projection == "ORTHO":
+                blind.append("ortho_scale is 0")
+            _set(self, "ortho_scale", 1.0)
+        _set(self, "focus_distance", _non_negative("camera.focus_distance",
+                                                   self.focus_distance))
+        if self.focus_distance == 0.0:
+            if self.aperture_radius > 0.0:
+                blind.append("focus_distance is 0 with depth of field")
+            _set(self, "focus_distance", 1.0)
+        if blind:
+            _set(self, "sees_nothing", True)
+            _set(self, "warnings", (f"{_set_label('camera', self.name)}: {', '.join(blind)}: "
+                                    f"the frame renders black, as in Cycles",))
 
     @property
     def width(self) -> int:
@@ -592,13 +658,17 @@ def _materials(where: str, materials) -> tuple:
 @dataclass(frozen=True, eq=False)
 class SphereSet:
     """N spheres as arrays (point clouds, particles, molecules): world-space ``centers``
-    (N, 3), ``radii`` (N,) > 0, ``material_indices`` (N,) into ``materials`` (at least one)."""
+    (N, 3), ``radii`` (N,), ``material_indices`` (N,) into ``materials`` (at least one).
+
+    Spheres that draw nothing in Cycles, of radius <= 0 or a centre or radius that is not
+    finite, are left out (``warnings`` counts them, in one line)."""
 
     centers: np.ndarray
     radii: np.ndarray
     material_indices: np.ndarray
     materials: tuple
     name: str = ""
+    warnings: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self):
         where = _set_label("sphere set", self.name)
@@ -608,13 +678,17 @@ class SphereSet:
         indices = _frozen_array(where, "material_indices", self.material_indices, np.int64,
                                 (count,))
         materials = _materials(where, self.materials)
-        _require_finite(where, "centers", centers)
-        _require_finite(where, "radii", radii)
-        bad = _first_bad(radii <= 0)
-        if bad is not None:
-            raise SceneError(f"{where}: radii{_index_text(bad)} must be > 0, got "
-                             f"{value_text(radii[bad])}")
         _require_indices(where, "material_indices", indices, len(materials), "materials")
+        # Compared this way round, NaN radii are left out too, without a NumPy warning.
+        drawn = np.isfinite(centers).all(axis=1) & (radii > 0) & (radii <= MAX_MAGNITUDE)
+        if not drawn.all():
+            first = int(np.flatnonzero(~drawn)[0])
+            culprit = (f"radii[{first}] is {value_text(radii[first])}"
+                       if np.isfinite(centers[first]).all() else
+                       f"centers[{first}] is {value_text(centers[first])}")
+            _set(self, "warnings", (f"{where}: {int((~drawn).sum())} of {count} spheres draw "
+                                    f"nothing, as in Cycles ({culprit})",))
+            centers, radii, indices = (_frozen(a[drawn]) for a in (centers, radii, indices))
         for name, value in (("centers", centers), ("radii", radii),
                             ("material_indices", indices), ("materials", materials)):
             _set(self, name, value)
@@ -641,6 +715,8 @@ class TriangleMesh:
     default 0.1): how many of a smooth mesh's grazing shadow rays leave from the smooth
     surface over its facets rather than from the facets (``core.terminator``); 0 keeps the
     facets' faceted terminator.  Flat meshes (corner_normals None) have none.
+    Triangles that touch a vertex that is not finite are left out, as Cycles leaves them
+    (``warnings`` counts them, in one line).
     """
 
     vertices: np.ndarray
@@ -651,6 +727,7 @@ class TriangleMesh:
     transforms: np.ndarray = field(default_factory=_identity_transforms)
     name: str = ""
     shadow_terminator_offset: float = DEFAULT_GEOMETRY_OFFSET
+    warnings: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self):
         where = _set_label("mesh", self.name)
@@ -662,9 +739,10 @@ class TriangleMesh:
         materials = _materials(where, self.materials)
         transforms = _frozen_array(where, "transforms", self.transforms, np.float64,
                                    (None, 4, 4))
-        _require_finite(where, "vertices", vertices)
         _require_indices(where, "triangles", triangles, len(vertices), "vertices")
         _require_indices(where, "material_indices", indices, len(materials), "materials")
+        vertices, keep, dropped = usable_triangles(vertices, triangles)
+        vertices = _frozen(vertices)
         _require_finite(where, "transforms", transforms)
         if len(transforms) == 0:
             raise SceneError(f"{where}: transforms must hold at least one 4 x 4 matrix")
@@ -686,8 +764,13 @@ class TriangleMesh:
             # Not copied first: the normalised normals are a new array anyway.
             normals = _checked_array(where, "corner_normals", normals, np.float64,
                                      (count, 3, 3))
+            if keep is not None:
+                normals = normals[keep]
             _require_finite(where, "corner_normals", normals)
             normals = _unit_rows(where, "corner_normals", normals)
+        if keep is not None:
+            triangles, indices = _frozen(triangles[keep]), _frozen(indices[keep])
+            _set(self, "warnings", (f"{where}: {dropped}",))
         for name, value in (("vertices", vertices), ("triangles", triangles),
                             ("corner_normals", normals), ("material_indices", indices),
                             ("materials", materials), ("transforms", transforms)):
@@ -748,6 +831,14 @@ class Scene:
                                  f"{value_text(mesh)}")
         _set(self, "background", _colour("scene.background", self.background))
         _set(self, "ambient", _colour("scene.ambient", self.ambient))
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """What the scene's parts render otherwise than they hold it (a light that emits
+        nothing, triangles or spheres left out, ...), one line each naming the part and
+        the field."""
+        parts = (self.camera, *self.lights, *self.sphere_sets, *self.meshes)
+        return tuple(line for part in parts for line in getattr(part, "warnings", ()))
 
     @property
     def sphere_count(self) -> int:

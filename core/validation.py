@@ -66,10 +66,12 @@ def _short_float_text(value) -> str:
     repr writes them."""
     number = float(value)
     if math.isfinite(number):
-        for digits in range(1, 18):
-            text = f"{number:.{digits}g}"
-            if type(value)(text) == value:
-                return repr(float(text))
+        # (A text just past the type's largest value reads back as inf: no warning.)
+        with np.errstate(over="ignore"):
+            for digits in range(1, 18):
+                text = f"{number:.{digits}g}"
+                if type(value)(text) == value:
+                    return repr(float(text))
     return repr(number)
 
 
@@ -128,13 +130,26 @@ def _non_negative(name: str, value, limit: float = MAX_MAGNITUDE) -> float:
 
 
 def _vec3(name: str, value, limit: float = MAX_MAGNITUDE) -> Vec3:
+    return tuple(_finite(f"{name}[{i}]", v, limit) for i, v in enumerate(_three(name, value)))
+
+
+def _three(name: str, value) -> tuple:
     try:
         items = tuple(value)
     except TypeError:
         raise SceneError(f"{name} must be 3 numbers, got {value_text(value)}") from None
     if len(items) != 3:
         raise SceneError(f"{name} must be 3 numbers, got {len(items)}: {value_text(value)}")
-    return tuple(_finite(f"{name}[{i}]", v, limit) for i, v in enumerate(items))
+    return items
+
+
+def _three_numbers(name: str, value) -> Vec3:
+    """3 floats, finite or not (a SceneError for anything else)."""
+    items = _three(name, value)
+    try:
+        return tuple(float(v) for v in items)
+    except (TypeError, ValueError):
+        return _vec3(name, items)  # raises, naming an item that is not a number
 
 
 def _colour(name: str, value) -> Vec3:
@@ -160,19 +175,110 @@ def _count(name: str, value, minimum: int = 1, maximum: int | None = None) -> in
     return value
 
 
-def _unit(name: str, value) -> Vec3:
-    vector = _vec3(name, value)
-    norm = math.sqrt(sum(c * c for c in vector))
-    if norm < 1e-12:
-        raise SceneError(f"{name} must be a non-zero direction, got {value_text(value)}")
-    return tuple(c / norm for c in vector)
-
-
 def _fraction(name: str, value) -> float:
     number = _finite(name, value)
     if not 0.0 <= number <= 1.0:
         raise SceneError(f"{name} must be in [0, 1], got {value_text(value)}")
     return number
+
+
+# --------------------------------------------------------------------------------------------
+# Lights: values Blender holds and Cycles renders in its own way (docs/invalid-data.md).  A
+# light whose place, direction, size, colour or power Cycles cannot use emits nothing, and a
+# negative power subtracts light; each light says so in one warning.
+
+class _LightFields:
+    """Checks a Blender light's fields one by one, as Cycles renders them: what makes the
+    light dark (``dark``), and the one warning that names those fields (``warnings``).
+    Cycles with its light tree (the default) renders every light dark for one whose power or
+    colour is NaN; without it, as here, only that light (measured)."""
+
+    def __init__(self, where: str):
+        self.where = where
+        self.dark: list[str] = []
+        self.notes: list[str] = []
+
+    def _finite_or_dark(self, field: str, value):
+        """``value``'s float, or None (the light goes dark) when it is not finite."""
+        number = _finite(f"{self.where}.{field}", value) if _is_finite(value) else None
+        if number is None:
+            self.dark.append(f"{field} is {value_text(value)}")
+        return number
+
+    def position(self, value) -> Vec3:
+        if all(map(math.isfinite, _three_numbers(f"{self.where}.position", value))):
+            return _vec3(f"{self.where}.position", value)
+        self.dark.append(f"position is {value_text(value)}")
+        return (0.0, 0.0, 0.0)
+
+    def direction(self, field: str, value) -> Vec3:
+        """A unit vector, or zero (dark) for a zero or non-finite one: the light's object
+        scaled to 0 along it."""
+        vector = _three_numbers(f"{self.where}.{field}", value)
+        if not all(map(math.isfinite, vector)):
+            self.dark.append(f"{field} is {value_text(value)}")
+            return (0.0, 0.0, 0.0)
+        vector = _vec3(f"{self.where}.{field}", vector)
+        norm = math.sqrt(sum(c * c for c in vector))
+        if norm < 1e-12:
+            self.dark.append(f"{field} is {value_text(value)} (the light is scaled to 0)")
+            return (0.0, 0.0, 0.0)
+        return tuple(c / norm for c in vector)
+
+    def colour(self, value) -> Vec3:
+        """A colour >= 0 whose channels that are not finite emit nothing (as Cycles renders
+        them without its light tree; with it, a NaN darkens every light)."""
+        rgb = _three_numbers(f"{self.where}.colour", value)
+        if not all(map(math.isfinite, rgb)):
+            rgb = tuple(c if math.isfinite(c) else 0.0 for c in rgb)
+            self.notes.append(f"colour is {value_text(value)}: channels that are not finite "
+                              f"emit nothing")
+        for i, channel in enumerate(rgb):
+            if channel < 0.0:
+                raise SceneError(f"{self.where}.colour[{i}] must be >= 0, got "
+                                 f"{value_text(channel)}")
+        if max(rgb) > MAX_COLOUR:
+            self.notes.append(f"colour {value_text(value)} is clamped to {MAX_COLOUR:g}")
+            rgb = tuple(min(c, MAX_COLOUR) for c in rgb)
+        return rgb
+
+    def amount(self, field: str, value) -> float:
+        """A power (W) or strength (W/m^2): any sign (a negative light subtracts light, as
+        in Cycles), dark when not finite."""
+        number = self._finite_or_dark(field, value)
+        return 0.0 if number is None else number
+
+    def size(self, field: str, value) -> float:
+        """A length >= 0; 0 (an area light of no area) or not finite makes the light dark."""
+        number = self._finite_or_dark(field, value)
+        if number is None:
+            return 0.0
+        if number < 0.0:
+            raise SceneError(f"{self.where}.{field} must be >= 0, got {value_text(value)}")
+        if number == 0.0:
+            self.dark.append(f"{field} is 0")
+        return number
+
+    def warnings(self) -> tuple[str, ...]:
+        """One line naming every field that made the light dark or was changed."""
+        reasons = self.notes + ([f"{', '.join(self.dark)}: it emits nothing"]
+                                if self.dark else [])
+        return (f"{self.where}: {'; '.join(reasons)}",) if reasons else ()
+
+
+def _is_finite(value) -> bool:
+    try:
+        return math.isfinite(float(value))
+    except (TypeError, ValueError):
+        return True  # not a number at all: ``_finite`` names it
+
+
+def _at_most_pi(name: str, value: float) -> float:
+    """An angle, refused past pi as float32 compares them (Blender stores angles in float32:
+    its 180 degrees, 3.1415927410125732, is float32 pi, above Python's), capped at pi."""
+    if np.float32(value) > np.float32(math.pi):
+        raise SceneError(f"{name} must be at most pi, got {value_text(value)}")
+    return min(value, math.pi)
 
 
 # --------------------------------------------------------------------------------------------
@@ -182,6 +288,12 @@ def _frozen_array(where: str, field_name: str, value, dtype, shape: tuple) -> np
     """``value`` as a read-only C-contiguous copy of ``dtype`` whose shape matches ``shape``
     (None: any length).  Integer fields accept only integer arrays (no silent truncation)."""
     array = _checked_array(where, field_name, value, dtype, shape, copy=True)
+    array.setflags(write=False)
+    return array
+
+
+def _frozen(array: np.ndarray) -> np.ndarray:
+    """``array`` made read-only (a set's arrays cannot change under the tracer)."""
     array.setflags(write=False)
     return array
 
@@ -263,3 +375,30 @@ def _require_indices(where: str, field_name: str, array: np.ndarray, count: int,
     if bad is not None:
         raise SceneError(f"{where}: {field_name}{_index_text(bad)} must be in [0, {count}) "
                          f"({what}), got {value_text(array[bad])}")
+
+
+def usable_triangles(vertices: np.ndarray, triangles: np.ndarray, limit: float = MAX_MAGNITUDE
+                     ) -> tuple[np.ndarray, np.ndarray | None, str | None]:
+    """(vertices, keep, why) for a mesh's vertices (V, 3) and triangles (T, 3) (indices in
+    range), leaving out the triangles that touch a vertex that is not finite or past
+    ``limit`` in size, as Cycles leaves them out (measured: docs/invalid-data.md): keep, the
+    triangles kept, (T,) bool, or None for all; the vertices with those vertices replaced by
+    a usable one (no triangle uses them any more, and the mesh's bounds stay those of what it
+    draws); why, one sentence saying what was left out, or None."""
+    # Compared this way round, NaN is unusable too, and no NumPy warning is raised.
+    unusable = ~(np.abs(vertices) <= limit).all(axis=1)
+    if not unusable.any():
+        return vertices, None, None
+    keep = ~unusable[triangles].any(axis=1)
+    usable = np.flatnonzero(~unusable)
+    replaced = vertices.copy()
+    replaced[unusable] = vertices[usable[0]] if len(usable) else 0.0
+    if keep.all():
+        return replaced, None, None
+    touched = triangles[~keep].ravel()
+    first = int(touched[unusable[touched]].min())
+    why = (f"{int((~keep).sum())} of {len(triangles)} triangles dropped: they touch a vertex "
+           f"not finite or past {limit:g} in size (vertices[{first}] is "
+           f"{value_text(vertices[first])})")
+    return replaced, keep, why
+

@@ -3,6 +3,8 @@ whatever NumPy type they come in, never a NumPy repr, on one line."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -19,6 +21,7 @@ SHOWN = [
     (np.float64(0.1), "0.1"),
     (np.float64(1e-300), "1e-300"),
     (np.float32(3e38), "3e+38"),
+    (np.float32(3.4028235e38), "3.4028235e+38"),   # float32's largest, without a warning
     (np.float64("nan"), "nan"),
     (np.float32("-inf"), "-inf"),
     (np.int64(-5), "-5"),
@@ -48,7 +51,9 @@ SHOWN = [
 
 @pytest.mark.parametrize("value, text", SHOWN, ids=[f"{type(v).__name__}-{t}" for v, t in SHOWN])
 def test_values_read_as_python_writes_them(value, text):
-    assert value_text(value) == text
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert value_text(value) == text
 
 
 def test_no_text_is_a_numpy_repr_or_spans_lines():
@@ -68,9 +73,6 @@ def test_other_objects_show_their_repr_on_one_line_cut_short():
 
 
 @pytest.mark.parametrize("make, message", [
-    (lambda: core.SphereSet(np.zeros((20, 3)), np.r_[np.ones(17), -1.0, np.ones(2)],
-                            np.zeros(20, np.int64), (core.Material(),), name="Points"),
-     "sphere set 'Points': radii[17] must be > 0, got -1.0"),
     (lambda: core.Sphere((0, 0, 0), np.array(-1.0), name="ball"),
      "sphere 'ball'.radius must be > 0, got -1.0"),
     (lambda: core.Material(reflection=np.array(np.float32(1.5))),
@@ -89,3 +91,14 @@ def test_the_cores_messages_show_numbers_as_numbers(make, message):
     with pytest.raises(core.SceneError) as raised:
         make()
     assert str(raised.value) == message
+
+
+def test_warnings_show_numbers_as_numbers():
+    """The warning NumPy 2 made read "radii[17] is np.float64(-1.0)"."""
+    spheres = core.SphereSet(np.zeros((20, 3)), np.r_[np.ones(17), -1.0, np.ones(2)],
+                             np.zeros(20, np.int64), (core.Material(),), name="Points")
+    assert spheres.warnings == ("sphere set 'Points': 1 of 20 spheres draw nothing, as in "
+                                "Cycles (radii[17] is -1.0)",)
+    light = core.SpotLight((0, 0, 0), np.zeros(3, np.float32), power=np.float32(5.0), name="Spot")
+    assert light.warnings == ("light 'Spot': direction is [0.0, 0.0, 0.0] (the light is scaled "
+                              "to 0): it emits nothing",)
