@@ -161,7 +161,7 @@ class ExportContext:
         if key not in self.materials:
             try:
                 exporter = export_article_material if self.article else export_material
-                core_material, note = exporter(material)
+                core_material, note = exporter(material, owner)
             except SceneError as error:
                 raise ExportError(f"object '{owner}', material '{key}': {error}") from None
             self.materials[key] = core_material

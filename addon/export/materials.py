@@ -53,6 +53,25 @@ AMBIENT_FRACTION = 0.1
 #: Blinn exponent of the default roughness 0.5 (alpha 0.25): 2 / 0.25^2 - 2.
 REFERENCE_EXPONENT = 30.0
 
+def counted(value, nan: float = 0.0):
+    """A value read from Blender (a float or an array) as Glint counts it when it is not
+    usable as is: NaN as ``nan``, what is infinite or past MAX_COLOUR in size as
+    +-MAX_COLOUR; None when it is usable (docs/invalid-data.md: Cycles' own clamps drop a NaN
+    to the low end of an input's range; infinite pixels are what Glint cannot write)."""
+    array = np.asarray(value, float)
+    if (np.abs(array) <= MAX_COLOUR).all():
+        return None
+    fixed = np.clip(np.where(np.isnan(array), nan, array), -MAX_COLOUR, MAX_COLOUR)
+    return float(fixed) if fixed.ndim == 0 else fixed
+
+
+def as_stored(value) -> np.ndarray:
+    """A value read from Blender as the float32 Blender holds it, for a message to show as
+    Blender's interface shows it (0.1, not 0.10000000149011612; past float32's range: inf)."""
+    with np.errstate(over="ignore"):
+        return np.asarray(value, np.float32)
+
+
 DEFAULT_SURFACE = dict(base_colour=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5,
                        specular_level=0.5)
 
@@ -138,26 +157,57 @@ def custom_material(settings) -> Material:
                     reflection=settings.reflection)
 
 
-def export_article_material(material) -> tuple[Material, Optional[str]]:
+def usable_custom_material(material, where: str) -> tuple[Optional[Material], Optional[str]]:
+    """(the Glint section as a core Material, None) when "Custom" is on and its values are
+    valid; (None, a note) when they are not (a script can set them past the panel's limits):
+    the material's own surface is used then, which is all Cycles reads; (None, None) when
+    "Custom" is off."""
+    settings = getattr(material, "glint", None)
+    if settings is None or not settings.use_custom:
+        return None, None
+    try:
+        return custom_material(settings), None
+    except SceneError as error:
+        return None, f"{where}: its Glint Custom values are invalid ({error}): its surface " \
+                     f"is used, as Cycles uses it"
+
+
+def export_article_material(material, owner: str = "") -> tuple[Material, Optional[str]]:
     """(core Material, note or None) for a bpy Material or None (Blender's default surface),
-    article semantics."""
+    article semantics; owner: the object using it, named in notes about invalid values."""
     if material is None:
         return material_from_surface(SurfaceValues(**DEFAULT_SURFACE)), None
-    settings = getattr(material, "glint", None)
-    if settings is not None and settings.use_custom:
-        return custom_material(settings), None
+    where = _where(material, owner)
+    custom, custom_note = usable_custom_material(material, where)
+    if custom is not None:
+        return custom, None
     values, note = surface_values(material)
-    check_finite(values)
-    return material_from_surface(values), note
+    values, value_note = usable_values(values, where)
+    notes = [text for text in (custom_note, note, value_note) if text]
+    return material_from_surface(values), ("; ".join(notes) or None)
 
 
-def check_finite(values: SurfaceValues) -> None:
-    """Raise SceneError naming the first input that is NaN or infinite (the mapping would
-    otherwise hide which one it was behind a derived field)."""
+def _where(material, owner: str) -> str:
+    return f"object '{owner}', material '{material.name}'" if owner else \
+        f"material '{material.name}'"
+
+
+def usable_values(values: SurfaceValues, where: str) -> tuple[SurfaceValues, Optional[str]]:
+    """``values`` with NaN counted as 0 and what is infinite or past MAX_COLOUR in size
+    clamped to +-MAX_COLOUR (as ``NodeEvaluator.usable``), and a note naming the fields, or
+    None."""
+    fields, named = {}, []
     for name in ("base_colour", "metallic", "roughness", "specular_level"):
         value = getattr(values, name)
-        if not np.all(np.isfinite(value)):
-            raise SceneError(f"{name.replace('_', ' ')} must be finite, got {value_text(value)}")
+        fixed = counted(value)
+        if fixed is not None:
+            named.append(f"{name.replace('_', ' ')} {value_text(as_stored(value))} counts "
+                         f"as {value_text(as_stored(fixed))}")
+            value = tuple(fixed) if np.ndim(fixed) else fixed
+        fields[name] = value
+    if not named:
+        return values, None
+    return SurfaceValues(**fields), f"{where}: {'; '.join(named)}"
 
 
 # --------------------------------------------------------------------------------------------
@@ -216,8 +266,15 @@ class Lobes:
         lobes.fresnel_sum = lobes.refraction_weight * fresnel
         return lobes
 
+    def beyond_limit(self) -> list[str]:
+        """The colour lobes past MAX_COLOUR (a colour x a strength, a sum of shaders), which
+        ``material`` clamps."""
+        return [name for name in ("diffuse", "f0", "f90", "transmission", "emission",
+                                  "transparency", "translucency")
+                if np.max(getattr(self, name)) > MAX_COLOUR]
+
     def material(self) -> SurfaceMaterial:
-        positive = lambda v: tuple(float(c) for c in np.maximum(v, 0.0))  # noqa: E731
+        positive = lambda v: tuple(float(c) for c in np.clip(v, 0.0, MAX_COLOUR))  # noqa: E731
         roughness = self.roughness_sum / self.gloss_weight if self.gloss_weight > 0 else 0.5
         ior = self.ior_sum / self.refraction_weight if self.refraction_weight > 0 else 1.5
         fresnel = (self.fresnel_sum / self.refraction_weight if self.refraction_weight > 0
@@ -272,12 +329,6 @@ def _principled_lobes(values: dict) -> Lobes:
     return lobes
 
 
-#: Principled inputs checked to be finite, with the names errors give them (as the article
-#: semantics' mapping names them).
-PRINCIPLED_LABELS = {"Base Color": "base colour", "Metallic": "metallic",
-                     "Roughness": "roughness", "Specular IOR Level": "specular level",
-                     "IOR": "ior", "Alpha": "alpha"}
-
 #: Nodes whose value passes straight through (their first input of the socket's kind).
 _PASS_THROUGH = {"NodeReroute"}
 
@@ -298,15 +349,36 @@ def fresnel_average(ior: float) -> float:
 class NodeEvaluator:
     """Evaluates a material's node tree into Lobes, following links through reroutes and
     node groups; what it cannot evaluate gets its socket's own value (a texture: its image's
-    average) and one note naming the node."""
+    average) and one note naming the node.
 
-    def __init__(self, owner: str):
+    A value that is NaN counts as 0, one that is infinite or past MAX_COLOUR in size as
+    +-MAX_COLOUR, each with a note naming the socket (``usable``): Cycles renders a NaN input
+    as the low end of the input's range (measured: a NaN channel of a Base Color or a
+    Diffuse BSDF's Color, a NaN Metallic, Emission Strength or world colour channel add
+    nothing; a NaN IOR reflects as an IOR near 0 does, as Glint's floor of 1e-3 does; a NaN
+    Alpha: ``shader``), and an infinite one as infinite pixels, which Glint cannot write."""
+
+    def __init__(self, owner: str, user: str = ""):
         self.owner = owner
+        self.user = user   # "object 'name', " for the notes about values, or ""
         self.notes: list[str] = []
 
-    def note(self, text: str) -> None:
-        if text not in self.notes:
+    def note(self, text: Optional[str]) -> None:
+        if text and text not in self.notes:
             self.notes.append(text)
+
+    def usable(self, value, socket, nan: float = 0.0):
+        """``value`` (a float or an RGB array) read from ``socket``, NaN counted as ``nan``
+        (itself NaN: left for the caller to handle) and what is infinite or past MAX_COLOUR
+        in size clamped to +-MAX_COLOUR, with a note naming the socket and its node."""
+        fixed = counted(value, nan)
+        if fixed is None:
+            return value
+        if not np.isnan(fixed).any():
+            self.note(f"{self.user}{self.owner}: '{socket.name}' of '{socket.node.name}' is "
+                      f"{value_text(as_stored(value))}: it counts as "
+                      f"{value_text(as_stored(fixed))}")
+        return fixed
 
     # --- following links ------------------------------------------------------------------
 
@@ -356,20 +428,24 @@ class NodeEvaluator:
         }
         if node.operation not in operations:
             return None
-        result = float(operations[node.operation]())
+        try:
+            result = float(operations[node.operation]())
+        except OverflowError:
+            result = math.inf
         return min(max(result, 0.0), 1.0) if node.use_clamp else result
 
-    def value(self, socket, groups=()) -> float:
+    def value(self, socket, groups=(), nan: float = 0.0) -> float:
+        """A float input's value; NaN counts as ``nan`` (``usable``)."""
         output, groups = self.source(socket, groups)
         if output is None:
-            return float(groups.default_value)
+            return self.usable(float(groups.default_value), groups, nan)
         node = output.node
         if node.bl_idname == "ShaderNodeMath":
             result = self._math(node, groups)
             if result is not None:
-                return result
+                return self.usable(result, output, nan)
         if node.bl_idname == "ShaderNodeValue":
-            return float(output.default_value)
+            return self.usable(float(output.default_value), output, nan)
         if node.bl_idname == "ShaderNodeFresnel":
             return fresnel_average(self.value(node.inputs["IOR"], groups))
         if node.bl_idname == "ShaderNodeLayerWeight":
@@ -383,13 +459,13 @@ class NodeEvaluator:
             return float(np.dot(colour, (0.2126, 0.7152, 0.0722)))
         self.note(f"{self.owner}: node '{node.name}' ({node.bl_label}) is not evaluated; "
                   f"'{socket.name}' uses its own value")
-        return float(socket.default_value)
+        return self.usable(float(socket.default_value), socket, nan)
 
     def colour(self, socket, groups=()) -> np.ndarray:
         outer = groups
         output, groups = self.source(socket, groups)
         if output is None:
-            return np.asarray(groups.default_value[:3], float)
+            return self.usable(np.asarray(groups.default_value[:3], float), groups)
         colour = self._node_colour(output, groups)
         if colour is not None:
             return colour
@@ -398,20 +474,21 @@ class NodeEvaluator:
             return np.full(3, self.value(socket, outer))
         self.note(f"{self.owner}: node '{node.name}' ({node.bl_label}) is not evaluated; "
                   f"'{socket.name}' uses its own value")
-        return np.asarray(socket.default_value[:3], float)
+        return self.usable(np.asarray(socket.default_value[:3], float), socket)
 
     def _node_colour(self, output, groups):
         node = output.node
         if node.bl_idname == "ShaderNodeRGB":
-            return np.asarray(output.default_value[:3], float)
+            return self.usable(np.asarray(output.default_value[:3], float), output)
         if node.bl_idname == "ShaderNodeValue":
-            return np.full(3, float(output.default_value))
+            return np.full(3, self.usable(float(output.default_value), output))
         if node.bl_idname in ("ShaderNodeTexImage", "ShaderNodeTexEnvironment"):
             average = image_average(node.image)
             if average is None:
                 return None
             self.note(f"{self.owner}: texture '{node.name}' counts as its image's average "
                       f"colour")
+            average = self.usable(average, output)
             return average if output.name == "Color" else np.full(3, average.mean())
         return None
 
@@ -426,21 +503,19 @@ class NodeEvaluator:
         colour = lambda name: self.colour(node.inputs[name], groups)  # noqa: E731
         value = lambda name: self.value(node.inputs[name], groups)  # noqa: E731
         if kind == "ShaderNodeBsdfPrincipled":
-            for name, label in PRINCIPLED_LABELS.items():
-                reading = colour(name) if name == "Base Color" else value(name)
-                # (A huge base colour is named by the material's own check, as its diffuse.)
-                too_large = name != "Base Color" and abs(float(reading)) > MAX_COLOUR
-                if not np.all(np.isfinite(reading)) or too_large:
-                    raise SceneError(f"{label} ('{name}' of '{node.name}') must be finite "
-                                     f"and at most {MAX_COLOUR:g}, got "
-                                     f"{value_text(reading)}")
+            alpha = self.value(node.inputs["Alpha"], groups, nan=math.nan)
+            if math.isnan(alpha):
+                # Measured: Cycles renders a Principled BSDF of NaN Alpha black and opaque.
+                self.note(f"{self.user}{self.owner}: 'Alpha' of '{node.name}' is nan: the "
+                          f"Principled BSDF renders black and opaque, as in Cycles")
+                return Lobes.none()
             for name in ("Coat Weight", "Sheen Weight"):
                 if name in node.inputs and value(name) > 0:
                     self.note(f"{self.owner}: Principled '{node.name}': {name} is not "
                               f"modelled")
             return _principled_lobes(dict(
                 base=colour("Base Color"), metallic=value("Metallic"),
-                roughness=value("Roughness"), ior=value("IOR"), alpha=value("Alpha"),
+                roughness=value("Roughness"), ior=value("IOR"), alpha=alpha,
                 specular=value("Specular IOR Level"), tint=colour("Specular Tint"),
                 transmission=value("Transmission Weight"),
                 emission=colour("Emission Color") * value("Emission Strength")))
@@ -526,13 +601,20 @@ def surface_socket(tree):
     return None if output is None else output.inputs.get("Surface")
 
 
-def _viewport_display(material) -> SurfaceMaterial:
-    return SurfaceMaterial.principled(base_color=tuple(material.diffuse_color[:3]),
-                                      metallic=material.metallic, roughness=material.roughness)
+def _viewport_display(material, where: str) -> tuple[SurfaceMaterial, Optional[str]]:
+    values, note = usable_values(SurfaceValues(
+        base_colour=tuple(material.diffuse_color[:3]), metallic=material.metallic,
+        roughness=material.roughness, specular_level=0.5), where)
+    return SurfaceMaterial.principled(
+        base_color=tuple(max(c, 0.0) for c in values.base_colour),
+        metallic=min(max(values.metallic, 0.0), 1.0),
+        roughness=min(max(values.roughness, 0.0), 1.0)), note
 
 
-def export_material(material) -> tuple[SurfaceMaterial | Material, Optional[str]]:
-    """(core material, note or None) for a bpy Material or None, default semantics.
+def export_material(material, owner: str = "") -> tuple[SurfaceMaterial | Material,
+                                                        Optional[str]]:
+    """(core material, note or None) for a bpy Material or None, default semantics; owner:
+    the object using it, named in notes about invalid values.
 
     None gets Blender's default surface (a default Principled BSDF).  The Glint section with
     "Custom" on gives the article's Material as typed.  A material without a node tree uses
@@ -541,16 +623,24 @@ def export_material(material) -> tuple[SurfaceMaterial | Material, Optional[str]
     black, as in Cycles, with a note."""
     if material is None:
         return SurfaceMaterial.principled(), None
-    settings = getattr(material, "glint", None)
-    if settings is not None and settings.use_custom:
-        return custom_material(settings), None
+    where = _where(material, owner)
+    custom, custom_note = usable_custom_material(material, where)
+    if custom is not None:
+        return custom, None
     if material.node_tree is None:
-        return _viewport_display(material), None
+        surface_material, note = _viewport_display(material, where)
+        return surface_material, ("; ".join(filter(None, (custom_note, note))) or None)
     surface = surface_socket(material.node_tree)
     if surface is None or not surface.is_linked:
-        return Lobes.none().material(), (f"material '{material.name}': no shader reaches a "
-                                         f"Cycles Material Output; it renders black, as in "
-                                         f"Cycles")
-    evaluator = NodeEvaluator(f"material '{material.name}'")
+        return Lobes.none().material(), "; ".join(filter(None, (
+            custom_note, f"material '{material.name}': no shader reaches a Cycles Material "
+                         f"Output; it renders black, as in Cycles")))
+    evaluator = NodeEvaluator(f"material '{material.name}'",
+                              f"object '{owner}', " if owner else "")
+    evaluator.note(custom_note)
     lobes = evaluator.shader(surface)
+    beyond = lobes.beyond_limit()
+    if beyond:
+        evaluator.note(f"{where}: {', '.join(beyond)} past {MAX_COLOUR:g} is clamped to it "
+                       f"(Cycles' pixels are as blown out)")
     return lobes.material(), ("; ".join(evaluator.notes) or None)
