@@ -16,7 +16,9 @@ Public API::
 
 ``progress(fraction)`` is called as tiles finish; ``should_cancel()`` is polled between tiles
 and a True answer raises RenderCancelled.  Invalid scenes or settings raise SceneError (a
-ValueError) naming the field, before any ray is traced.
+ValueError) naming the field, before any ray is traced; values Blender can hold that Cycles
+renders in its own way (a NaN vertex, a light scaled to 0, ...) are rendered as Cycles does,
+each part saying so in ``Scene.warnings`` (docs/invalid-data.md).
 """
 
 from .scene import (AreaLight, BlenderCamera, Material, PointLight, RenderSettings, Scene,

@@ -48,7 +48,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene import MIN_ALPHA, Material, SurfaceMaterial, dielectric_f0, ior_from_f0
+from .reflectance import MIN_ALPHA, dielectric_f0, ior_from_f0
+from .scene import Material, SurfaceMaterial
 from .vectors import dot, normalize, take
 
 

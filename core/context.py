@@ -171,10 +171,13 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
     paths = None
     if not article:
         surfaces = surface_arrays(table.entries, dtype)
+        blender = [light for light in scene.lights if not isinstance(light, PointLight)]
+        # (A light that emits nothing, ``core.scene``, is not sampled; it still makes the
+        # scene one of Blender's lights.)
         blender_lights = tuple(prepare_light(light, settings.light_samples, geometry)
-                               for light in scene.lights if not isinstance(light, PointLight))
+                               for light in blender if light.emits)
         look = LookContext(surfaces, blender_lights,
-                           active=bool(blender_lights) or surfaces.any_physical,
+                           active=bool(blender) or surfaces.any_physical,
                            translucent=translucent_view(surfaces))
         if look.active:
             # Blender's lights have no bound on what a bounce adds (watts, not the article's
@@ -215,7 +218,9 @@ def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces, frame)
     from .emitters import mesh_lights, prepare_lights
     from .path import path_setup
     from .surface_points import SurfaceTables
-    lights = prepare_lights(scene.lights, scene_radius=1.0)
+    # (A light scaled to 0 or of size 0 emits nothing, as in Cycles: ``emits``.)
+    lights = prepare_lights([light for light in scene.lights if getattr(light, "emits", True)],
+                            scene_radius=1.0)
     mesh = mesh_lights(arrays.triangles, len(arrays.spheres),
                        surfaces.emission.astype(np.float64))
     programs = {row: material.program for row, material in enumerate(arrays.materials.entries)

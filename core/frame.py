@@ -171,9 +171,46 @@ def check_resolvable(scene: Scene) -> None:
     ratio = reach / size
     if ratio > MAX_SCALE_RATIO:
         raise SceneError(
-            f"{label} (size {size:g}) is {ratio:.1e} times smaller than the scene's extent, "
-            f"more than the {MAX_SCALE_RATIO:.0e} float64 can render exactly: enlarge it, or "
-            f"move far-away objects, lights or the camera closer")
+            f"{label} (size {size:g}) is {ratio:.1e} times smaller than the scene's extent "
+            f"({farthest(scene)} reaches {reach:.1e} from the camera), more than the "
+            f"{MAX_SCALE_RATIO:.0e} float64 can render exactly: enlarge it, or move far-away "
+            f"objects, lights or the camera closer")
+
+
+def farthest(scene: Scene) -> str:
+    """What reaches farthest from the camera's eye (``scene_reach``'s measure): a sphere,
+    a sphere set's sphere, a light or a mesh instance, named as ``smallest_feature`` names
+    them (asked only to explain a refusal)."""
+    centre = eye_position(scene.camera)
+
+    def reach(lower, upper) -> np.ndarray:
+        return np.maximum(np.abs(lower / 2 - centre / 2), np.abs(upper / 2 - centre / 2)).max(
+            axis=-1)
+
+    candidates = []
+    for i, sphere in enumerate(scene.spheres):
+        centre_of = np.asarray(sphere.center)
+        label = f"sphere '{sphere.name}'" if sphere.name else f"sphere {i}"
+        candidates.append((float(reach(centre_of - sphere.radius, centre_of + sphere.radius)),
+                           label))
+    for sphere_set in scene.sphere_sets:
+        if len(sphere_set):
+            radii = sphere_set.radii[:, None]
+            far = reach(sphere_set.centers - radii, sphere_set.centers + radii)
+            i = int(far.argmax())
+            candidates.append((float(far[i]), f"sphere set '{sphere_set.name}' sphere {i}"))
+    for light in scene.lights:
+        if not isinstance(light, SunLight):
+            position = np.asarray(light.position)
+            candidates.append((float(reach(position - light.radius, position + light.radius)),
+                               f"light '{light.name}'"))
+    for mesh in scene.meshes:
+        low, high = _mesh_boxes(Scene(camera=scene.camera, meshes=(mesh,)))
+        if len(low):
+            far = reach(low, high)
+            i = int(far.argmax())
+            candidates.append((float(far[i]), f"mesh '{mesh.name}' instance {i}"))
+    return max(candidates, default=(0.0, "the camera"))[1]
 
 
 def _camera(camera, frame: Frame):

@@ -58,9 +58,12 @@ class PathResult:
 
 
 def _power_heuristic(a, b):
-    a2, b2 = a * a, b * b
-    total = a2 + b2
-    return np.where(total > 0, a2 / np.where(total > 0, total, 1), 0)
+    """a^2 / (a^2 + b^2) per element (0 where both are 0; callers weigh delta lights, whose
+    density is infinite, apart)."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        a2, b2 = a * a, b * b
+        total = a2 + b2
+        return np.where(total > 0, a2 / np.where(total > 0, total, 1), 0)
 
 
 def _clamp(values, limit: float):

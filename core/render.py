@@ -546,6 +546,10 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     if not isinstance(settings, RenderSettings):
         raise SceneError(f"settings must be a core.RenderSettings, got {type(settings).__name__}")
     allocator.configure_if_opted_in()  # only if GLINT_MALLOC_TUNING asks (core.allocator)
+    if getattr(scene.camera, "sees_nothing", False):
+        # Cycles renders such a camera's frame black (``BlenderCamera``), opaque or, with a
+        # transparent film, transparent: an empty scene, tile by tile as any frame.
+        scene = Scene(camera=scene.camera)
     world = None if settings.semantics == "article" else scene_frame(scene)  # for passes
     scene = canonical_scene(scene, settings)  # positions and units stop mattering
     dtype = choose_precision(scene, settings.precision)

@@ -3,7 +3,8 @@
 Everything here is plain, immutable data with units and conventions spelled out; the tracer
 turns it into arrays (``core.arrays``).  Construction validates every field, so a scene that
 exists is a scene the tracer can render: bad input fails here, naming the field and the
-value, before any ray is traced.
+value, before any ray is traced (the checks and limits: ``core.validation``; the reflectance
+formulas the materials use: ``core.reflectance``).
 
 Conventions
 -----------
@@ -23,108 +24,31 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal, Sequence, Union
+from typing import Literal, Union
 
 import numpy as np
 
 from .choices import (ANTI_ALIASING, FILMS, INTEGRATORS, PARALLELISM,  # noqa: F401
                       PIXEL_FILTERS, PRECISIONS, SEMANTICS)   # (defined once there)
+from .reflectance import (MIN_ALPHA, blinn_exponent, dielectric_f0,  # noqa: F401
+                          ior_from_f0, principled_fresnel)
 from .terminator import DEFAULT_GEOMETRY_OFFSET
-
-Vec3 = tuple[float, float, float]
+from .validation import (BLOCK_ROWS, MAX_COLOUR, MAX_DEPTH, MAX_LIGHT_SAMPLES,  # noqa: F401
+                         MAX_FILTER_WIDTH, MAX_MAGNITUDE, MAX_SAMPLES, MAX_SHININESS,
+                         MAX_THREADS, MAX_TILE_SIZE,
+                         SceneError, Vec3, row_blocks, usable_triangles, value_text, _at_most_pi,
+                         _checked_array, _choice, _colour, _count, _finite, _first_bad, _fraction,
+                         _frozen, _frozen_array, _index_text, _LightFields, _non_negative,
+                         _positive, _require_finite, _require_indices, _unit_rows, _vec3)
 
 PROJECTIONS = ("PERSP", "ORTHO")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 AREA_SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
 
 
-class SceneError(ValueError):
-    """Invalid scene or settings; the message names the field and the offending value."""
-
-
-# --------------------------------------------------------------------------------------------
-# Limits.  Validation accepts only values whose every product and sum in the tracer stays
-# finite, so no NaN or inf can reach an image from an accepted scene: lengths and coordinates
-# up to 1e300 (``core.frame`` moves and scales every scene to about unit size before tracing,
-# so differences of them never overflow), colours and light intensities up to 1e12 (a path
-# adds a few products of two such factors, far below float32's 3.4e38), Blinn-Phong exponents
-# up to 1e7 (Blender's roughness 0 maps to 8e6), and counts that bound the work per pixel.
-
-MAX_MAGNITUDE = 1e300
-MAX_COLOUR = 1e12
-MAX_SHININESS = 1e7
-MAX_SAMPLES = 16384
-MAX_LIGHT_SAMPLES = 1024
-MAX_DEPTH = 256
-MAX_TILE_SIZE = 1024
-MAX_THREADS = 1024
-MAX_FILTER_WIDTH = 100.0
-
-
-# --------------------------------------------------------------------------------------------
-# Validation helpers: each takes the field's full name so that errors point at the culprit.
-
-def _finite(name: str, value, limit: float = MAX_MAGNITUDE) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise SceneError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(number):
-        raise SceneError(f"{name} must be finite, got {value!r}")
-    if abs(number) > limit:
-        raise SceneError(f"{name} must be at most {limit:g} in size, got {value!r}")
-    return number
-
-
-def _positive(name: str, value) -> float:
-    number = _finite(name, value)
-    if number <= 0.0:
-        raise SceneError(f"{name} must be > 0, got {value!r}")
-    return number
-
-
-def _non_negative(name: str, value, limit: float = MAX_MAGNITUDE) -> float:
-    number = _finite(name, value, limit)
-    if number < 0.0:
-        raise SceneError(f"{name} must be >= 0, got {value!r}")
-    return number
-
-
-def _vec3(name: str, value, limit: float = MAX_MAGNITUDE) -> Vec3:
-    try:
-        items = tuple(value)
-    except TypeError:
-        raise SceneError(f"{name} must be 3 numbers, got {value!r}") from None
-    if len(items) != 3:
-        raise SceneError(f"{name} must be 3 numbers, got {len(items)}: {value!r}")
-    return tuple(_finite(f"{name}[{i}]", v, limit) for i, v in enumerate(items))
-
-
-def _colour(name: str, value) -> Vec3:
-    rgb = _vec3(name, value, MAX_COLOUR)
-    for i, channel in enumerate(rgb):
-        if channel < 0.0:
-            raise SceneError(f"{name}[{i}] must be >= 0, got {channel!r}")
-    return rgb
-
-
 def _is_program(value) -> bool:
     from .shader.program import ShaderProgram
     return isinstance(value, ShaderProgram)
-
-
-def _choice(name: str, value, allowed: Sequence[str]) -> str:
-    if value not in allowed:
-        raise SceneError(f"{name} must be one of {', '.join(map(repr, allowed))}; got {value!r}")
-    return value
-
-
-def _count(name: str, value, minimum: int = 1, maximum: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise SceneError(f"{name} must be a whole number >= {minimum}, got {value!r}")
-    if maximum is not None and value > maximum:
-        raise SceneError(f"{name} must be at most {maximum}, got {value!r}")
-    return value
 
 
 def _set(obj, name: str, value) -> None:
@@ -156,51 +80,13 @@ class Material:
              _non_negative(f"{where}.shininess", self.shininess, MAX_SHININESS))
         reflection = _finite(f"{where}.reflection", self.reflection)
         if not 0.0 <= reflection <= 1.0:
-            raise SceneError(f"{where}.reflection must be in [0, 1], got {self.reflection!r}")
+            raise SceneError(f"{where}.reflection must be in [0, 1], got "
+                             f"{value_text(self.reflection)}")
         _set(self, "reflection", reflection)
         return self
 
     def __post_init__(self):
         self.validate()
-
-
-def _unit(name: str, value) -> Vec3:
-    vector = _vec3(name, value)
-    norm = math.sqrt(sum(c * c for c in vector))
-    if norm < 1e-12:
-        raise SceneError(f"{name} must be a non-zero direction, got {value!r}")
-    return tuple(c / norm for c in vector)
-
-
-def _fraction(name: str, value) -> float:
-    number = _finite(name, value)
-    if not 0.0 <= number <= 1.0:
-        raise SceneError(f"{name} must be in [0, 1], got {value!r}")
-    return number
-
-
-def dielectric_f0(ior: float) -> float:
-    """Fresnel reflectance at normal incidence of a dielectric of index ``ior`` in air."""
-    return ((ior - 1.0) / (ior + 1.0)) ** 2
-
-
-def ior_from_f0(f0):
-    """The index >= 1 whose ``dielectric_f0`` is f0 (f0 capped at 0.999; a float or an
-    array)."""
-    root = np.sqrt(np.clip(f0, 0.0, 0.999))
-    index = (1.0 + root) / (1.0 - root)
-    return float(index) if np.ndim(index) == 0 else index
-
-
-def principled_fresnel(base, tint, metallic, alpha, level, f0_dielectric):
-    """(specular_dielectric, specular_ior) of a Principled BSDF's glossy lobe: the share of
-    its rise from f0 to f90 (grey means) that is the dielectric layer's rather than the
-    metal's, and the index whose f0 that layer has (Cycles' ``ior_from_F0``)."""
-    dielectric = (1.0 - metallic) * alpha * (min(1.0, 2.0 * level) - f0_dielectric)
-    rise_dielectric = dielectric * float(np.mean(tint))
-    rise = rise_dielectric + metallic * alpha * (1.0 - float(np.mean(base)))
-    share = min(1.0, max(0.0, rise_dielectric / rise)) if rise > 0 else 0.0
-    return share, ior_from_f0(f0_dielectric)
 
 
 @dataclass(frozen=True)
@@ -283,14 +169,15 @@ class SurfaceMaterial:
              _fraction(f"{where}.specular_dielectric", self.specular_dielectric))
         _set(self, "specular_ior", _finite(f"{where}.specular_ior", self.specular_ior))
         if self.specular_ior < 1.0:
-            raise SceneError(f"{where}.specular_ior must be >= 1, got {self.specular_ior!r}")
+            raise SceneError(f"{where}.specular_ior must be >= 1, got "
+                             f"{value_text(self.specular_ior)}")
         _set(self, "transmission_fresnel",
              _fraction(f"{where}.transmission_fresnel", self.transmission_fresnel))
         _set(self, "ior", _positive(f"{where}.ior", self.ior))
         _set(self, "holdout", _fraction(f"{where}.holdout", self.holdout))
         if not isinstance(self.holdout_object, (bool, np.bool_)):
             raise SceneError(f"{where}.holdout_object must be True or False, got "
-                             f"{self.holdout_object!r}")
+                             f"{value_text(self.holdout_object)}")
         _set(self, "holdout_object", bool(self.holdout_object))
         if self.program is not None and not _is_program(self.program):
             raise SceneError(f"{where}.program must be a core.shader ShaderProgram or None, "
@@ -363,17 +250,6 @@ class SurfaceMaterial:
         return 0.0
 
 
-#: alpha = roughness^2 is clamped here so that roughness 0 gives a finite exponent.
-MIN_ALPHA = 1e-3
-
-
-def blinn_exponent(roughness: float) -> float:
-    """The Blinn-Phong exponent n = 2 / alpha^2 - 2 matching a Beckmann lobe of roughness
-    alpha = roughness^2 (Walter et al. 2007, eq. 30)."""
-    alpha = max(float(roughness) ** 2, MIN_ALPHA)
-    return 2.0 / alpha ** 2 - 2.0
-
-
 @dataclass(frozen=True)
 class Sphere:
     """A sphere in world space: ``center`` (3,), ``radius`` > 0, a material and a name."""
@@ -384,12 +260,12 @@ class Sphere:
     name: str = ""
 
     def __post_init__(self):
-        where = f"sphere {self.name!r}" if self.name else "sphere"
+        where = f"sphere {value_text(self.name)}" if self.name else "sphere"
         _set(self, "center", _vec3(f"{where}.center", self.center))
         _set(self, "radius", _positive(f"{where}.radius", self.radius))
         if not isinstance(self.material, (Material, SurfaceMaterial)):
             raise SceneError(f"{where}.material must be a Material or SurfaceMaterial, "
-                             f"got {self.material!r}")
+                             f"got {value_text(self.material)}")
         # Named here: a material shared by many spheres is checked again for each, so an
         # invalid one (built past its own check) names the sphere that uses it.
         self.material.validate(f"{where}.material")
@@ -418,7 +294,7 @@ class PointLight:
     REFERENCE_POWER_W = 1000.0
 
     def __post_init__(self):
-        where = f"light {self.name!r}" if self.name else "light"
+        where = f"light {value_text(self.name)}" if self.name else "light"
         _set(self, "position", _vec3(f"{where}.position", self.position))
         for name in ("ambient", "diffuse", "specular"):
             _set(self, name, _colour(f"{where}.{name}", getattr(self, name)))
@@ -434,7 +310,7 @@ class PointLight:
         scales it linearly with power, so Blender's default 1000 W white light *is* the
         article's light, 500 W is half as bright, and a red light tints all three terms.
         """
-        where = f"light {name!r}" if name else "light"
+        where = f"light {value_text(name)}" if name else "light"
         rgb = _colour(f"{where}.color", colour)
         scale = _non_negative(f"{where}.energy", power_w,
                               MAX_COLOUR * cls.REFERENCE_POWER_W) / cls.REFERENCE_POWER_W
@@ -442,6 +318,12 @@ class PointLight:
         return cls(position=position, ambient=intensity, diffuse=intensity,
                    specular=intensity, radius=radius, name=name)
 
+
+# Blender's lights take whatever Blender holds, as Cycles renders it (docs/invalid-data.md): a
+# negative power or strength subtracts light; a light whose position, direction, colour or
+# power is not finite, whose object is scaled to 0 (a zero direction or axis) or whose area
+# is 0 emits nothing (its power or strength is stored as 0); ``warnings`` holds the one line
+# that names those fields.
 
 @dataclass(frozen=True)
 class SphereLight:
@@ -454,13 +336,19 @@ class SphereLight:
     power: float = 1000.0
     radius: float = 0.0
     name: str = ""
+    warnings: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        where = f"light {self.name!r}" if self.name else "light"
-        _set(self, "position", _vec3(f"{where}.position", self.position))
-        _set(self, "colour", _colour(f"{where}.colour", self.colour))
-        _set(self, "power", _non_negative(f"{where}.power", self.power))
-        _set(self, "radius", _non_negative(f"{where}.radius", self.radius))
+        fields = _LightFields(f"light {value_text(self.name)}" if self.name else "light")
+        _set(self, "position", fields.position(self.position))
+        _set(self, "colour", fields.colour(self.colour))
+        _set(self, "power", fields.amount("power", self.power))
+        _set(self, "radius", _non_negative(f"{fields.where}.radius", self.radius))
+        _finish_light(self, fields, "power")
+
+    @property
+    def emits(self) -> bool:
+        return self.power != 0.0
 
 
 @dataclass(frozen=True)
@@ -477,19 +365,24 @@ class SpotLight:
     spot_size: float = math.radians(45.0)
     spot_blend: float = 0.15
     name: str = ""
+    warnings: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        where = f"light {self.name!r}" if self.name else "light"
-        _set(self, "position", _vec3(f"{where}.position", self.position))
-        _set(self, "direction", _unit(f"{where}.direction", self.direction))
-        _set(self, "colour", _colour(f"{where}.colour", self.colour))
-        _set(self, "power", _non_negative(f"{where}.power", self.power))
+        fields = _LightFields(f"light {value_text(self.name)}" if self.name else "light")
+        where = fields.where
+        _set(self, "position", fields.position(self.position))
+        _set(self, "direction", fields.direction("direction", self.direction))
+        _set(self, "colour", fields.colour(self.colour))
+        _set(self, "power", fields.amount("power", self.power))
         _set(self, "radius", _non_negative(f"{where}.radius", self.radius))
-        size = _positive(f"{where}.spot_size", self.spot_size)
-        if size > math.pi + 1e-9:
-            raise SceneError(f"{where}.spot_size must be <= pi, got {self.spot_size!r}")
-        _set(self, "spot_size", min(size, math.pi))
+        _set(self, "spot_size", _at_most_pi(f"{where}.spot_size",
+                                            _positive(f"{where}.spot_size", self.spot_size)))
         _set(self, "spot_blend", _fraction(f"{where}.spot_blend", self.spot_blend))
+        _finish_light(self, fields, "power")
+
+    @property
+    def emits(self) -> bool:
+        return self.power != 0.0
 
 
 @dataclass(frozen=True)
@@ -503,16 +396,20 @@ class SunLight:
     strength: float = 1.0
     angle: float = 0.0
     name: str = ""
+    warnings: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        where = f"light {self.name!r}" if self.name else "light"
-        _set(self, "direction", _unit(f"{where}.direction", self.direction))
-        _set(self, "colour", _colour(f"{where}.colour", self.colour))
-        _set(self, "strength", _non_negative(f"{where}.strength", self.strength))
-        angle = _non_negative(f"{where}.angle", self.angle)
-        if angle >= math.pi:
-            raise SceneError(f"{where}.angle must be < pi, got {self.angle!r}")
-        _set(self, "angle", angle)
+        fields = _LightFields(f"light {value_text(self.name)}" if self.name else "light")
+        _set(self, "direction", fields.direction("direction", self.direction))
+        _set(self, "colour", fields.colour(self.colour))
+        _set(self, "strength", fields.amount("strength", self.strength))
+        _set(self, "angle", _at_most_pi(f"{fields.where}.angle",
+                                        _non_negative(f"{fields.where}.angle", self.angle)))
+        _finish_light(self, fields, "strength")
+
+    @property
+    def emits(self) -> bool:
+        return self.strength != 0.0
 
     # A sun has no place; these let code that measures the scene's extent treat all lights
     # alike (``core.precision``).
@@ -538,19 +435,28 @@ class AreaLight:
     colour: Vec3 = (1.0, 1.0, 1.0)
     power: float = 1000.0
     name: str = ""
+    warnings: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        where = f"light {self.name!r}" if self.name else "light"
-        _set(self, "position", _vec3(f"{where}.position", self.position))
+        fields = _LightFields(f"light {value_text(self.name)}" if self.name else "light")
+        where = fields.where
+        _set(self, "position", fields.position(self.position))
         for name in ("direction", "axis_x", "axis_y"):
-            _set(self, name, _unit(f"{where}.{name}", getattr(self, name)))
+            _set(self, name, fields.direction(name, getattr(self, name)))
         _choice(f"{where}.shape", self.shape, AREA_SHAPES)
-        _set(self, "size_x", _positive(f"{where}.size_x", self.size_x))
-        _set(self, "size_y", _positive(f"{where}.size_y", self.size_y))
+        _set(self, "size_x", fields.size("size_x", self.size_x))
         if self.shape in ("SQUARE", "DISK"):
+            _non_negative(f"{where}.size_y", self.size_y)
             _set(self, "size_y", self.size_x)
-        _set(self, "colour", _colour(f"{where}.colour", self.colour))
-        _set(self, "power", _non_negative(f"{where}.power", self.power))
+        else:
+            _set(self, "size_y", fields.size("size_y", self.size_y))
+        _set(self, "colour", fields.colour(self.colour))
+        _set(self, "power", fields.amount("power", self.power))
+        _finish_light(self, fields, "power")
+
+    @property
+    def emits(self) -> bool:
+        return self.power != 0.0
 
     @property
     def area(self) -> float:
@@ -561,6 +467,13 @@ class AreaLight:
     def radius(self) -> float:
         """Half the diagonal: how far the light reaches from its centre."""
         return 0.5 * math.hypot(self.size_x, self.size_y)
+
+
+def _finish_light(light, fields: _LightFields, amount: str) -> None:
+    """A dark light's power (or strength) is 0; its warning, if any, is kept."""
+    if fields.dark:
+        _set(light, amount, 0.0)
+    _set(light, "warnings", fields.warnings())
 
 
 #: The light types a Scene holds: the article's, and Blender's in Cycles' units.
@@ -621,6 +534,14 @@ class BlenderCamera:
         polygon turned by the rotation) of that radius around the eye (orthographic: around
         the pixel's point on the camera plane) and meet at the plane at focus_distance along
         the view axis; 0 radius is a pinhole.
+    name: the camera object's name, for warnings.
+
+    A camera through which Cycles renders a black frame (measured: its matrix scaled to 0,
+    clip_end not past clip_start, an orthographic camera of ortho_scale 0, depth of field
+    focused at 0; alpha 1, or 0 with a transparent film) renders one too (``sees_nothing``:
+    ``core.render`` renders nothing through it), with one warning naming the fields; its
+    stored values are then stand-ins that let the view be worked out (an unscaled matrix, a
+    clip range, a scale and a focus of 1).
     """
 
     matrix_world: tuple
@@ -643,14 +564,19 @@ class BlenderCamera:
     focus_distance: float = 10.0
     aperture_blades: int = 0
     aperture_rotation: float = 0.0
+    name: str = ""
+    sees_nothing: bool = field(default=False, init=False, repr=False, compare=False)
+    warnings: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self):
         try:
             rows = tuple(tuple(row) for row in self.matrix_world)
         except TypeError:
-            raise SceneError(f"camera.matrix_world must be 4x4, got {self.matrix_world!r}") from None
+            raise SceneError(f"camera.matrix_world must be 4x4, got "
+                             f"{value_text(self.matrix_world)}") from None
         if len(rows) != 4 or any(len(row) != 4 for row in rows):
-            raise SceneError(f"camera.matrix_world must be 4x4, got {self.matrix_world!r}")
+            raise SceneError(f"camera.matrix_world must be 4x4, got "
+                             f"{value_text(self.matrix_world)}")
         _set(self, "matrix_world", tuple(
             tuple(_finite(f"camera.matrix_world[{r}][{c}]", v) for c, v in enumerate(row))
             for r, row in enumerate(rows)))
@@ -659,29 +585,47 @@ class BlenderCamera:
         _count("camera.resolution_percentage", self.resolution_percentage)
         _choice("camera.projection", self.projection, PROJECTIONS)
         _choice("camera.sensor_fit", self.sensor_fit, SENSOR_FITS)
-        for name in ("lens", "ortho_scale", "sensor_width", "sensor_height",
-                     "pixel_aspect_x", "pixel_aspect_y", "clip_start"):
+        for name in ("lens", "sensor_width", "sensor_height", "pixel_aspect_x",
+                     "pixel_aspect_y", "clip_start"):
             _set(self, name, _positive(f"camera.{name}", getattr(self, name)))
         for name in ("shift_x", "shift_y", "aperture_rotation"):
             _set(self, name, _finite(f"camera.{name}", getattr(self, name)))
         _set(self, "aperture_radius", _non_negative("camera.aperture_radius",
                                                     self.aperture_radius))
-        _set(self, "focus_distance", _positive("camera.focus_distance", self.focus_distance))
         if self.aperture_blades != 0:
             _count("camera.aperture_blades", self.aperture_blades, minimum=3)
-        _set(self, "clip_end", _positive("camera.clip_end", self.clip_end))
-        if self.clip_end <= self.clip_start:
-            raise SceneError(f"camera.clip_end ({self.clip_end!r}) must be greater than "
-                             f"camera.clip_start ({self.clip_start!r})")
         if self.width < 1 or self.height < 1:
             raise SceneError(
                 f"camera resolution {self.resolution_x}x{self.resolution_y} at "
                 f"{self.resolution_percentage}% gives a {self.width}x{self.height} image")
-        axes = [[self.matrix_world[r][c] for r in range(3)] for c in range(3)]
-        for c, axis in enumerate(axes):
-            if math.sqrt(sum(v * v for v in axis)) < 1e-12:
-                raise SceneError(f"camera.matrix_world column {c} is zero: the camera has "
-                                 f"no orientation")
+        blind = []   # why Cycles renders this camera's frame black
+        rows = [list(row) for row in self.matrix_world]
+        axes = [[rows[r][c] for r in range(3)] for c in range(3)]
+        if any(math.sqrt(sum(v * v for v in axis)) < 1e-12 for axis in axes):
+            blind.append("matrix_world is scaled to 0")
+            for r in range(3):
+                rows[r][:3] = [float(r == c) for c in range(3)]
+            _set(self, "matrix_world", tuple(tuple(row) for row in rows))
+        _set(self, "clip_end", _positive("camera.clip_end", self.clip_end))
+        if self.clip_end <= self.clip_start:
+            blind.append(f"clip_end {value_text(self.clip_end)} is not past clip_start "
+                         f"{value_text(self.clip_start)}")
+            _set(self, "clip_end", self.clip_start + 1.0)
+        _set(self, "ortho_scale", _non_negative("camera.ortho_scale", self.ortho_scale))
+        if self.ortho_scale == 0.0:
+            if self.projection == "ORTHO":
+                blind.append("ortho_scale is 0")
+            _set(self, "ortho_scale", 1.0)
+        _set(self, "focus_distance", _non_negative("camera.focus_distance",
+                                                   self.focus_distance))
+        if self.focus_distance == 0.0:
+            if self.aperture_radius > 0.0:
+                blind.append("focus_distance is 0 with depth of field")
+            _set(self, "focus_distance", 1.0)
+        if blind:
+            _set(self, "sees_nothing", True)
+            _set(self, "warnings", (f"{_set_label('camera', self.name)}: {', '.join(blind)}: "
+                                    f"the frame renders black, as in Cycles",))
 
     @property
     def width(self) -> int:
@@ -707,93 +651,7 @@ MATERIAL_TYPES = (Material, SurfaceMaterial)
 
 
 def _set_label(kind: str, name: str) -> str:
-    return f"{kind} {name!r}" if name else kind
-
-
-def _frozen_array(where: str, field_name: str, value, dtype, shape: tuple) -> np.ndarray:
-    """``value`` as a read-only C-contiguous copy of ``dtype`` whose shape matches ``shape``
-    (None: any length).  Integer fields accept only integer arrays (no silent truncation)."""
-    array = _checked_array(where, field_name, value, dtype, shape, copy=True)
-    array.setflags(write=False)
-    return array
-
-
-def _checked_array(where: str, field_name: str, value, dtype, shape: tuple,
-                   copy: bool = False) -> np.ndarray:
-    """``value`` as a C-contiguous array of ``dtype``, checked as ``_frozen_array`` checks it;
-    copy=False: a copy only where a conversion needs one, and not frozen (it may be the
-    caller's array), for a field whose stored value is computed from it anew (the mesh's
-    normalised corner normals)."""
-    try:
-        array = np.array(value, copy=copy)
-    except (TypeError, ValueError):
-        raise SceneError(f"{where}: {field_name} must be an array, got {value!r}") from None
-    if np.issubdtype(dtype, np.integer):
-        if array.size and not np.issubdtype(array.dtype, np.integer):
-            raise SceneError(f"{where}: {field_name} must hold integers, got {array.dtype}")
-    elif array.size and not np.issubdtype(array.dtype, np.number):
-        raise SceneError(f"{where}: {field_name} must hold numbers, got {array.dtype}")
-    if array.size == 0 and array.ndim < len(shape):
-        array = array.reshape(tuple(0 if s is None else s for s in shape))
-    wanted = " x ".join("N" if s is None else str(s) for s in shape)
-    if array.ndim != len(shape) or any(s is not None and a != s
-                                       for a, s in zip(array.shape, shape)):
-        raise SceneError(f"{where}: {field_name} must have shape ({wanted}), "
-                         f"got {array.shape}")
-    return np.ascontiguousarray(array, dtype)
-
-
-#: Rows (a mesh's triangles) per block of whole-mesh arithmetic (``row_blocks``: here the
-#: corner normals' normalisation, and the export's ``read_mesh``): a block's temporaries stay
-#: a few MB, reused from malloc's heap, instead of whole-array ones (a million triangles:
-#: about 0.2 GB of fresh pages in each of the two, at every export).
-BLOCK_ROWS = 1 << 16
-
-
-def row_blocks(count: int):
-    """Slices of BLOCK_ROWS consecutive rows covering ``count`` rows."""
-    return (slice(start, start + BLOCK_ROWS) for start in range(0, count, BLOCK_ROWS))
-
-
-def _unit_rows(where: str, field_name: str, vectors: np.ndarray) -> np.ndarray:
-    """(T, k, 3) ``vectors`` divided by their lengths, a new read-only array, block by
-    block (the same values as whole); SceneError naming the first zero vector."""
-    result = np.empty(vectors.shape, np.float64)
-    for rows in row_blocks(len(vectors)):
-        block = vectors[rows]
-        lengths = np.sqrt((block * block).sum(axis=2))
-        bad = _first_bad(lengths <= 1e-30)
-        if bad is not None:
-            bad = (bad[0] + rows.start, *bad[1:])
-            raise SceneError(f"{where}: {field_name}{_index_text(bad)} must not be zero")
-        np.divide(block, lengths[:, :, None], out=result[rows])
-    result.setflags(write=False)
-    return result
-
-
-def _first_bad(mask: np.ndarray):
-    """Index tuple of the first True element of ``mask``, or None."""
-    flat = np.flatnonzero(mask)
-    return None if len(flat) == 0 else np.unravel_index(flat[0], mask.shape)
-
-
-def _index_text(index) -> str:
-    return "".join(f"[{int(i)}]" for i in index)
-
-
-def _require_finite(where: str, field_name: str, array: np.ndarray) -> None:
-    bad = _first_bad(~np.isfinite(array))
-    if bad is not None:
-        raise SceneError(f"{where}: {field_name}{_index_text(bad)} must be finite, "
-                         f"got {array[bad]!r}")
-
-
-def _require_indices(where: str, field_name: str, array: np.ndarray, count: int,
-                     what: str) -> None:
-    bad = _first_bad((array < 0) | (array >= count))
-    if bad is not None:
-        raise SceneError(f"{where}: {field_name}{_index_text(bad)} must be in [0, {count}) "
-                         f"({what}), got {int(array[bad])}")
+    return f"{kind} {value_text(name)}" if name else kind
 
 
 def _materials(where: str, materials) -> tuple:
@@ -801,25 +659,30 @@ def _materials(where: str, materials) -> tuple:
         table = tuple(materials)
     except TypeError:
         raise SceneError(f"{where}: materials must be a sequence of materials, "
-                         f"got {materials!r}") from None
+                         f"got {value_text(materials)}") from None
     if not table:
         raise SceneError(f"{where}: materials must hold at least one material")
     for i, material in enumerate(table):
         if not isinstance(material, MATERIAL_TYPES):
-            raise SceneError(f"{where}: materials[{i}] must be a material, got {material!r}")
+            raise SceneError(f"{where}: materials[{i}] must be a material, got "
+                             f"{value_text(material)}")
     return table
 
 
 @dataclass(frozen=True, eq=False)
 class SphereSet:
     """N spheres as arrays (point clouds, particles, molecules): world-space ``centers``
-    (N, 3), ``radii`` (N,) > 0, ``material_indices`` (N,) into ``materials`` (at least one)."""
+    (N, 3), ``radii`` (N,), ``material_indices`` (N,) into ``materials`` (at least one).
+
+    Spheres that draw nothing in Cycles, of radius <= 0 or a centre or radius that is not
+    finite, are left out (``warnings`` counts them, in one line)."""
 
     centers: np.ndarray
     radii: np.ndarray
     material_indices: np.ndarray
     materials: tuple
     name: str = ""
+    warnings: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self):
         where = _set_label("sphere set", self.name)
@@ -829,12 +692,17 @@ class SphereSet:
         indices = _frozen_array(where, "material_indices", self.material_indices, np.int64,
                                 (count,))
         materials = _materials(where, self.materials)
-        _require_finite(where, "centers", centers)
-        _require_finite(where, "radii", radii)
-        bad = _first_bad(radii <= 0)
-        if bad is not None:
-            raise SceneError(f"{where}: radii{_index_text(bad)} must be > 0, got {radii[bad]!r}")
         _require_indices(where, "material_indices", indices, len(materials), "materials")
+        # Compared this way round, NaN radii are left out too, without a NumPy warning.
+        drawn = np.isfinite(centers).all(axis=1) & (radii > 0) & (radii <= MAX_MAGNITUDE)
+        if not drawn.all():
+            first = int(np.flatnonzero(~drawn)[0])
+            culprit = (f"radii[{first}] is {value_text(radii[first])}"
+                       if np.isfinite(centers[first]).all() else
+                       f"centers[{first}] is {value_text(centers[first])}")
+            _set(self, "warnings", (f"{where}: {int((~drawn).sum())} of {count} spheres draw "
+                                    f"nothing, as in Cycles ({culprit})",))
+            centers, radii, indices = (_frozen(a[drawn]) for a in (centers, radii, indices))
         for name, value in (("centers", centers), ("radii", radii),
                             ("material_indices", indices), ("materials", materials)):
             _set(self, name, value)
@@ -866,6 +734,8 @@ class TriangleMesh:
     tangent_maps: ((UV map name, (T, 3, 4) corner tangents and bitangent signs), ...): the
     MikkTSpace tangents of the UV maps Normal Map nodes read, object space, the first the
     active render map's; () where none reads them.
+    Triangles that touch a vertex that is not finite are left out, as Cycles leaves them
+    (``warnings`` counts them, in one line).
     """
 
     vertices: np.ndarray
@@ -878,6 +748,7 @@ class TriangleMesh:
     shadow_terminator_offset: float = DEFAULT_GEOMETRY_OFFSET
     uv_maps: tuple = ()
     tangent_maps: tuple = ()
+    warnings: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self):
         where = _set_label("mesh", self.name)
@@ -889,16 +760,17 @@ class TriangleMesh:
         materials = _materials(where, self.materials)
         transforms = _frozen_array(where, "transforms", self.transforms, np.float64,
                                    (None, 4, 4))
-        _require_finite(where, "vertices", vertices)
         _require_indices(where, "triangles", triangles, len(vertices), "vertices")
         _require_indices(where, "material_indices", indices, len(materials), "materials")
+        vertices, keep, dropped = usable_triangles(vertices, triangles)
+        vertices = _frozen(vertices)
         _require_finite(where, "transforms", transforms)
         if len(transforms) == 0:
             raise SceneError(f"{where}: transforms must hold at least one 4 x 4 matrix")
         bad = _first_bad(np.any(transforms[:, 3, :] != (0.0, 0.0, 0.0, 1.0), axis=1))
         if bad is not None:
             raise SceneError(f"{where}: transforms{_index_text(bad)} must be affine (last row "
-                             f"0 0 0 1), got {transforms[bad][3].tolist()}")
+                             f"0 0 0 1), got {value_text(transforms[bad][3])}")
         linear = transforms[:, :3, :3]
         # Judged on the matrix divided by its largest entry, so that a scene modelled at any
         # scale (1e-150 or 1e155) is not singular through under- or overflow of the det.
@@ -913,8 +785,13 @@ class TriangleMesh:
             # Not copied first: the normalised normals are a new array anyway.
             normals = _checked_array(where, "corner_normals", normals, np.float64,
                                      (count, 3, 3))
+            if keep is not None:
+                normals = normals[keep]
             _require_finite(where, "corner_normals", normals)
             normals = _unit_rows(where, "corner_normals", normals)
+        if keep is not None:
+            triangles, indices = _frozen(triangles[keep]), _frozen(indices[keep])
+            _set(self, "warnings", (f"{where}: {dropped}",))
         for name, value in (("vertices", vertices), ("triangles", triangles),
                             ("corner_normals", normals), ("material_indices", indices),
                             ("materials", materials), ("transforms", transforms)):
@@ -928,14 +805,14 @@ class TriangleMesh:
             corners = _frozen_array(where, f"uv_maps[{name!r}]", corners, np.float32,
                                     (count, 3, 2))
             _require_finite(where, f"uv_maps[{name!r}]", corners)
-            maps.append((name, corners))
+            maps.append((name, corners if keep is None else _frozen(corners[keep])))
         _set(self, "uv_maps", tuple(maps))
         tangents = []
         for name, corners in self.tangent_maps:
             corners = _frozen_array(where, f"tangent_maps[{name!r}]", corners, np.float32,
                                     (count, 3, 4))
             _require_finite(where, f"tangent_maps[{name!r}]", corners)
-            tangents.append((str(name), corners))
+            tangents.append((str(name), corners if keep is None else _frozen(corners[keep])))
         _set(self, "tangent_maps", tuple(tangents))
 
     def __len__(self) -> int:
@@ -973,29 +850,39 @@ class Scene:
     def __post_init__(self):
         if not isinstance(self.camera, (ScreenCamera, BlenderCamera)):
             raise SceneError(f"scene.camera must be a ScreenCamera or BlenderCamera, "
-                             f"got {self.camera!r}")
+                             f"got {value_text(self.camera)}")
         _set(self, "spheres", tuple(self.spheres))
         _set(self, "lights", tuple(self.lights))
         for i, sphere in enumerate(self.spheres):
             if not isinstance(sphere, Sphere):
-                raise SceneError(f"scene.spheres[{i}] must be a Sphere, got {sphere!r}")
+                raise SceneError(f"scene.spheres[{i}] must be a Sphere, got {value_text(sphere)}")
         for i, light in enumerate(self.lights):
             if not isinstance(light, LIGHT_TYPES):
                 raise SceneError(f"scene.lights[{i}] must be a PointLight, SphereLight, "
-                                 f"SpotLight, SunLight or AreaLight, got {light!r}")
+                                 f"SpotLight, SunLight or AreaLight, got {value_text(light)}")
         _set(self, "sphere_sets", tuple(self.sphere_sets))
         _set(self, "meshes", tuple(self.meshes))
         for i, sphere_set in enumerate(self.sphere_sets):
             if not isinstance(sphere_set, SphereSet):
-                raise SceneError(f"scene.sphere_sets[{i}] must be a SphereSet, got {sphere_set!r}")
+                raise SceneError(f"scene.sphere_sets[{i}] must be a SphereSet, got "
+                                 f"{value_text(sphere_set)}")
         for i, mesh in enumerate(self.meshes):
             if not isinstance(mesh, TriangleMesh):
-                raise SceneError(f"scene.meshes[{i}] must be a TriangleMesh, got {mesh!r}")
+                raise SceneError(f"scene.meshes[{i}] must be a TriangleMesh, got "
+                                 f"{value_text(mesh)}")
         _set(self, "background", _colour("scene.background", self.background))
         _set(self, "ambient", _colour("scene.ambient", self.ambient))
         if self.world is not None and not _is_program(self.world):
             raise SceneError(f"scene.world must be a core.shader ShaderProgram or None, got "
                              f"{type(self.world).__name__}")
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """What the scene's parts render otherwise than they hold it (a light that emits
+        nothing, triangles or spheres left out, ...), one line each naming the part and
+        the field."""
+        parts = (self.camera, *self.lights, *self.sphere_sets, *self.meshes)
+        return tuple(line for part in parts for line in getattr(part, "warnings", ()))
 
     @property
     def sphere_count(self) -> int:

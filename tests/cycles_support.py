@@ -42,6 +42,11 @@ def cycles_scene(bounces: int = 0, samples: int = 32):
     cycles.filter_width = 0.01
     cycles.seed = 1
     scene.glint.max_depth = max(1, bounces + 1)
+    # Glint's path tracer with enough samples and neither denoising nor adaptive stopping,
+    # so that what remains between the two is the models' difference, not noise.
+    scene.glint.samples = 64
+    scene.glint.use_adaptive_sampling = False
+    scene.glint.use_denoising = False
     world = bpy.data.worlds.new("black")
     world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
     scene.world = world

@@ -581,3 +581,31 @@ def test_the_camera_matrix_is_exported_as_nested_tuples(scene):
     expected = tuple(tuple(row) for row in bpy.context.scene.camera.matrix_world)
     assert cam.matrix_world == expected
     assert isinstance(cam, core.BlenderCamera)
+
+
+# --- invalid values in the article semantics (docs/invalid-data.md) ----------------------------
+
+def test_article_semantics_leaves_out_a_negative_or_nan_light_with_one_warning(scene):
+    """The article's lights neither subtract light nor go dark; the light is left out."""
+    article_semantics()
+    bpy.data.objects["light"].data.energy = -500.0
+    add_point_light("nan", energy=float("nan"))
+    exported, warnings = export()
+    assert not exported.lights
+    assert ("light 'light': negative power, which the article's lights cannot subtract: the "
+            "article semantics leaves it out") in warnings
+    assert ("light 'nan': power or colour not finite: the article semantics leaves it out"
+            in warnings)
+
+
+def test_article_semantics_counts_a_nan_input_as_0_with_one_warning(scene):
+    article_semantics()
+    paint = bpy.data.materials.new("Paint")
+    paint.node_tree.nodes["Principled BSDF"].inputs["Metallic"].default_value = float("nan")
+    add_sphere("ball", material=paint)
+    exported, warnings = export()
+    expected = material_from_surface(SurfaceValues((0.8, 0.8, 0.8), 0.0, 0.5, 0.5))
+    np.testing.assert_allclose(exported.spheres[0].material.diffuse, expected.diffuse,
+                               rtol=1e-6)  # (Blender's 0.8 is float32)
+    assert exported.spheres[0].material.specular == pytest.approx(expected.specular)
+    assert "object 'ball', material 'Paint': metallic nan counts as 0.0" in warnings

@@ -8,6 +8,7 @@ time, the depsgraph's own instance matrices) or from geometry worked out in the 
 from __future__ import annotations
 
 import math
+import warnings
 
 import bpy
 import bmesh  # after bpy: the pip module makes bmesh importable
@@ -390,6 +391,39 @@ def test_a_non_uniformly_scaled_point_cloud_is_skipped_with_its_reason(scene):
     assert not exported.sphere_sets
     (skipped,) = [w for w in warnings if "skipped" in w]
     assert "squashed (non-uniformly scaled point cloud" in skipped
+
+
+@pytest.mark.parametrize("positions, radius, left_out, words", [
+    ([(0.0, 0.0, 0.0), (float("nan"), 0.0, 0.0), (1.0, 0.0, 0.0)], 0.1, 1,
+     "sphere set 'dust': 1 of 3 spheres draw nothing, as in Cycles (centers[1] is [nan"),
+    ([(0.0, 0.0, 0.0), (1.0, 0.0, 0.0)], -0.2, 2,
+     "sphere set 'dust': 2 of 2 spheres draw nothing, as in Cycles (radii[0] is 0.0)"),
+])
+def test_points_that_draw_nothing_in_cycles_are_left_out_with_one_warning(scene, positions,
+                                                                          radius, left_out,
+                                                                          words):
+    """Measured in Cycles: a NaN point is missing from the render, points of radius -0.2
+    (which Mesh to Points stores as 0) draw nothing."""
+    points_object("dust", positions, radius)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")   # no NumPy warning on the way
+        exported, notes = export()
+
+    (cloud,) = exported.sphere_sets
+    assert len(cloud) == len(positions) - left_out and np.isfinite(cloud.centers).all()
+    (line,) = [note for note in notes if "dust" in note]
+    assert line.startswith(words)
+
+
+def test_a_mesh_instance_whose_matrix_is_not_finite_is_skipped_with_its_reason(scene):
+    add_mesh("lost", cube_mesh("lost")).location = (float("nan"), 0.0, 0.0)
+
+    exported, notes = export()
+
+    assert not exported.meshes and not exported.spheres
+    (skipped,) = [note for note in notes if "skipped" in note]
+    assert "lost (matrix not finite: draws nothing, as in Cycles)" in skipped
 
 
 # --- instances --------------------------------------------------------------------------------

@@ -146,22 +146,15 @@ def test_emission_holdout_transparent_and_add_shader(scene):
     assert surface.holdout == 1.0 and surface.diffuse == (0.0, 0.0, 0.0)
 
 
-def test_a_texture_counts_as_its_average_with_one_note_and_unknown_nodes_are_named(scene):
-    image = bpy.data.images.new("half", 4, 4, float_buffer=True)
-    pixels = np.zeros((4, 4, 4), np.float32)
-    pixels[:2] = (1.0, 0.0, 0.0, 1.0)
-    pixels[2:] = (0.0, 0.0, 1.0, 1.0)
-    image.pixels.foreach_set(pixels.ravel())
+def test_an_unsupported_node_feeds_the_sockets_own_value_and_is_named(scene):
     material, node = material_with("ShaderNodeBsdfDiffuse")
-    texture = material.node_tree.nodes.new("ShaderNodeTexImage")
-    texture.image = image
-    material.node_tree.links.new(texture.outputs["Color"], node.inputs["Color"])
-    noise = material.node_tree.nodes.new("ShaderNodeTexNoise")
-    material.node_tree.links.new(noise.outputs["Fac"], node.inputs["Roughness"])
+    node.inputs["Color"].default_value = (0.2, 0.4, 0.6, 1.0)
+    wireframe = material.node_tree.nodes.new("ShaderNodeWireframe")
+    material.node_tree.links.new(wireframe.outputs["Fac"], node.inputs["Color"])
     surface, warnings = exported_material(material)
-    np.testing.assert_allclose(surface.diffuse, (0.5, 0.0, 0.5), rtol=1e-6)
+    np.testing.assert_allclose(surface.diffuse, (0.2, 0.4, 0.6), rtol=1e-6)
     (note,) = [w for w in warnings if "material 'ShaderNodeBsdfDiffuse'" in w]
-    assert "average" in note and texture.name in note
+    assert wireframe.name in note and "not supported" in note
 
 
 def test_an_unsupported_shader_renders_grey_and_is_named(scene):

@@ -274,7 +274,7 @@ def test_touching_and_coincident_spheres(dtype):
     (lambda: core.BlenderCamera(np.eye(4), resolution_x=1, resolution_percentage=10),
      "gives a 0x"),
     (lambda: core.BlenderCamera(np.eye(4), sensor_fit="DIAGONAL"), "camera.sensor_fit"),
-    (lambda: core.BlenderCamera(np.eye(4), clip_start=5, clip_end=1), "camera.clip_end"),
+    (lambda: core.BlenderCamera(np.eye(4), clip_end=-1.0), "camera.clip_end"),
     (lambda: core.RenderSettings(precision="float16"), "settings.precision"),
     (lambda: core.RenderSettings(max_depth=0), "settings.max_depth"),
     (lambda: core.RenderSettings(anti_aliasing="msaa"), "settings.anti_aliasing"),

@@ -135,7 +135,7 @@ def test_surface_material_errors_name_the_field():
     with pytest.raises(core.SceneError, match="shape"):
         core.AreaLight((0, 0, 0), (0, 0, -1), (1, 0, 0), (0, 1, 0), shape="TRIANGLE")
     with pytest.raises(core.SceneError, match="direction"):
-        core.SunLight((0, 0, 0))
+        core.SunLight((0, "down", 0))
 
 
 def test_the_articles_material_under_blenders_lights_reads_its_intensities_as_e_over_pi():

@@ -47,11 +47,29 @@ def test_empty_sphere_set_is_valid():
 
 @pytest.mark.parametrize("changes, message", [
     (dict(radii=np.r_[np.ones(17), -1.0, np.ones(2)]),
-     "sphere set 'Points': radii[17] must be > 0, got -1.0"),
-    (dict(radii=np.r_[np.ones(5), 0.0, np.ones(14)]), "radii[5] must be > 0"),
-    (dict(radii=np.r_[np.ones(3), np.inf, np.ones(16)]), "radii[3] must be finite"),
+     "sphere set 'Points': 1 of 20 spheres draw nothing, as in Cycles (radii[17] is -1.0)"),
+    (dict(radii=np.r_[np.ones(5), 0.0, np.ones(14)]),
+     "sphere set 'Points': 1 of 20 spheres draw nothing, as in Cycles (radii[5] is 0.0)"),
+    (dict(radii=np.r_[np.ones(3), np.inf, np.nan, np.ones(15)]),
+     "sphere set 'Points': 2 of 20 spheres draw nothing, as in Cycles (radii[3] is inf)"),
     (dict(centers=np.where(np.arange(60).reshape(20, 3) == 31, np.nan, 0.0)),
-     "sphere set 'Points': centers[10][1] must be finite"),
+     "sphere set 'Points': 1 of 20 spheres draw nothing, as in Cycles "
+     "(centers[10] is [0.0, nan, 0.0])"),
+])
+def test_spheres_that_draw_nothing_are_left_out_with_one_warning(changes, message):
+    """Cycles draws nothing for a point of radius <= 0 or a point or radius that is not finite
+    (measured: a point cloud of radius -0.3 renders as none; a NaN point is missing)."""
+    given = _spheres()
+    spheres = _spheres(**changes)
+    (warning,) = spheres.warnings
+    assert warning == message
+    kept = np.isfinite(spheres.centers).all() and (spheres.radii > 0).all()
+    assert kept and len(spheres) == 20 - int(warning.split(": ")[1].split()[0])
+    assert not spheres.radii.flags.writeable and not spheres.centers.flags.writeable
+    assert not given.warnings
+
+
+@pytest.mark.parametrize("changes, message", [
     (dict(material_indices=np.r_[np.zeros(9, int), 1, np.zeros(10, int)]),
      "material_indices[9] must be in [0, 1)"),
     (dict(material_indices=np.r_[np.zeros(2, int), -1, np.zeros(17, int)]),
@@ -74,8 +92,10 @@ def test_sphere_set_validates_a_million_spheres_as_arrays():
     assert len(spheres) == n
     radii = np.ones(n)
     radii[n - 2] = -3.0
-    with pytest.raises(core.SceneError, match=rf"radii\[{n - 2}\] must be > 0, got -3.0"):
-        core.SphereSet(np.zeros((n, 3)), radii, np.zeros(n, np.int64), (MATERIAL,))
+    spheres = core.SphereSet(np.zeros((n, 3)), radii, np.zeros(n, np.int64), (MATERIAL,))
+    assert len(spheres) == n - 1
+    assert spheres.warnings == (f"sphere set: 1 of {n} spheres draw nothing, as in Cycles "
+                                f"(radii[{n - 2}] is -3.0)",)
 
 
 def test_triangle_mesh_defaults_to_one_identity_instance_and_normalises_normals():
@@ -97,8 +117,6 @@ def _shifted(matrix_changes):
 @pytest.mark.parametrize("changes, message", [
     (dict(triangles=np.r_[np.zeros((4, 3), int), [[0, 1, 8]], np.zeros((7, 3), int)]),
      "mesh 'Cube': triangles[4][2] must be in [0, 8) (vertices), got 8"),
-    (dict(vertices=np.where(np.arange(24).reshape(8, 3) == 13, np.inf, 1.0)),
-     "mesh 'Cube': vertices[4][1] must be finite"),
     (dict(material_indices=np.r_[np.zeros(11, int), 3]), "material_indices[11] must be in [0, 1)"),
     (dict(corner_normals=np.zeros((12, 3, 3))), "corner_normals[0][0] must not be zero"),
     (dict(corner_normals=np.ones((11, 3, 3))), "corner_normals must have shape (12 x 3 x 3)"),
@@ -112,6 +130,32 @@ def test_triangle_mesh_errors_name_mesh_field_and_first_index(changes, message):
     with pytest.raises(core.SceneError) as error:
         _cube_mesh(**changes)
     assert message in str(error.value)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf, 2e300])
+def test_triangles_touching_a_vertex_that_is_not_finite_are_left_out_with_one_warning(bad):
+    """As Cycles leaves them out (measured: a UV sphere with one NaN vertex renders with a
+    hole where the triangles around it were); the other triangles, their normals and
+    materials stay in step."""
+    vertices = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    vertices[4, 1] = bad
+    normals = np.zeros((12, 3, 3))
+    normals[:, :, 0], normals[:, :, 1] = 1.0, np.arange(12.0)[:, None]  # y / x: the index
+    materials = (MATERIAL, core.Material(diffuse=(1.0, 0.0, 0.0)))
+    mesh = _cube_mesh(vertices=vertices, corner_normals=normals, materials=materials,
+                      material_indices=np.arange(12) % 2)
+    touching = (_cube_mesh().triangles == 4).any(axis=1)
+    (warning,) = mesh.warnings
+    assert warning == (f"mesh 'Cube': {touching.sum()} of 12 triangles dropped: they touch a "
+                       f"vertex not finite or past 1e+300 in size (vertices[4] is [1.0, "
+                       f"{bad!r}, -1.0])")
+    assert np.array_equal(mesh.triangles, _cube_mesh().triangles[~touching])
+    assert np.array_equal(mesh.material_indices, (np.arange(12) % 2)[~touching])
+    assert np.allclose(mesh.corner_normals[:, 0, 1] / mesh.corner_normals[:, 0, 0],
+                       np.arange(12.0)[~touching])
+    assert np.isfinite(mesh.vertices).all() and len(mesh) == 12 - touching.sum()
+    assert not mesh.triangles.flags.writeable and not mesh.vertices.flags.writeable
+    assert not _cube_mesh().warnings
 
 
 def test_scene_holds_sets_and_rejects_other_things():

@@ -55,6 +55,7 @@ def export_camera(depsgraph, camera_override=None) -> BlenderCamera:
             pixel_aspect_x=render.pixel_aspect_x,
             pixel_aspect_y=render.pixel_aspect_y,
             **depth_of_field(camera),
+            name=camera.name,
         )
     except SceneError as error:
         raise ExportError(f"camera '{camera.name}': {error}") from None

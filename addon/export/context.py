@@ -161,9 +161,9 @@ class ExportContext:
         if key not in self.materials:
             try:
                 if self.article:
-                    core_material, note = export_article_material(material)
+                    core_material, note = export_article_material(material, owner)
                 else:
-                    core_material, note = export_material(material, self)
+                    core_material, note = export_material(material, owner, self)
             except SceneError as error:
                 raise ExportError(f"object '{owner}', material '{key}': {error}") from None
             self.materials[key] = core_material

@@ -12,34 +12,98 @@ the factors):
 
 The colour is ``color`` times ``temperature_color`` when "Temperature" is on; it multiplies
 the power and is used as is (scene-linear).  Light node trees, per-light visibility, area
-spread and soft falloff are not read.
+spread and soft falloff are not read.  A negative power subtracts light, as in Cycles; a
+light Cycles cannot use (a NaN power, an object scaled to 0, an area of size 0) emits
+nothing, the core saying so (``core.scene``); a power past ``MAX_POWER`` is clamped to it
+(``power_note``; docs/invalid-data.md).
 
 Article semantics (``export_article_light``): a POINT light becomes
 ``core.PointLight.from_power`` (every intensity colour * power / 1000 W, no falloff: Blender's
-default 1000 W white light is the article's light); other types have no counterpart there.
+default 1000 W white light is the article's light); other types have no counterpart there,
+nor have lights of negative power or power and colour that are not finite
+(``article_light_problem``).
 """
 
 from __future__ import annotations
 
 import math
 
-from ...core import AreaLight, PointLight, SceneError, SphereLight, SpotLight, SunLight
-from ...core.scene import MAX_COLOUR
+from ...core import AreaLight, PointLight, SphereLight, SpotLight, SunLight
+from ...core.validation import MAX_COLOUR, value_text
+from .values import as_stored
 
-#: The most power (W) or sun strength (W/m^2) a light may have: as for the article's lights
-#: (``PointLight.from_power``), colour x power stays within the core's colour range.
+#: The most power (W) or sun strength (W/m^2) a light is exported with (past it, clamped): as
+#: for the article's lights (``PointLight.from_power``), colour x power stays within the
+#: core's colour range.
 MAX_POWER = MAX_COLOUR * PointLight.REFERENCE_POWER_W
 
 
-def light_colour(light) -> tuple[float, float, float]:
+#: The largest float32: Cycles' light strength (colour x power) is float32, and a channel
+#: past it is infinite there, which Cycles drops (measured: a colour channel of 3.4e38 on a
+#: 1500 W light adds nothing to that channel without the light tree, and darkens every
+#: light with it, as a NaN does).
+FLOAT32_MAX = 3.4028234663852886e+38
+
+
+def blender_colour(light) -> tuple[float, float, float]:
+    """The light's colour as Blender holds it, times its temperature's when that is on."""
     colour = tuple(light.color)
     if getattr(light, "use_temperature", False):
         colour = tuple(c * t for c, t in zip(colour, light.temperature_color))
     return colour
 
 
-def light_power(light) -> float:
+def _overflowing(light) -> list[bool]:
+    """Per channel: colour x power overflows Cycles' float32 strength."""
+    power = abs(blender_power(light))
+    return [abs(c) * power > FLOAT32_MAX for c in blender_colour(light)]
+
+
+def light_colour(light) -> tuple[float, float, float]:
+    """``blender_colour`` with the channels that ``_overflowing`` dark (``colour_note``)."""
+    return tuple(0.0 if dark else c
+                 for c, dark in zip(blender_colour(light), _overflowing(light)))
+
+
+def colour_note(light, name: str) -> str | None:
+    """The warning for the channels ``light_colour`` makes dark, or None."""
+    if not any(_overflowing(light)):
+        return None
+    return (f"light {value_text(name)}: color {value_text(as_stored(blender_colour(light)))} "
+            f"x energy overflows Cycles' float32 in some channels: they emit nothing, as in "
+            f"Cycles")
+
+
+def blender_power(light) -> float:
+    """Power (W) or sun strength (W/m^2) as Blender holds it: energy x 2^exposure."""
     return float(light.energy) * 2.0 ** float(getattr(light, "exposure", 0.0))
+
+
+def light_power(light) -> float:
+    """``blender_power`` within +-MAX_POWER (NaN stays NaN: the core darkens the light)."""
+    power = blender_power(light)
+    return max(-MAX_POWER, min(power, MAX_POWER)) if not math.isnan(power) else power
+
+
+def power_note(light, name: str) -> str | None:
+    """The warning for a power ``light_power`` clamps, or None."""
+    power = blender_power(light)
+    if math.isnan(power) or abs(power) <= MAX_POWER:
+        return None
+    return (f"light {value_text(name)}: energy {value_text(as_stored(light.energy))} "
+            f"(x 2^exposure) is clamped to {value_text(light_power(light))} W (Glint's limit; "
+            f"Cycles' pixels are as blown out)")
+
+
+def article_light_problem(light) -> str | None:
+    """Why the article semantics leaves out a Blender light it would otherwise export, or
+    None: its lights neither subtract light nor darken."""
+    power = blender_power(light)
+    if not math.isfinite(power) or not all(map(math.isfinite, blender_colour(light))):
+        return "power or colour not finite"
+    if power < 0:
+        return "negative power, which the article's lights cannot subtract"
+    return None
 
 
 def _column(matrix, column: int) -> tuple[float, float, float]:
@@ -48,32 +112,16 @@ def _column(matrix, column: int) -> tuple[float, float, float]:
 
 def export_article_light(light, matrix_world, name: str) -> PointLight | None:
     """A core PointLight for a bpy PointLight placed by ``matrix_world`` (4x4), article
-    semantics; None for other types."""
-    if light.type != 'POINT':
+    semantics; None for other types and for ``article_light_problem``'s."""
+    if light.type != 'POINT' or article_light_problem(light):
         return None
     return PointLight.from_power(_column(matrix_world, 3), light_colour(light),
                                  light_power(light), radius=float(light.shadow_soft_size),
                                  name=name)
 
 
-def check_light(light, name: str) -> None:
-    """Raise SceneError naming Blender's field (energy, color) when a light's power or colour
-    is not finite or too large, before the core would name its own."""
-    where = f"light {name!r}"
-    power = light_power(light)
-    if not math.isfinite(power):
-        raise SceneError(f"{where}.energy must be finite, got {power!r}")
-    if abs(power) > MAX_POWER:
-        raise SceneError(f"{where}.energy must be at most {MAX_POWER:g}, got {power!r}")
-    for i, channel in enumerate(light_colour(light)):
-        if not math.isfinite(channel) or abs(channel) > MAX_COLOUR:
-            raise SceneError(f"{where}.color[{i}] must be finite and at most "
-                             f"{MAX_COLOUR:g}, got {channel!r}")
-
-
 def export_light(light, matrix_world, name: str):
     """The core light (Cycles' units) for a bpy Light placed by ``matrix_world`` (4x4)."""
-    check_light(light, name)
     position = _column(matrix_world, 3)
     x_axis, y_axis, z_axis = (_column(matrix_world, c) for c in range(3))
     forward = tuple(-c for c in z_axis)

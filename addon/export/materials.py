@@ -1,8 +1,8 @@
 """Blender materials -> core materials.
 
 Default semantics (``export_material``): the material's shader nodes are evaluated into a
-``core.SurfaceMaterial`` (``NodeEvaluator`` below; docs/user-guide.md's table lists what each
-node becomes); Viewport Display is the fallback for a material without a usable node tree.
+``core.SurfaceMaterial`` (``NodeEvaluator`` below; README's table lists what each node
+becomes); Viewport Display is the fallback for a material without a usable node tree.
 
 Article semantics (``export_article_material``): the article's five Blinn-Phong parameters.
 Three sources, in order:
@@ -44,12 +44,13 @@ from typing import Optional
 import numpy as np
 
 from ...core import Material, SceneError, SurfaceMaterial
+from ...core.reflectance import blinn_exponent
+from ...core.validation import MAX_COLOUR, value_text
 from ..utils.colour import colour_from_blender
 from .shader import ShaderCompiler, surface_material
+from .values import as_stored, counted
 
 AMBIENT_FRACTION = 0.1
-#: alpha = roughness^2 is clamped here so a roughness of 0 gives a finite exponent.
-MIN_ALPHA = 1e-3
 #: Blinn exponent of the default roughness 0.5 (alpha 0.25): 2 / 0.25^2 - 2.
 REFERENCE_EXPONENT = 30.0
 
@@ -65,11 +66,6 @@ class SurfaceValues:
     metallic: float
     roughness: float
     specular_level: float
-
-
-def blinn_exponent(roughness: float) -> float:
-    alpha = max(float(roughness) ** 2, MIN_ALPHA)
-    return 2.0 / alpha ** 2 - 2.0
 
 
 def material_from_surface(values: SurfaceValues) -> Material:
@@ -143,26 +139,57 @@ def custom_material(settings) -> Material:
                     reflection=settings.reflection)
 
 
-def export_article_material(material) -> tuple[Material, Optional[str]]:
+def usable_custom_material(material, where: str) -> tuple[Optional[Material], Optional[str]]:
+    """(the Glint section as a core Material, None) when "Custom" is on and its values are
+    valid; (None, a note) when they are not (a script can set them past the panel's limits):
+    the material's own surface is used then, which is all Cycles reads; (None, None) when
+    "Custom" is off."""
+    settings = getattr(material, "glint", None)
+    if settings is None or not settings.use_custom:
+        return None, None
+    try:
+        return custom_material(settings), None
+    except SceneError as error:
+        return None, f"{where}: its Glint Custom values are invalid ({error}): its surface " \
+                     f"is used, as Cycles uses it"
+
+
+def export_article_material(material, owner: str = "") -> tuple[Material, Optional[str]]:
     """(core Material, note or None) for a bpy Material or None (Blender's default surface),
-    article semantics."""
+    article semantics; owner: the object using it, named in notes about invalid values."""
     if material is None:
         return material_from_surface(SurfaceValues(**DEFAULT_SURFACE)), None
-    settings = getattr(material, "glint", None)
-    if settings is not None and settings.use_custom:
-        return custom_material(settings), None
+    where = _where(material, owner)
+    custom, custom_note = usable_custom_material(material, where)
+    if custom is not None:
+        return custom, None
     values, note = surface_values(material)
-    check_finite(values)
-    return material_from_surface(values), note
+    values, value_note = usable_values(values, where)
+    notes = [text for text in (custom_note, note, value_note) if text]
+    return material_from_surface(values), ("; ".join(notes) or None)
 
 
-def check_finite(values: SurfaceValues) -> None:
-    """Raise SceneError naming the first input that is NaN or infinite (the mapping would
-    otherwise hide which one it was behind a derived field)."""
+def _where(material, owner: str) -> str:
+    return f"object '{owner}', material '{material.name}'" if owner else \
+        f"material '{material.name}'"
+
+
+def usable_values(values: SurfaceValues, where: str) -> tuple[SurfaceValues, Optional[str]]:
+    """``values`` with NaN counted as 0 and what is infinite or past MAX_COLOUR in size
+    clamped to +-MAX_COLOUR (as ``NodeEvaluator.usable``), and a note naming the fields, or
+    None."""
+    fields, named = {}, []
     for name in ("base_colour", "metallic", "roughness", "specular_level"):
         value = getattr(values, name)
-        if not np.all(np.isfinite(value)):
-            raise SceneError(f"{name.replace('_', ' ')} must be finite, got {value!r}")
+        fixed = counted(value)
+        if fixed is not None:
+            named.append(f"{name.replace('_', ' ')} {value_text(as_stored(value))} counts "
+                         f"as {value_text(as_stored(fixed))}")
+            value = tuple(fixed) if np.ndim(fixed) else fixed
+        fields[name] = value
+    if not named:
+        return values, None
+    return SurfaceValues(**fields), f"{where}: {'; '.join(named)}"
 
 
 # --------------------------------------------------------------------------------------------
@@ -176,13 +203,21 @@ def surface_socket(tree):
     return None if output is None else output.inputs.get("Surface")
 
 
-def _viewport_display(material) -> SurfaceMaterial:
-    return SurfaceMaterial.principled(base_color=tuple(material.diffuse_color[:3]),
-                                      metallic=material.metallic, roughness=material.roughness)
+def _viewport_display(material, where: str) -> tuple[SurfaceMaterial, Optional[str]]:
+    values, note = usable_values(SurfaceValues(
+        base_colour=tuple(material.diffuse_color[:3]), metallic=material.metallic,
+        roughness=material.roughness, specular_level=0.5), where)
+    return SurfaceMaterial.principled(
+        base_color=tuple(max(c, 0.0) for c in values.base_colour),
+        metallic=min(max(values.metallic, 0.0), 1.0),
+        roughness=min(max(values.roughness, 0.0), 1.0)), note
 
 
-def export_material(material, context=None) -> tuple[SurfaceMaterial | Material, Optional[str]]:
-    """(core material, note or None) for a bpy Material or None, default semantics.
+def export_material(material, owner: str = "", context=None) -> tuple[
+        SurfaceMaterial | Material, Optional[str]]:
+    """(core material, note or None) for a bpy Material or None, default semantics; owner:
+    the object using it, named in notes about invalid values; context: the export context
+    (its image cache).
 
     None gets Blender's default surface (a default Principled BSDF).  The Glint section with
     "Custom" on gives the article's Material as typed.  A material without a node tree uses
@@ -190,19 +225,23 @@ def export_material(material, context=None) -> tuple[SurfaceMaterial | Material,
     Output for Cycles (another engine's, say) or nothing plugged into its Surface renders
     black, as in Cycles, with a note.  Otherwise its Surface is compiled (``shader``):
     constants where the tree folds to them, else a program the path integrator runs per
-    hit.  context: the export context (its image cache)."""
+    hit."""
     if material is None:
         return SurfaceMaterial.principled(), None
-    settings = getattr(material, "glint", None)
-    if settings is not None and settings.use_custom:
-        return custom_material(settings), None
+    where = _where(material, owner)
+    custom, custom_note = usable_custom_material(material, where)
+    if custom is not None:
+        return custom, None
     if material.node_tree is None:
-        return _viewport_display(material), None
+        viewport, note = _viewport_display(material, where)
+        return viewport, ("; ".join(filter(None, (custom_note, note))) or None)
     surface = surface_socket(material.node_tree)
     if surface is None or not surface.is_linked:
-        return SurfaceMaterial(diffuse=(0.0, 0.0, 0.0)), (
-            f"material '{material.name}': no shader reaches a Cycles Material Output; it "
-            f"renders black, as in Cycles")
-    compiler = ShaderCompiler(f"material '{material.name}'", context)
+        return SurfaceMaterial(diffuse=(0.0, 0.0, 0.0)), "; ".join(filter(None, (
+            custom_note, f"material '{material.name}': no shader reaches a Cycles Material "
+                         f"Output; it renders black, as in Cycles")))
+    compiler = ShaderCompiler(f"material '{material.name}'", context,
+                              f"object '{owner}', " if owner else "")
+    compiler.note(custom_note)
     value = compiler.compile(surface)
-    return surface_material(value), ("; ".join(compiler.notes) or None)
+    return surface_material(value, compiler), ("; ".join(compiler.notes) or None)

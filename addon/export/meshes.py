@@ -19,9 +19,12 @@ Python loop over vertices or faces:
   past the last slot use the last one, as Blender does.  Materials go through the context's
   cache (``ExportContext.material``).
 
-Zero-area triangles (which no renderer hits) are dropped; a mesh without faces (loose
-vertices and edges, a Geometry Nodes host whose output is points) draws nothing, in Blender
-too, and is passed over without a warning.  Whether an instance of a
+Zero-area triangles (which no renderer hits) are dropped; so are the triangles that touch a
+vertex that is not finite or past ``CYCLES_REACH``, which Cycles drops too, with a warning
+(``core.validation.usable_triangles``); a mesh without faces (loose vertices and edges, a
+Geometry Nodes host whose output is points) draws nothing, in Blender too, and is passed over
+without a warning.  Instances whose matrix is not finite draw nothing, as in Cycles, and are
+skipped with a warning, as zero-scale ones are.  Whether an instance of a
 sphere-like mesh is drawn as a sphere is ``geometry``'s rule; the others become one
 ``TriangleMesh`` per evaluated mesh with one transform per instance.
 """
@@ -35,6 +38,7 @@ import numpy as np
 
 from ...core import SceneError, Sphere, SphereSet, TriangleMesh
 from ...core.scene import row_blocks
+from ...core.validation import usable_triangles
 from ...core.terminator import DEFAULT_GEOMETRY_OFFSET
 from .context import instance_name
 from .errors import ExportError
@@ -42,6 +46,12 @@ from .geometry import (ANALYTIC_SPHERE_PROPERTY, STORED_FLOAT, STORED_INT, Spher
                        corner_values, degenerate_transforms, mesh_sphere, read_array,
                        sphere_instances)
 
+
+#: How far from the origin a vertex may be for Cycles to draw its triangles: it intersects in
+#: float32, whose squares overflow past about 1.8e19; measured with a UV sphere one of whose
+#: vertices was moved to x: drawn at 1e18, left out (the render equal to a NaN vertex's) at
+#: 1e19 and beyond.  A vertex Blender holds past it is left out here, as there.
+CYCLES_REACH = 1e19
 
 #: Object types whose evaluated mesh the depsgraph yields as a MESH instance of the object
 #: itself; their own entry has nothing more to draw.
@@ -65,6 +75,7 @@ class MeshArrays:
     corner_normals: Optional[np.ndarray]  # (T, 3, 3) float64, or None: flat shading
     slots: np.ndarray                     # (T,) int64 material slot of each triangle
     corner_loops: np.ndarray              # (T, 3) int64 each corner's loop (its UVs' index)
+    dropped: Optional[str] = None         # what usable_triangles left out, or None
 
 
 def face_slots(mesh, faces: np.ndarray) -> np.ndarray:
@@ -126,7 +137,10 @@ def read_mesh(mesh) -> MeshArrays:
     triangles = corner_values(mesh, ".corner_vert", mesh.loops, "vertex_index")[loops]
     faces = read_array(mesh.loop_triangle_polygons, "value", 1, np.int64, stored=STORED_INT)
     slots = face_slots(mesh, faces)
+    vertices, usable, dropped = usable_triangles(vertices, triangles, CYCLES_REACH)
     keep = _nonzero_area(vertices, triangles)
+    if usable is not None:
+        keep &= usable
     normals = None
     if mesh.normals_domain != 'FACE':
         # Gathered from Blender's float32 and widened as they land: half the memory traffic.
@@ -136,7 +150,7 @@ def read_mesh(mesh) -> MeshArrays:
     if not keep.all():
         triangles, slots, loops = triangles[keep], slots[keep], loops[keep]
         normals = normals[keep] if normals is not None else None
-    return MeshArrays(vertices, triangles, normals, slots, loops)
+    return MeshArrays(vertices, triangles, normals, slots, loops, dropped)
 
 
 def evaluated_materials(obj) -> tuple:
@@ -351,20 +365,26 @@ class MeshExporter:
         if key not in cache.mesh_arrays:
             arrays = read_mesh(mesh)
             cache.mesh_arrays[key] = arrays
-            cache.sphere_fits[key] = mesh_sphere(mesh, arrays.vertices)
+            # (A mesh with triangles left out has a hole: no sphere, whatever its vertices.)
+            cache.sphere_fits[key] = None if arrays.dropped else mesh_sphere(mesh,
+                                                                             arrays.vertices)
         return cache.mesh_arrays[key], cache.sphere_fits[key]
 
     def _export(self, use: MeshUse) -> None:
         context = self.context
         matrices, names, forced = use.instances()
-        degenerate = degenerate_transforms(matrices)
-        if degenerate.any():
-            for index in np.flatnonzero(degenerate)[:1]:
-                context.skip(names[index] or use.name, "zero scale: draws nothing")
+        unplaced = ~np.isfinite(matrices).all(axis=(1, 2))
+        degenerate = unplaced | degenerate_transforms(np.where(unplaced[:, None, None], 0.0,
+                                                                matrices))
+        for index in np.flatnonzero(degenerate)[:1]:
+            context.skip(names[index] or use.name, "matrix not finite: draws nothing, as in "
+                         "Cycles" if unplaced[index] else "zero scale: draws nothing")
         drawn = ~degenerate
         if not use.mesh.polygons:
             return  # loose vertices and edges: Blender renders nothing either
         arrays, fit = self._arrays(use.mesh)
+        if arrays.dropped:
+            context.note(f"object '{use.name}': {arrays.dropped}, as Cycles leaves them out")
         if len(arrays.triangles) == 0:
             return
         slot_materials = ([context.material(m, use.name, use.holdout) for m in use.materials]

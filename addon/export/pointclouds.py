@@ -5,8 +5,11 @@ Points, Points, which the depsgraph yields as POINTCLOUD instances), render in C
 spheres of the ``radius`` attribute (0.01 where a cloud has none: Blender's default) around
 ``position``.  Both attributes are read with one ``foreach_get`` each, and so is
 ``material_index`` where it exists (slots as for meshes: past the last slot, the last one).
-The world matrix must be a rotation times a uniform scale, which scales the radii; points
-of radius <= 0 draw nothing and are left out.
+The world matrix must be a rotation times a uniform scale, which scales the radii (Cycles
+draws a non-uniformly scaled cloud's points as ellipsoids, which Glint cannot: such a cloud
+is skipped with a warning; one whose matrix is not finite draws nothing, as in Cycles).
+Points that draw nothing in Cycles (radius <= 0, a position or radius not finite) are left
+out by the core, which says how many (``core.SphereSet``).
 """
 
 from __future__ import annotations
@@ -37,6 +40,9 @@ def export_point_cloud(context, obj, matrix_world, name: str) -> None:
     if count == 0:
         return
     matrix = np.asarray(matrix_world, np.float64)
+    if not np.isfinite(matrix).all():
+        context.skip(name, "matrix not finite: draws nothing, as in Cycles")
+        return
     if degenerate_transforms(matrix[None])[0]:
         context.skip(name, "zero scale: draws nothing")
         return
@@ -47,15 +53,11 @@ def export_point_cloud(context, obj, matrix_world, name: str) -> None:
     positions = _attribute(cloud, "position", 3, np.float32, None)
     radii = _attribute(cloud, "radius", 1, np.float32, DEFAULT_POINT_RADIUS)
     slots = _attribute(cloud, "material_index", 1, np.int32, 0)
-    keep = radii > 0
-    if not keep.all():
-        positions, radii, slots = positions[keep], radii[keep], slots[keep]
-    if len(radii) == 0:
-        return
     holdout = context.is_holdout(obj)
     materials = [context.material(slot.material, name, holdout)
                  for slot in obj.material_slots] or [context.material(None, name, holdout)]
-    centers = positions.astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+    with np.errstate(invalid="ignore", over="ignore"):  # (the core leaves such points out)
+        centers = positions.astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
     try:
         context.sphere_sets.append(SphereSet(
             centers=centers, radii=radii.astype(np.float64) * scales[0],

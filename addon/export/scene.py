@@ -47,7 +47,7 @@ from .camera import export_camera
 from .context import ExportContext, instance_name
 from .errors import ExportError
 from .instances import InstanceExporter, InstanceWalk
-from .lights import export_article_light
+from .lights import article_light_problem, colour_note, export_article_light, power_note
 from .lights import export_light as export_cycles_light
 from .meshes import EVALUATED_AS_MESH, MeshExporter
 from .pointclouds import export_point_cloud
@@ -149,8 +149,14 @@ def export_light(context, obj, matrix, name: str) -> None:
     except SceneError as error:
         raise ExportError(str(error)) from None  # the core's message names the light
     if light is None:
-        context.skipped_lights.add(name, f"{obj.data.type.lower()} light")
+        problem = article_light_problem(obj.data) if obj.data.type == 'POINT' else None
+        if problem:
+            context.note(f"light '{name}': {problem}: the article semantics leaves it out")
+        else:
+            context.skipped_lights.add(name, f"{obj.data.type.lower()} light")
         return
+    context.note(power_note(obj.data, name))
+    context.note(colour_note(obj.data, name))
     context.lights.append(light)
 
 
@@ -267,4 +273,5 @@ def export_scene(depsgraph, camera_override=None, *, view_camera=None
                   lights=tuple(context.lights), background=background, ambient=background,
                   sphere_sets=tuple(context.sphere_sets), meshes=tuple(context.meshes),
                   world=world_program)
-    return scene, warnings
+    # What the core renders otherwise than Blender holds it (docs/invalid-data.md).
+    return scene, warnings + list(scene.warnings)

@@ -25,7 +25,9 @@ from ...core.shader.program import (MAX_INSTRUCTIONS, Coordinate, Instruction, R
                                     ShaderProgram, constant_array, evaluate, run)
 from ...core.shader.points import ShadingPoints
 from ...core.shader.registry import CLOSURE, COLOR, FLOAT, NODES, VECTOR
+from ...core.validation import MAX_COLOUR, value_text
 from .errors import ExportError
+from .values import as_stored, counted
 
 #: Nodes whose value passes straight through (their first input of the socket's kind).
 _PASS_THROUGH = {"NodeReroute"}
@@ -65,6 +67,12 @@ def _point_at_rest(dtype=np.float64) -> ShadingPoints:
     return ShadingPoints(np.zeros((3, 1), dtype), up, up, up)
 
 
+def _nan_alpha(node, sockets) -> bool:
+    alpha = sockets.get("Alpha")
+    return (node.bl_idname == "ShaderNodeBsdfPrincipled" and alpha is not None
+            and not alpha.is_linked and np.isnan(alpha.default_value))
+
+
 def _is_constant(value) -> bool:
     return not isinstance(value, (Register, Coordinate))
 
@@ -82,17 +90,18 @@ def _read_option(node, name):
 class ShaderCompiler:
     """Compiles one node tree (``compile``); owner names it in notes ("material 'Wood'")."""
 
-    def __init__(self, owner: str, context=None):
+    def __init__(self, owner: str, context=None, user: str = ""):
         self.owner = owner
         self.context = context
+        self.user = user     # "object 'X', " : who uses the tree, for notes on its values
         self.notes: list[str] = []
         self.instructions: list[Instruction] = []
         self.registers = 0
         self.coordinates: set[str] = set()
         self._memo: dict = {}
 
-    def note(self, text: str) -> None:
-        if text not in self.notes:
+    def note(self, text: str | None) -> None:
+        if text and text not in self.notes:
             self.notes.append(text)
 
     # --- following links ----------------------------------------------------------------
@@ -157,6 +166,18 @@ class ShaderCompiler:
         if kind == CLOSURE:
             return LobeSum.none()
         value = getattr(socket, "default_value", 0.0)
+        fixed = counted(value)
+        if fixed is not None:
+            # NaN as 0 and infinities at the colour limit, as Cycles' clamps count them
+            # (docs/invalid-data.md).
+            node = getattr(socket, "node", None)
+            raw = tuple(value) if hasattr(value, "__len__") else value
+            # (A colour's RGB: its alpha is not what is read.)
+            shown, fixed_shown = (raw[:3], fixed[:3]) if np.ndim(fixed) else (raw, fixed)
+            self.note(f"{self.user}{self.owner}: '{socket.name}' of "
+                      f"'{getattr(node, 'name', '?')}' is {value_text(as_stored(shown))}: "
+                      f"it counts as {value_text(as_stored(fixed_shown))}")
+            value = fixed
         try:
             values = tuple(float(v) for v in value)
         except TypeError:
@@ -195,6 +216,12 @@ class ShaderCompiler:
             self._memo[key] = None
             return None
         sockets = {socket.identifier: socket for socket in node.inputs}
+        if _nan_alpha(node, sockets):
+            # Measured: Cycles renders a Principled BSDF of NaN Alpha black and opaque.
+            self.note(f"{self.user}{self.owner}: 'Alpha' of '{node.name}' is nan: the "
+                      f"Principled BSDF renders black and opaque, as in Cycles")
+            self._memo[key] = LobeSum.none()
+            return self._memo[key]
         shader = all(kind == CLOSURE for _, kind in spec.outputs)
         arguments = []
         for identifier, kind in spec.inputs:
@@ -297,16 +324,25 @@ def _default_surface() -> LobeSum:
     return lobes
 
 
-def surface_material(value, holdout_object: bool = False) -> SurfaceMaterial:
+def surface_material(value, compiler: "ShaderCompiler | None" = None) -> SurfaceMaterial:
     """The SurfaceMaterial of a compiled Surface: the constants it folded to, or for a
     program its value at a point at rest (what the Whitted integrator and the passes use)
-    with the program attached (the path integrator's)."""
+    with the program attached (the path integrator's).  Colours past the core's limit are
+    clamped to it, with a note to ``compiler`` (Cycles' pixels are as blown out)."""
     program = None
     if isinstance(value, ShaderProgram):
         program = value
         closures = run(program, _point_at_rest()).closures(1, np.float64)
     else:
         closures = constant_array(value, np.float64).closures(1, np.float64)
+    beyond = [name for name in ("diffuse", "f0", "f90", "transmission", "emission",
+                                "transparency", "translucency")
+              if np.max(np.abs(getattr(closures, name))) > MAX_COLOUR]
+    for name in beyond:
+        setattr(closures, name, np.clip(getattr(closures, name), -MAX_COLOUR, MAX_COLOUR))
+    if beyond and compiler is not None:
+        compiler.note(f"{compiler.user}{compiler.owner}: {', '.join(beyond)} past "
+                      f"{MAX_COLOUR:g} is clamped to it (Cycles' pixels are as blown out)")
     return closures_material(closures, program)
 
 

@@ -7,7 +7,8 @@ one whose colour or strength comes from nodes (an Environment Texture, a Sky Tex
 gradient) becomes a program the path integrator runs on the directions rays escape in, with
 its value straight up as the constant the Whitted integrator uses.  A world without a node
 tree uses its Viewport Display colour; no world, or an unconnected output, is black, as in
-Blender.
+Blender.  Values that are NaN, infinite or past the core's colour limit count as
+``values.counted`` counts them, with a note.
 """
 
 from __future__ import annotations
@@ -17,6 +18,8 @@ import numpy as np
 
 from ...core.shader.program import ShaderProgram, constant_array, run
 from ...core.shader.world import world_points
+from ...core.validation import MAX_COLOUR, value_text
+from .values import as_stored, counted
 from .shader import ShaderCompiler
 
 
@@ -27,19 +30,27 @@ def export_world(world, context=None):
     tree = world.node_tree
     uses_nodes = tree is not None and (bpy.app.version >= (5, 0, 0) or world.use_nodes)
     if not uses_nodes:
-        return tuple(world.color), None, None
+        colour, fixed = tuple(world.color), counted(world.color)
+        if fixed is None:
+            return colour, None, None
+        return tuple(float(c) for c in fixed), None, (
+            f"world '{world.name}': its colour {value_text(as_stored(colour))} counts as "
+            f"{value_text(as_stored(fixed))}")
     output = tree.get_output_node('CYCLES') or tree.get_output_node('ALL')
     surface = output.inputs.get("Surface") if output is not None else None
     if surface is None or not surface.is_linked:
         return (0.0, 0.0, 0.0), None, None  # Blender renders an unconnected world black too
     compiler = ShaderCompiler(f"world '{world.name}'", context)
     value = compiler.compile(surface)
-    note = "; ".join(compiler.notes) or None
     if isinstance(value, ShaderProgram):
         up = world_points(np.array([[0.0], [0.0], [1.0]]))
-        radiance = run(value, up).emission
-        return _colour(radiance), value, note
-    return _colour(constant_array(value, np.float64).emission), None, note
+        return _colour(run(value, up).emission), value, "; ".join(compiler.notes) or None
+    emission = constant_array(value, np.float64).emission
+    if np.max(emission) > MAX_COLOUR:
+        compiler.note(f"world '{world.name}': its radiance "
+                      f"{value_text(as_stored(np.ravel(emission)))} is clamped to "
+                      f"{MAX_COLOUR:g} (Cycles' pixels are as blown out)")
+    return _colour(emission), None, "; ".join(compiler.notes) or None
 
 
 def world_colour(world, context=None) -> tuple[tuple[float, float, float], str | None]:
@@ -50,4 +61,4 @@ def world_colour(world, context=None) -> tuple[tuple[float, float, float], str |
 
 def _colour(emission) -> tuple[float, float, float]:
     values = np.asarray(emission, np.float64).reshape(3, -1)[:, 0]
-    return tuple(float(max(c, 0.0)) for c in values)
+    return tuple(float(min(max(c, 0.0), MAX_COLOUR)) for c in values)
