@@ -93,14 +93,14 @@ def add_camera(location=(0.0, 0.0, 5.0), target=(0.0, 0.0, 0.0), ortho_scale=2.0
     return camera
 
 
-def pixel_rays():
+def pixel_rays(dx=0.0, dy=0.0):
     """(origins (3, n), directions (3, n)) of the scene camera's rays through the pixel
-    centres, row 0 at the top, from Glint's own camera."""
+    centres (moved by dx, dy pixels), row 0 at the top, from Glint's own camera."""
     scene = bpy.context.scene
     width, height = scene.render.resolution_x, scene.render.resolution_y
     ys, xs = np.mgrid[0:height, 0:width]
     camera = export_camera(bpy.context.evaluated_depsgraph_get())
-    rays = camera_rays(camera, xs.ravel() + 0.5, ys.ravel() + 0.5)
+    rays = camera_rays(camera, xs.ravel() + 0.5 + dx, ys.ravel() + 0.5 + dy)
     origins = np.broadcast_to(rays.origins, rays.directions.shape)
     return origins, rays.directions
 
@@ -140,14 +140,20 @@ def emission_material(image, *, interpolation="Linear", extension="REPEAT",
     return material, texture
 
 
-def uv_plane(material, uv0=(0.0, 0.0), uv1=(1.0, 1.0)):
-    """The square [-1, 1]^2 at z = 0 facing +Z, its UVs running from uv0 to uv1."""
+def uv_plane(material, uv0=(0.0, 0.0), uv1=(1.0, 1.0), cuts=1):
+    """The square [-1, 1]^2 at z = 0 facing +Z, in cuts x cuts quads, its UVs running
+    linearly from uv0 to uv1."""
     mesh = bpy.data.meshes.new("plane")
-    mesh.from_pydata([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [], [(0, 1, 2, 3)])
+    steps = np.linspace(0.0, 1.0, cuts + 1)
+    vertices = [(2 * x - 1, 2 * y - 1, 0.0) for y in steps for x in steps]
+    faces = [(j * (cuts + 1) + i, j * (cuts + 1) + i + 1, (j + 1) * (cuts + 1) + i + 1,
+              (j + 1) * (cuts + 1) + i) for j in range(cuts) for i in range(cuts)]
+    mesh.from_pydata(vertices, [], faces)
     layer = mesh.uv_layers.new(name="UVMap")
     (u0, v0), (u1, v1) = uv0, uv1
-    for loop, uv in zip(mesh.loops, [(u0, v0), (u1, v0), (u1, v1), (u0, v1)]):
-        layer.data[loop.index].uv = uv
+    for loop in mesh.loops:
+        x, y, _ = vertices[loop.vertex_index]
+        layer.data[loop.index].uv = (u0 + (u1 - u0) * (x + 1) / 2, v0 + (v1 - v0) * (y + 1) / 2)
     mesh.materials.append(material)
     return link(bpy.data.objects.new("plane", mesh))
 
@@ -491,3 +497,255 @@ def test_colour_space_kinds_follow_cycles():
     assert ColourSpaces.cycles_scale("Rec.2100-PQ") == ColourSpaces.cycles_scale(
         "Rec.2100-HLG") == pytest.approx(2.03)
     assert ColourSpaces.cycles_scale("ACEScg") == 1.0
+
+
+# --------------------------------------------------------------------------------------------
+# What cannot be read, and what should not be.
+
+def test_missing_file_renders_magenta_with_one_warning(folder):
+    """An image whose file is gone renders magenta (1, 0, 1) as in Cycles, with one warning
+    naming the image, its path and the material; an image node without an image too."""
+    cycles_file()
+    add_camera()
+    path = save_png(folder, "gone.png", random_bytes(2, 2))
+    image = bpy.data.images.load(path)
+    os.remove(path)
+    material, node = emission_material(image)
+    material.name = "Painted"
+    uv_plane(material)
+    uv = plane_uvs()
+    glint_image, notes = glint_emission(node, points_for(uv, uv=uv))
+    cycles = render_cycles()
+    close(glint_image, cycles)
+    assert np.allclose(cycles[..., :3], (1.0, 0.0, 1.0))
+    assert len(notes) == 1
+    assert "'gone.png'" in notes[0] and path in notes[0] and "material 'Painted'" in notes[0]
+    assert "magenta" in notes[0]
+    node.image = None
+    glint_image, notes = glint_emission(node, points_for(uv, uv=uv))
+    assert np.allclose(glint_image, (1.0, 0.0, 1.0))
+    assert len(notes) == 1 and "material 'Painted'" in notes[0] and "no image" in notes[0]
+
+
+def test_non_finite_texels_are_zeroed_with_one_warning(folder):
+    """A float image's NaN and infinite texels are zeroed, all four channels (Cycles'
+    loader's intent; its loop reaches only every fourth pixel, 0, 4, ..., which is where
+    the two agree; elsewhere a NaN reaches Cycles' shading and only the film's clamp zeroes
+    the channel it poisons), with one warning naming the image and the count."""
+    cycles_file()
+    add_camera()
+    rgba = np.full((1, 8, 4), 0.5, np.float32)
+    rgba[..., 3] = 1
+    rgba[0, 0, 0] = np.nan       # reached by Cycles' loop
+    rgba[0, 4, 2] = np.inf       # reached
+    rgba[0, 1, 1] = np.nan       # not reached: Cycles shows (0.5, 0, 0.5)
+    rgba[0, 5, 3] = -np.inf
+    image = bpy.data.images.load(save_exr(folder, "holes.exr", rgba))
+    material, node = emission_material(image, interpolation="Closest")
+    uv_plane(material)
+    uv = plane_uvs()
+    glint_image, notes = glint_emission(node, points_for(uv, uv=uv))
+    cycles = render_cycles()
+    texel = (np.arange(RES) * 8) // RES                 # each pixel column's texel
+    reached = np.isin(texel, [0, 2, 3, 4, 6, 7])[None, :].repeat(RES, axis=0)
+    close(glint_image, cycles, where=reached)
+    assert np.all(glint_image[:, np.isin(texel, [0, 1, 4, 5])] == 0)
+    assert len(notes) == 1 and "'holes.exr'" in notes[0] and "4 pixels" in notes[0]
+
+
+def test_an_image_is_read_once_and_shared(folder):
+    """Two materials using one image get the same ImageData (read once per export), whose
+    texels are read-only and reach worker processes out of band (one buffer, not a copy
+    per material)."""
+    empty_file()
+    image = bpy.data.images.load(save_png(folder, "shared.png", random_bytes(64, 64)))
+    first, node_a = emission_material(image)
+    second, node_b = emission_material(image)
+    context = ExportContext.for_camera(None, judged_from=None)
+    read = OPTION_READERS["ShaderNodeTexImage"]
+    a, b = read(node_a, context)["image"], read(node_b, context)["image"]
+    assert a is b
+    assert not a.texels.flags.writeable
+    buffers = []
+    payload = pickle.dumps({"first": a, "second": b}, protocol=5,
+                           buffer_callback=buffers.append)
+    assert len(buffers) == 1 and buffers[0].raw().readonly
+    copy = pickle.loads(payload, buffers=buffers)
+    assert copy["first"] is copy["second"]
+    assert np.array_equal(copy["first"].texels, a.texels)
+
+
+# --------------------------------------------------------------------------------------------
+# UDIM tiles, sequences and movies.
+
+def udim_image(folder):
+    """A tiled image of tiles 1001 (4 x 3), 1002 (5 x 2) and 1011 (3 x 3)."""
+    for number, (width, height), seed in ((1001, (4, 3), 11), (1002, (5, 2), 12),
+                                          (1011, (3, 3), 13)):
+        save_png(folder, f"tiles.{number}.png", random_bytes(height, width, seed=seed))
+    image = bpy.data.images.load(os.path.join(folder, "tiles.1001.png"))
+    image.source = 'TILED'
+    image.filepath = os.path.join(folder, "tiles.<UDIM>.png")
+    assert sorted(tile.number for tile in image.tiles) == [1001, 1002, 1011]
+    return image
+
+
+@pytest.mark.parametrize("packed", [False, True])
+@pytest.mark.parametrize("interpolation", ["Closest", "Linear"])
+def test_udim_tiles_match_cycles(folder, packed, interpolation):
+    """UVs over tiles 1001, 1002, 1011 and the missing 1003, 1012, 1013: each point reads
+    the tile its UV's integer parts name (truncated: u in (-1, 0) reads tile 1001's Extend),
+    magenta where no tile is; from the files and packed.  The plane is cut so that a vertex
+    lies in every tile: Cycles loads a file UDIM's tiles only where some mesh vertex's UV
+    falls (``cull_tiles``), and shows the others magenta."""
+    cycles_file(48)
+    add_camera()
+    image = udim_image(folder)
+    if packed:
+        image.pack()
+    material, node = emission_material(image, interpolation=interpolation,
+                                       extension="EXTEND")
+    uv0, uv1 = (-0.45, -0.3), (2.45, 2.3)
+    uv_plane(material, uv0, uv1, cuts=8)
+    uv = plane_uvs(uv0, uv1)
+    glint_image, _ = glint_emission(node, points_for(uv, uv=uv))
+    cycles = render_cycles()
+    # Pixels whose footprint straddles a tile border may sample either tile in Cycles.
+    fraction = np.stack([uv[0] % 1, uv[1] % 1]).reshape(2, 48, 48)
+    step = 3.0 / 48
+    clear = np.all((fraction > step) & (fraction < 1 - step), axis=0)
+    close(glint_image, cycles, where=clear)
+    magenta = np.all(np.isclose(cycles[..., :3], (1, 0, 1)), axis=-1)
+    assert magenta.sum() > 300          # the missing tiles show
+
+
+def test_image_sequence_frame_follows_the_image_user(folder):
+    """A sequence's frame at the scene's frame, through the node's image user (start,
+    offset, duration, cyclic), as Cycles reads it."""
+    for number in range(1, 6):
+        rgba = np.zeros((2, 2, 4), np.uint8)
+        rgba[..., 0], rgba[..., 1], rgba[..., 3] = 40 * number, 255 - 40 * number, 255
+        save_png(folder, f"frames_{number:03d}.png", rgba)
+    for scene_frame, start, offset, cyclic in ((7, 3, 0, False), (9, 3, 1, False),
+                                               (12, 2, 0, True), (1, 3, 0, False)):
+        scene = cycles_file()
+        add_camera()
+        image = bpy.data.images.load(os.path.join(folder, "frames_001.png"))
+        image.source = 'SEQUENCE'
+        material, node = emission_material(image, interpolation="Closest")
+        user = node.image_user
+        user.frame_duration, user.frame_start = 4, start
+        user.frame_offset, user.use_cyclic, user.use_auto_refresh = offset, cyclic, True
+        scene.frame_set(scene_frame)
+        uv_plane(material)
+        uv = plane_uvs()
+        glint_image, notes = glint_emission(node, points_for(uv, uv=uv))
+        expected = frame_number(user, scene_frame)
+        cycles = render_cycles()
+        close(glint_image, cycles)
+        if 1 <= expected <= 5:
+            assert np.allclose(glint_image[0, 0, 0], ((40 * expected) / 255) ** 2.2, rtol=0.1)
+            assert not notes
+        else:   # no such frame: magenta and a warning, as Cycles shows it
+            assert np.allclose(glint_image, (1, 0, 1)) and len(notes) == 1
+
+
+def test_frame_number_follows_blender():
+    """The image user's frame calculation (Blender's BKE_image_user_frame_get)."""
+    class User:
+        frame_duration, frame_start, frame_offset, use_cyclic = 4, 3, 0, False
+    user = User()
+    assert [frame_number(user, f) for f in (1, 2, 3, 6, 7, 20)] == [0, 0, 1, 4, 4, 4]
+    user.use_cyclic = True
+    assert [frame_number(user, f) for f in (2, 3, 6, 7, 11)] == [4, 1, 4, 1, 1]
+    user.frame_offset = 10
+    assert frame_number(user, 4) == 12
+    user.frame_duration = 0
+    assert frame_number(user, 4) == 0
+
+
+def write_movie(folder, colours) -> str:
+    """A lossless QuickTime movie (PNG frames) of 32 x 32 frames, one flat colour each,
+    rendered by Cycles from a keyed world colour."""
+    scene = cycles_file(RES)
+    add_camera()
+    background = scene.world.node_tree.nodes["Background"]
+    background.inputs["Strength"].default_value = 1.0
+    for frame, colour in enumerate(colours, start=1):
+        background.inputs["Color"].default_value = (*colour, 1.0)
+        background.inputs["Color"].keyframe_insert("default_value", frame=frame)
+    scene.frame_start, scene.frame_end = 1, len(colours)
+    settings = scene.render.image_settings
+    settings.media_type, settings.file_format, settings.color_mode = 'VIDEO', 'FFMPEG', 'RGB'
+    scene.render.ffmpeg.format, scene.render.ffmpeg.codec = 'QUICKTIME', 'PNG'
+    scene.render.filepath = os.path.join(folder, "movie")
+    bpy.ops.render.render(animation=True)
+    (name,) = [name for name in os.listdir(folder) if name.endswith(".mov")]
+    return os.path.join(folder, name)
+
+
+def test_movie_frame_follows_the_image_user(folder):
+    """A movie's frame at the scene's frame through the image user, as Cycles reads it
+    (through Blender's buffers)."""
+    path = write_movie(folder, [(0.2, 0.0, 0.0), (0.0, 0.5, 0.0), (0.0, 0.0, 0.8),
+                                (0.6, 0.6, 0.0)])
+    for scene_frame, expected in ((4, 3), (2, 1), (5, 4)):
+        scene = cycles_file()
+        add_camera()
+        image = bpy.data.images.load(path)
+        material, node = emission_material(image, interpolation="Closest")
+        node.image_user.frame_duration, node.image_user.frame_start = 4, 2
+        node.image_user.use_auto_refresh = True
+        scene.frame_set(scene_frame)
+        uv_plane(material)
+        uv = plane_uvs()
+        glint_image, notes = glint_emission(node, points_for(uv, uv=uv))
+        assert frame_number(node.image_user, scene_frame) == expected and not notes
+        close(glint_image, render_cycles())
+
+
+# --------------------------------------------------------------------------------------------
+# The Environment Texture.
+
+def environment_world(path, projection="EQUIRECTANGULAR", rotation=None):
+    """The scene's world: Environment Texture (``path``) -> Background (strength 1), through
+    a Mapping node rotating the direction by Euler ``rotation`` if given.  Returns the
+    texture node."""
+    world = bpy.context.scene.world
+    tree = world.node_tree
+    background = tree.nodes["Background"]
+    background.inputs["Strength"].default_value = 1.0
+    texture = tree.nodes.new("ShaderNodeTexEnvironment")
+    texture.image = bpy.data.images.load(path)
+    texture.projection = projection
+    tree.links.new(texture.outputs["Color"], background.inputs["Color"])
+    if rotation is not None:
+        mapping = tree.nodes.new("ShaderNodeMapping")
+        mapping.vector_type = 'VECTOR'
+        mapping.inputs["Rotation"].default_value = rotation
+        coordinates = tree.nodes.new("ShaderNodeTexCoord")
+        tree.links.new(coordinates.outputs["Generated"], mapping.inputs["Vector"])
+        tree.links.new(mapping.outputs["Vector"], texture.inputs["Vector"])
+    return texture
+
+
+@pytest.mark.parametrize("projection", ["EQUIRECTANGULAR", "MIRROR_BALL"])
+def test_environment_texture_matches_cycles(projection):
+    """A camera looking at the world (a studio light's EXR as Environment Texture): each
+    pixel is the image seen along its ray, Linear, as Cycles shows it."""
+    cycles_file(64)
+    add_camera(location=(0.0, 0.0, 0.0), target=(1.0, 0.4, 0.3), lens=12.0)
+    texture = environment_world(os.path.join(STUDIO_LIGHTS, "forest.exr"), projection)
+    _, directions = pixel_rays()
+    glint_image, notes = glint_emission(texture, points_for(directions))
+    assert not notes
+    cycles = render_cycles()
+    # Cycles' 0.01-pixel filter moves each sample up to 0.005 pixel off the centre, here up
+    # to 0.025 texel (5 texels a pixel): allow how much Glint's own value changes over
+    # that, beside the tolerance for float32 (and 2^-15 for a black half texel).
+    moved = [glint_emission(texture, points_for(pixel_rays(dx, dy)[1]))[0]
+             for dx in (-0.005, 0.005) for dy in (-0.005, 0.005)]
+    spread = np.max([np.abs(image - glint_image) for image in moved], axis=0)
+    error = np.abs(glint_image - cycles[..., :3])
+    assert np.all(error <= 1e-4 + 1e-4 * np.abs(cycles[..., :3]) + spread), error.max()
+    assert glint_image.std() > 0.05          # a picture, not a constant
