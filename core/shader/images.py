@@ -180,35 +180,50 @@ def _wrap(index, size, extension: str):
 
 
 class _Texels:
-    """Reads texels of one image for n points: the points' tile (size and first row) fixed
-    at construction, values as (n, C) float32."""
+    """Gathers texels of one image for n points: the points' tile (size and first row)
+    fixed at construction; sums of weighted texels as (n, C) float32."""
 
     def __init__(self, image: ImageData, width, height, offset, clip: bool):
         self.image, self.width, self.height, self.offset, self.clip = (
             image, width, height, offset, clip)
-        channels = image.channels
         # One texel as one item of a 1-D array: a gather is a single take of whole texels
-        # (4-16 bytes each) rather than C strided reads.
-        self.items = image.texels.view(np.dtype((np.void, channels * image.texels.itemsize)))
-        self.items = self.items.reshape(-1)
+        # (3-16 bytes each) rather than C strided reads.
+        self.items = image.texels.view(
+            np.dtype((np.void, image.channels * image.texels.itemsize))).reshape(-1)
+        # Bytes are value / 255: the scale rides on the weights.
         self.scale = np.float32(1 / 255) if image.texels.dtype == np.uint8 else None
 
-    def read(self, ix, iy):
-        """(n, C) float32 texels at (ix, iy), zero outside the image when clipping."""
+    def column(self, ix):
+        """(index, inside or None) of texel columns ix, wrapped already (``_wrap``)."""
+        if not self.clip:
+            return ix, None
+        return np.clip(ix, 0, self.width - 1), (ix >= 0) & (ix < self.width)
+
+    def row(self, iy):
+        """(first texel of the row, inside or None) of texel rows iy."""
+        inside = None
         if self.clip:
-            inside = (ix >= 0) & (ix < self.width) & (iy >= 0) & (iy < self.height)
-            ix = np.clip(ix, 0, self.width - 1)
-            iy = np.clip(iy, 0, self.height - 1)
-        index = iy * self.width
-        index += ix
-        index += self.offset
-        raw = self.items.take(index).view(self.image.texels.dtype).reshape(len(index), -1)
-        values = raw.astype(np.float32)
+            iy, inside = np.clip(iy, 0, self.height - 1), (iy >= 0) & (iy < self.height)
+        start = iy * self.width
+        start += self.offset
+        return start, inside
+
+    def add(self, total, column, row, weight):
+        """total + weight (n, 1) x the texels at (column, row); zero outside the image when
+        clipping.  total None: a new (n, C) array."""
+        (ix, inside_x), (start, inside_y) = column, row
+        index = start + ix
+        values = self.items.take(index).view(self.image.texels.dtype).reshape(len(index), -1)
+        values = values.astype(np.float32)
         if self.scale is not None:
-            values *= self.scale
+            weight = weight * self.scale
         if self.clip:
-            values *= inside[:, None]
-        return values
+            weight = weight * (inside_x & inside_y)[:, None]
+        values *= weight
+        if total is None:
+            return values
+        total += values
+        return total
 
 
 def _cubic_weights(t):
@@ -226,7 +241,9 @@ def _sample(texels: _Texels, x, y, interpolation: str, extension: str):
     if interpolation == "Closest":
         ix, _ = _floor_fraction(x)
         iy, _ = _floor_fraction(y)
-        return texels.read(_wrap(ix, width, extension), _wrap(iy, height, extension))
+        return texels.add(None, texels.column(_wrap(ix, width, extension)),
+                          texels.row(_wrap(iy, height, extension)),
+                          np.ones((len(ix), 1), np.float32))
     ix, tx = _floor_fraction(x - 0.5)
     iy, ty = _floor_fraction(y - 0.5)
     tx = tx.astype(np.float32)[:, None]
@@ -235,17 +252,12 @@ def _sample(texels: _Texels, x, y, interpolation: str, extension: str):
         taps, wx, wy = (0, 1), (1 - tx, tx), (1 - ty, ty)
     else:  # Cubic, and Smart (Cubic on Cycles' CPU)
         taps, wx, wy = (-1, 0, 1, 2), _cubic_weights(tx), _cubic_weights(ty)
-    columns = [_wrap(ix + tap, width, extension) for tap in taps]
+    columns = [texels.column(_wrap(ix + tap, width, extension)) for tap in taps]
     total = None
-    for row, row_weight in zip(taps, wy):
-        wrapped_row = _wrap(iy + row, height, extension)
-        line = None
+    for tap, row_weight in zip(taps, wy):
+        row = texels.row(_wrap(iy + tap, height, extension))
         for column, column_weight in zip(columns, wx):
-            term = texels.read(column, wrapped_row)
-            term *= column_weight
-            line = term if line is None else line.__iadd__(term)
-        line *= row_weight
-        total = line if total is None else total.__iadd__(line)
+            total = texels.add(total, column, row, column_weight * row_weight)
     return total
 
 
@@ -301,7 +313,7 @@ def _finish(image: ImageData, values, n: int, unassociate: bool, missing, dtype)
         partial = (alpha != 0) & (alpha != 1)
         colour[:, partial] /= alpha[partial]
     if image.srgb:
-        colour[:] = srgb_to_linear(np.maximum(colour, 0))
+        colour[:] = srgb_to_linear(np.maximum(colour, 0), np.float32)
     if missing is not None and missing.any():
         colour[:, missing] = np.array(MISSING_RGBA[:3], dtype)[:, None]
         alpha[missing] = MISSING_RGBA[3]
