@@ -400,14 +400,18 @@ def premultiplied_bytes(height, width, seed):
 
 @pytest.mark.parametrize("mode", ["STRAIGHT", "PREMUL", "CHANNEL_PACKED", "NONE"])
 @pytest.mark.parametrize("packed", [False, True])
-@pytest.mark.parametrize("interpolation", ["Closest", "Linear"])
-def test_alpha_modes_match_cycles(folder, mode, packed, interpolation):
+@pytest.mark.parametrize("kind", ["png Closest", "png Linear", "exr Linear"])
+def test_alpha_modes_match_cycles(folder, mode, packed, kind):
     """Color with the Alpha output unused (premultiplied, as Cycles associates alpha at
     load), and Color x Alpha with it used (Color then divided by alpha, except for Channel
-    Packed; None: alpha 1), for a file and a packed image (Cycles reads the first from the
-    file, a Premultiplied PNG multiplied by alpha once more, the second through Blender,
-    which divides it by alpha first)."""
-    path = save_png(folder, "alpha.png", premultiplied_bytes(4, 4, seed=5))
+    Packed; None: alpha 1), for a file and a packed image: Cycles reads the first from the
+    file itself (a PNG marked Premultiplied is multiplied by alpha once more, an EXR marked
+    Straight taken as stored), the second through Blender's buffer (which divides the PNG
+    by alpha first and multiplies the EXR by it)."""
+    file_type, interpolation = kind.split()
+    rgba = premultiplied_bytes(4, 4, seed=5)
+    path = save_png(folder, "alpha.png", rgba) if file_type == "png" else \
+        save_exr(folder, "alpha.exr", rgba.astype(np.float32) / 200)
     for alpha_strength in (False, True):
         cycles_file()
         add_camera()

@@ -362,7 +362,7 @@ def _file_values(pixels, kind: str, straight_file: bool, colour_space: str) -> b
         colour = pixels[block, :min(channels, 3)]
         if has_alpha:
             a = pixels[block, 3:4]
-            partial = (a > 0) & (a < 1)
+            partial = (a > 0) & (a != 1)
             straight = np.divide(colour, a, out=colour.copy(), where=partial)
         else:
             straight = colour
