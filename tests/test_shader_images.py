@@ -506,14 +506,20 @@ def test_colour_space_kinds_follow_cycles():
 # --------------------------------------------------------------------------------------------
 # What cannot be read, and what should not be.
 
-def test_missing_file_renders_magenta_with_one_warning(folder):
-    """An image whose file is gone renders magenta (1, 0, 1) as in Cycles, with one warning
-    naming the image, its path and the material; an image node without an image too."""
+@pytest.mark.parametrize("fault", ["missing", "unreadable"])
+def test_missing_file_renders_magenta_with_one_warning(folder, fault):
+    """An image whose file is gone (or holds no image) renders magenta (1, 0, 1) as in
+    Cycles, with one warning naming the image, its path and the material; an image node
+    without an image too."""
     cycles_file()
     add_camera()
     path = save_png(folder, "gone.png", random_bytes(2, 2))
     image = bpy.data.images.load(path)
-    os.remove(path)
+    if fault == "missing":
+        os.remove(path)
+    else:
+        with open(path, "wb") as file:
+            file.write(b"not an image at all")
     material, node = emission_material(image)
     material.name = "Painted"
     uv_plane(material)
@@ -621,6 +627,24 @@ def test_udim_tiles_match_cycles(folder, packed, interpolation):
     close(glint_image, cycles, where=clear)
     magenta = np.all(np.isclose(cycles[..., :3], (1, 0, 1)), axis=-1)
     assert magenta.sum() > 300          # the missing tiles show
+
+
+def test_unreadable_udim_tile_is_magenta_with_one_warning(folder):
+    """A tile whose file is gone renders magenta, the others as they are, as in Cycles."""
+    cycles_file(48)
+    add_camera()
+    image = udim_image(folder)
+    os.remove(os.path.join(folder, "tiles.1002.png"))
+    material, node = emission_material(image, interpolation="Closest", extension="EXTEND")
+    material.name = "Tiled"
+    uv0, uv1 = (0.05, 0.05), (1.95, 1.95)
+    uv_plane(material, uv0, uv1, cuts=4)
+    uv = plane_uvs(uv0, uv1)
+    glint_image, notes = glint_emission(node, points_for(uv, uv=uv))
+    close(glint_image, render_cycles())
+    assert np.allclose(glint_image[40, 40], (1, 0, 1))      # tile 1002, bottom right
+    assert not np.allclose(glint_image[40, 8], (1, 0, 1))   # tile 1001
+    assert len(notes) == 1 and "[1002]" in notes[0] and "material 'Tiled'" in notes[0]
 
 
 def test_image_sequence_frame_follows_the_image_user(folder):
@@ -753,3 +777,37 @@ def test_environment_texture_matches_cycles(projection):
     error = np.abs(glint_image - cycles[..., :3])
     assert np.all(error <= 1e-4 + 1e-4 * np.abs(cycles[..., :3]) + spread), error.max()
     assert glint_image.std() > 0.05          # a picture, not a constant
+
+
+# --------------------------------------------------------------------------------------------
+# The registered nodes and bad input.
+
+def test_image_nodes_are_registered_with_blenders_sockets():
+    """The registry's specs name Blender 5.0's sockets and options, and the unlinked Vector:
+    the UV map for Image Texture, the position (the world's direction) for Environment."""
+    empty_file()
+    material = bpy.data.materials.new("sockets")
+    for kind, implicit in (("ShaderNodeTexImage", "uv"), ("ShaderNodeTexEnvironment",
+                                                          "position")):
+        node = material.node_tree.nodes.new(kind)
+        spec = NODES[kind]
+        assert [name for name, _ in spec.inputs] == [s.identifier for s in node.inputs]
+        assert [name for name, _ in spec.outputs] == [s.identifier for s in node.outputs]
+        assert spec.implicit == {"Vector": implicit}
+        for option in spec.options:
+            assert option == "alpha_used" or hasattr(node, option), option
+
+
+def test_bad_image_data_and_options_are_named():
+    """Invalid image data or options raise one line naming the image and the field."""
+    texels = np.zeros((6, 3), np.uint8)
+    with pytest.raises(ValueError, match=r"image 'bad'.*5 texels for 6|image 'bad'.*6 texels for 5"):
+        core_images.ImageData("bad", texels, 5, 1)
+    with pytest.raises(ValueError, match=r"image 'bad'.*uint8, float16 or float32"):
+        core_images.ImageData("bad", texels.astype(np.int32), 3, 2)
+    image = core_images.ImageData("good", texels, 3, 2)
+    with pytest.raises(ValueError, match=r"image 'good'.*interpolation.*'Bicubic'"):
+        core_images.lookup(image, [0.5], [0.5], "Bicubic")
+    with pytest.raises(ValueError, match=r"image 'good'.*extension.*'WRAP'"):
+        core_images.lookup(image, [0.5], [0.5], "Linear", "WRAP")
+    assert not image.texels.flags.writeable
