@@ -146,12 +146,12 @@ def main(argv=None) -> None:
     with tempfile.TemporaryDirectory() as folder:
         for size in args.sizes:
             result = measure(size, args.points, args.repeat, folder)
+            peak, before = result["export_peak_bytes"] / mib, result["resident_before"] / mib
             print(f"{size} x {size} PNG ({result['png_bytes'] / mib:.0f} MiB on disk): "
-                  f"export {result['export_s']:.1f} s, peak +{result['export_peak_bytes'] / mib:.0f}"
-                  f" MiB over {result['resident_before'] / mib:.0f} MiB; kept texels "
-                  f"{result['texel_bytes'] / mib:.0f} MiB ({result['channels']} x "
-                  f"{result['dtype']}), resident after {result['resident_after'] / mib:.0f} MiB",
-                  flush=True)
+                  f"export {result['export_s']:.1f} s, peak +{peak:.0f} MiB over {before:.0f} "
+                  f"MiB; kept texels {result['texel_bytes'] / mib:.0f} MiB "
+                  f"({result['channels']} x {result['dtype']}), resident after "
+                  f"{result['resident_after'] / mib:.0f} MiB", flush=True)
             for name, seconds in result["lookups"].items():
                 print(f"    lookup {name}: {seconds:.3f} s for {result['points']:,} points, "
                       f"{seconds / result['points'] * 1e9:.0f} ns a point", flush=True)

@@ -801,7 +801,7 @@ def test_image_nodes_are_registered_with_blenders_sockets():
 def test_bad_image_data_and_options_are_named():
     """Invalid image data or options raise one line naming the image and the field."""
     texels = np.zeros((6, 3), np.uint8)
-    with pytest.raises(ValueError, match=r"image 'bad'.*5 texels for 6|image 'bad'.*6 texels for 5"):
+    with pytest.raises(ValueError, match=r"image 'bad'.*6 texels for 5"):
         core_images.ImageData("bad", texels, 5, 1)
     with pytest.raises(ValueError, match=r"image 'bad'.*uint8, float16 or float32"):
         core_images.ImageData("bad", texels.astype(np.int32), 3, 2)
