@@ -167,7 +167,7 @@ def _floor_fraction(x):
 
 
 def _wrap(index, size, extension: str):
-    """Texel indices wrapped for Repeat, Extend and Mirror (Clip: unchanged; ``_read``
+    """Texel indices wrapped for Repeat, Extend and Mirror (Clip: unchanged; ``_Texels``
     reads zero outside the image)."""
     if extension == "REPEAT":
         return np.mod(index, size)
