@@ -490,6 +490,33 @@ def test_float_image_colour_spaces_match_cycles(folder, colour_space, packed):
     close(glint_image, render_cycles(), relative, absolute)
 
 
+@pytest.mark.parametrize("packed", [False, True])
+def test_16_bit_png_matches_cycles(folder, packed):
+    """A 16-bit sRGB PNG with alpha is a float image in Blender (linearised on load) but
+    stays sRGB-encoded 16-bit in Cycles when it reads the file (decoded after
+    interpolation): Linear interpolation tells the two apart."""
+    scene = cycles_file()
+    add_camera()
+    rgba = np.random.default_rng(9).random((4, 6, 4), np.float32)
+    rgba[..., 3] = np.random.default_rng(10).choice([0.2, 0.6, 1.0], (4, 6))
+    source = bpy.data.images.new("sixteen", 6, 4, alpha=True, float_buffer=True)
+    source.pixels.foreach_set(rgba[::-1].ravel())
+    settings = scene.render.image_settings
+    settings.file_format, settings.color_depth, settings.color_mode = 'PNG', '16', 'RGBA'
+    path = os.path.join(folder, "sixteen.png")
+    source.save_render(path, scene=scene)
+    image = bpy.data.images.load(path)
+    assert image.is_float and image.colorspace_settings.name == "sRGB"
+    if packed:
+        image.pack()
+    material, node = emission_material(image, extension="EXTEND")
+    uv_plane(material)
+    uv = plane_uvs()
+    glint_image, _ = glint_emission(node, points_for(uv, uv=uv))
+    # 16-bit values in float32 on both sides: float32 tolerances.
+    close(glint_image, render_cycles())
+
+
 def test_colour_space_kinds_follow_cycles():
     """Cycles keeps sRGB bytes encoded, takes Linear Rec.709 and Non-Color as they are and
     converts the rest; Blender's config marks Rec.2100-PQ and -HLG hdr-video."""
