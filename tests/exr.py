@@ -75,3 +75,36 @@ def read_exr(path) -> dict[str, np.ndarray]:
             planes[name][y - y0] = np.frombuffer(data, dtype, width, pos)
             pos += width * dtype.itemsize
     return planes
+
+
+def write_exr(path, rgba: np.ndarray) -> None:
+    """Write (H, W, C) float32 (row 0 = top, C = 3 or 4: RGB or RGBA) as an uncompressed
+    single-part scanline OpenEXR of 32-bit float channels: test images made in the test."""
+    rgba = np.asarray(rgba, np.float32)
+    height, width, count = rgba.shape
+    names = "RGBA"[:count]
+    order = sorted(range(count), key=lambda c: names[c])   # channels stored A, B, G, R
+
+    def attribute(name: str, kind: str, value: bytes) -> bytes:
+        return name.encode() + b"\0" + kind.encode() + b"\0" + struct.pack("<i", len(value)) + value
+
+    channels = b"".join(names[c].encode() + b"\0" + struct.pack("<iB3xii", 2, 0, 1, 1)
+                        for c in order) + b"\0"
+    window = struct.pack("<4i", 0, 0, width - 1, height - 1)
+    header = (MAGIC + struct.pack("<i", 2)
+              + attribute("channels", "chlist", channels)
+              + attribute("compression", "compression", b"\0")
+              + attribute("dataWindow", "box2i", window)
+              + attribute("displayWindow", "box2i", window)
+              + attribute("lineOrder", "lineOrder", b"\0")
+              + attribute("pixelAspectRatio", "float", struct.pack("<f", 1.0))
+              + attribute("screenWindowCenter", "v2f", struct.pack("<2f", 0.0, 0.0))
+              + attribute("screenWindowWidth", "float", struct.pack("<f", 1.0)) + b"\0")
+    line = 8 + 4 * width * count
+    start = len(header) + 8 * height
+    offsets = struct.pack(f"<{height}Q", *(start + y * line for y in range(height)))
+    planar = np.ascontiguousarray(rgba[..., order].transpose(0, 2, 1))   # (H, C, W)
+    with open(path, "wb") as file:
+        file.write(header + offsets)
+        for y in range(height):
+            file.write(struct.pack("<ii", y, 4 * width * count) + planar[y].tobytes())

@@ -27,6 +27,7 @@ import numpy as np
 from ...core import SceneError, SurfaceMaterial
 from ...core.camera import blender_view_plane, camera_to_world
 from .errors import ExportError
+from .images import ImageExporter
 from .materials import export_article_material, export_material
 
 
@@ -121,6 +122,8 @@ class ExportContext:
     lights: list = field(default_factory=list)         # core lights
     article: bool = False     # article semantics: the article's Material and PointLight
     view_layer: object = None  # the evaluated view layer, for holdouts (``is_holdout``)
+    frame: int = 0            # the scene frame (animated images' frame)
+    images: object = None     # the ImageExporter, made on first use (``image_exporter``)
 
     @classmethod
     def for_camera(cls, camera, judged_from=..., article: bool = False) -> "ExportContext":
@@ -170,6 +173,13 @@ class ExportContext:
             if note:
                 self.note(note)
         return self.materials[key]
+
+    def image_exporter(self):
+        """The export's ``images.ImageExporter``: each image read once, its warnings kept
+        as notes."""
+        if self.images is None:
+            self.images = ImageExporter(self.frame, self.note)
+        return self.images
 
     def note(self, text: Optional[str]) -> None:
         if text and text not in self.notes:

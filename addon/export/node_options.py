@@ -8,6 +8,12 @@ Cycles' table of it, evaluated by Blender here (``CurveMapping.evaluate``, the c
 export makes), with its range and whether it extrapolates.  Blackbody, Wavelength and RGB
 to BW get the file's working colour space (Linear Rec.709, Rec.2020, ACEScg...) as
 matrices or weights, which Blender's colour management gives through ``mathutils.Color``.
+
+Readers that take a second argument named ``context`` get the export's ``ExportContext``:
+image nodes take their ``core.shader.images.ImageData`` from its image exporter
+(``ExportContext.image_exporter``: each image read once per export), and warnings go to it.
+A context may name what is being compiled in ``owner`` ("material 'Wood'"); without it the
+owner is found from the node's tree.
 """
 
 from __future__ import annotations
@@ -154,7 +160,43 @@ def wavelength(node) -> dict:
     return dict(xyz_to_scene=_matrix_of(lambda c: c.from_xyz_d65_to_scene_linear()))
 
 
+def owner_name(node, context=None) -> str:
+    """How warnings name what uses ``node``: the context's owner, else the material, world
+    or light whose node tree holds it, else its node group."""
+    owner = getattr(context, "owner", None)
+    if owner:
+        return owner
+    tree = node.id_data
+    for kind, collection in (("material", bpy.data.materials), ("world", bpy.data.worlds),
+                             ("light", bpy.data.lights)):
+        for item in collection:
+            if item.node_tree is not None and item.node_tree == tree:
+                return f"{kind} '{item.name}'"
+    return f"node group '{tree.name}'"
+
+
+def _image(node, context):
+    return context.image_exporter().image(node.image, node.image_user,
+                                          owner_name(node, context))
+
+
+def image_texture_options(node, context) -> dict:
+    """Image Texture: its image as ImageData, and whether its Alpha output is used (Cycles
+    then divides Color by alpha)."""
+    return dict(image=_image(node, context), interpolation=node.interpolation,
+                projection=node.projection, projection_blend=node.projection_blend,
+                extension=node.extension, alpha_used=node.outputs["Alpha"].is_linked)
+
+
+def environment_texture_options(node, context) -> dict:
+    """Environment Texture: its image as ImageData."""
+    return dict(image=_image(node, context), interpolation=node.interpolation,
+                projection=node.projection)
+
+
 OPTION_READERS = {
+    "ShaderNodeTexImage": image_texture_options,
+    "ShaderNodeTexEnvironment": environment_texture_options,
     "ShaderNodeValToRGB": color_ramp,
     "ShaderNodeRGBCurve": rgb_curves,
     "ShaderNodeVectorCurve": vector_curves,

@@ -221,6 +221,7 @@ def export_scene(depsgraph, camera_override=None, *, view_camera=None
                                                                        camera_override),
                                            article=article)
     context.view_layer = depsgraph.view_layer_eval
+    context.frame = depsgraph.scene_eval.frame_current
     visible = _RenderVisibility(depsgraph)
     meshes = MeshExporter(context)
     bulk = InstanceExporter(context, meshes, visible)

@@ -263,7 +263,7 @@ class ShaderCompiler:
 
         reader = OPTION_READERS.get(node.bl_idname)
         if reader is not None:
-            takes_context = len(inspect.signature(reader).parameters) > 1
+            takes_context = "context" in inspect.signature(reader).parameters
             values = reader(node, self.context) if takes_context else reader(node)
         else:
             values = {name: _read_option(node, name) for name in spec.options

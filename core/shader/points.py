@@ -37,7 +37,9 @@ import numpy as np
 class ShadingPoints:
     """n shading points.
 
-    position: (3, n) world-space hit points.
+    position: (3, n) world-space hit points; for the world (rays that left the scene), the
+        unit direction each ray travels, as Cycles' P of the background: an Environment
+        Texture's unlinked Vector reads it (``shader.images``).
     normal: (3, n) unit shading normals facing the incoming ray's side (smooth, bumped
         later by Bump and Normal Map nodes through the program's Normal sockets).
     true_normal: (3, n) unit geometric normals on the same side.
@@ -46,7 +48,9 @@ class ShadingPoints:
     backfacing: (n,) bool, the ray arrived at the back of the surface.
     coordinates: {name: (3, n)} texture coordinates the exporter or the hit provide
         (``generated``, ``object``, ``uv``: see ``coordinate``), computed lazily by
-        ``sources`` where given.
+        ``sources`` where given.  ``object_normal`` is the shading normal (as ``normal``,
+        facing the incoming ray) in object space, which a Box-projected Image Texture
+        weighs its faces by.
     """
 
     def __init__(self, position, normal, true_normal, incoming, backfacing=None,
