@@ -114,6 +114,10 @@ def _input(node, identifier):
     return next(socket for socket in node.inputs if socket.identifier == identifier)
 
 
+def _output(node, identifier):
+    return next(socket for socket in node.outputs if socket.identifier == identifier)
+
+
 def _material(case: Case, index: int):
     material = bpy.data.materials.new(f"case{index}")
     tree = material.node_tree
@@ -155,11 +159,15 @@ def _material(case: Case, index: int):
     aov("w", w.outputs[0], 'VALUE')
     captured, floats, colours = {}, iter(FLOAT_AOVS[1:]), iter(COLOUR_AOVS[1:])
     for identifier, kind in NODES[case.kind].outputs:
+        socket = _output(texture, identifier)
+        if not socket.enabled:  # a socket the node's options hide: nothing can read it
+            continue
         name = next(floats) if kind == FLOAT else next(colours)
-        aov(name, texture.outputs[identifier], 'VALUE' if kind == FLOAT else 'COLOR')
+        aov(name, socket, 'VALUE' if kind == FLOAT else 'COLOR')
         captured[identifier] = (name, kind)
     emission = nodes.new("ShaderNodeEmission")
-    links.new(texture.outputs[0], emission.inputs["Color"])
+    links.new(next(socket for socket in texture.outputs if socket.enabled),
+              emission.inputs["Color"])
     links.new(emission.outputs[0], nodes["Material Output"].inputs["Surface"])
     inputs = {socket.identifier: _socket_value(socket) for socket in texture.inputs
               if socket.identifier not in ("Vector", "W")}

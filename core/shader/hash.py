@@ -1,5 +1,6 @@
 """Cycles' hashes (``intern/cycles/util/hash.h``) over arrays: Bob Jenkins' lookup3 on
-32-bit unsigned integers, and the float variants that hash a float32's bit pattern.
+32-bit unsigned integers, the float variants that hash a float32's bit pattern, and the PCG
+hashes of integer vectors.
 
 Every function takes arrays that broadcast together (Python numbers and 0-d arrays too) and
 returns arrays of their broadcast shape: uint32 for the ``hash_uint*`` functions, float32 in
@@ -7,7 +8,8 @@ returns arrays of their broadcast shape: uint32 for the ``hash_uint*`` functions
 axis.  The arithmetic wraps modulo 2**32 exactly as C's ``uint`` does, silently: it runs on
 uint32 arrays (never on NumPy scalars, which warn on overflow).  Floats are hashed through
 their float32 bits, as Cycles hashes them: a float64 argument is rounded to float32 first,
-and -0.0 and 0.0 hash differently.
+and -0.0 and 0.0 hash differently.  The PCG hashes run on int32, whose products wrap
+modulo 2**32 as Cycles' signed arithmetic does on every machine it runs on.
 """
 
 from __future__ import annotations
@@ -185,3 +187,100 @@ def hash_float4_to_float3(x, y, z, w) -> np.ndarray:
     """(3, ...) as Cycles' hash_float4_to_float3."""
     return _stack(hash_float4_to_float(x, y, z, w), hash_float4_to_float(z, x, w, y),
                   hash_float4_to_float(w, z, y, x))
+
+
+# ---- PCG hashes of integer vectors (Jarzynski and Olano, "Hash Functions for GPU
+# Rendering", JCGT 2020), as Cycles' util/hash.h writes them on signed ints: what the Voronoi
+# texture hashes its 2D to 4D cells with. ----
+
+_PCG_MULTIPLIER = np.int32(1664525)
+_PCG_INCREMENT = np.int32(1013904223)
+#: 1.0f / (float)0x7FFFFFFF: float32(2**31 - 1) rounds to 2**31, so the factor is 2**-31.
+_INT_TO_UNIT = np.float32(1.0 / 2147483648.0)
+
+
+def _ints(*keys) -> tuple[tuple, list[np.ndarray]]:
+    """The keys broadcast to one shape, as flat int32 arrays of their own."""
+    arrays = np.broadcast_arrays(*[np.asarray(key) for key in keys])
+    for array in arrays:
+        if array.dtype.kind == "f":
+            raise TypeError("hash_int* take integers")
+    return arrays[0].shape, [array.astype(np.int32).reshape(-1) for array in arrays]
+
+
+def _pcg_start(v):
+    # v * 1664525 + 1013904223, wrapping as the int32 arithmetic Cycles relies on does.
+    return [x * _PCG_MULTIPLIER + _PCG_INCREMENT for x in v]
+
+
+def _pcg_end(v, shape):
+    return np.stack([(x & np.int32(0x7FFFFFFF)).reshape(shape) for x in v])
+
+
+def _shift_xor(v):
+    # v ^ (v >> 16), an arithmetic shift of the signed ints.
+    return [x ^ (x >> np.int32(16)) for x in v]
+
+
+def hash_pcg2d_i(kx, ky) -> np.ndarray:
+    """(2, ...) int32 in [0, 2**31): Cycles' hash_pcg2d_i."""
+    shape, v = _ints(kx, ky)
+    x, y = _pcg_start(v)
+    for step in range(2):
+        x = x + y * _PCG_MULTIPLIER
+        y = y + x * _PCG_MULTIPLIER
+        if step == 0:
+            x, y = _shift_xor((x, y))
+    return _pcg_end((x, y), shape)
+
+
+def hash_pcg3d_i(kx, ky, kz) -> np.ndarray:
+    """(3, ...) int32 in [0, 2**31): Cycles' hash_pcg3d_i."""
+    shape, v = _ints(kx, ky, kz)
+    x, y, z = _pcg_start(v)
+    for step in range(2):
+        x = x + y * z
+        y = y + z * x
+        z = z + x * y
+        if step == 0:
+            x, y, z = _shift_xor((x, y, z))
+    return _pcg_end((x, y, z), shape)
+
+
+def hash_pcg4d_i(kx, ky, kz, kw) -> np.ndarray:
+    """(4, ...) int32 in [0, 2**31): Cycles' hash_pcg4d_i."""
+    shape, v = _ints(kx, ky, kz, kw)
+    x, y, z, w = _pcg_start(v)
+    for step in range(2):
+        x = x + y * w
+        y = y + z * x
+        z = z + x * y
+        w = w + y * z
+        if step == 0:
+            x, y, z, w = _shift_xor((x, y, z, w))
+    return _pcg_end((x, y, z, w), shape)
+
+
+def hash_int2_to_float2(kx, ky) -> np.ndarray:
+    """(2, ...) in [0, 1]: Cycles' hash_int2_to_float2."""
+    return hash_pcg2d_i(kx, ky).astype(np.float32) * _INT_TO_UNIT
+
+
+def hash_int3_to_float3(kx, ky, kz) -> np.ndarray:
+    """(3, ...) in [0, 1]: Cycles' hash_int3_to_float3."""
+    return hash_pcg3d_i(kx, ky, kz).astype(np.float32) * _INT_TO_UNIT
+
+
+def hash_int4_to_float4(kx, ky, kz, kw) -> np.ndarray:
+    """(4, ...) in [0, 1]: Cycles' hash_int4_to_float4."""
+    return hash_pcg4d_i(kx, ky, kz, kw).astype(np.float32) * _INT_TO_UNIT
+
+
+def hash_int2_to_float3(kx, ky) -> np.ndarray:
+    """(3, ...): Cycles' hash_int2_to_float3, the 3D hash of (x, y, 0)."""
+    return hash_int3_to_float3(kx, ky, 0)
+
+
+def hash_int4_to_float3(kx, ky, kz, kw) -> np.ndarray:
+    """(3, ...): the first three components of hash_int4_to_float4."""
+    return hash_int4_to_float4(kx, ky, kz, kw)[:3]

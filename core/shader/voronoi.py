@@ -7,8 +7,11 @@ float32 arrays that broadcast to (m,) or numbers.  A feature looks at the 3**d c
 each point (5**d for Smooth F1): their random points are computed for all of them at once,
 as (d, cells, m) arrays, and the nearest is chosen with ``argmin``, which keeps the first of
 equal distances as Cycles' loop (``distance < best``) does, in Cycles' loop order (x
-fastest).  Cycles' vector helpers are followed where they round differently: a float2 or
-float4 divided by a float is multiplied by its reciprocal, a float3 is divided.
+fastest).  As in Cycles, 1D cells are hashed as floats (lookup3 of their bits), 2D to 4D
+cells as integers (PCG), and F1 and N-Sphere Radius compare squared Euclidean distances (or
+the Minkowski sum before its root) and take the root of the winner only.  Cycles' vector
+helpers are followed where they round differently: a float2 or float4 divided by a float is
+multiplied by its reciprocal, a float3 is divided.
 """
 
 from __future__ import annotations
@@ -18,9 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .hash import hash_float2_to_float2, hash_float2_to_float3, hash_float3_to_float3, \
-    hash_float4_to_float3, hash_float4_to_float4, hash_float_to_float, hash_float_to_float3
-from .noise import lerp
+from .hash import hash_float_to_float, hash_float_to_float3, hash_int2_to_float2, \
+    hash_int2_to_float3, hash_int3_to_float3, hash_int4_to_float3, hash_int4_to_float4
+from .noise import float_to_int, fused_lerp, fused_multiply_add, lerp
 
 FLT_MAX = np.float32(np.finfo(np.float32).max)
 _ZERO, _HALF, _ONE = np.float32(0.0), np.float32(0.5), np.float32(1.0)
@@ -57,21 +60,31 @@ _OFFSETS = {(d, reach): _offsets(d, reach) for d in (1, 2, 3, 4) for reach in (1
 
 
 def _cell_points(cells):
-    """(d, ...) the random point of each cell, in [0, 1] per axis (before randomness)."""
+    """(d, ...) the random point of each cell, in [0, 1] per axis (before randomness): 1D
+    cells are float32, the others int32."""
     d = cells.shape[0]
     if d == 1:
         return hash_float_to_float(cells[0])[None]
     if d == 2:
-        return hash_float2_to_float2(*cells)
+        return hash_int2_to_float2(*cells)
     if d == 3:
-        return hash_float3_to_float3(*cells)
-    return hash_float4_to_float4(*cells)
+        return hash_int3_to_float3(*cells)
+    return hash_int4_to_float4(*cells)
 
 
 def _cell_colour(cells):
     """(3, ...) the colour of each cell."""
-    return {1: hash_float_to_float3, 2: hash_float2_to_float3, 3: hash_float3_to_float3,
-            4: hash_float4_to_float3}[cells.shape[0]](*cells)
+    return {1: hash_float_to_float3, 2: hash_int2_to_float3, 3: hash_int3_to_float3,
+            4: hash_int4_to_float3}[cells.shape[0]](*cells)
+
+
+def _cell_index(cell):
+    """The cells Cycles hashes: floor(coord) itself in 1D, as int (make_int<d>) above."""
+    return cell if cell.shape[0] == 1 else float_to_int(cell)
+
+
+def _offset_index(offsets):
+    return offsets if offsets.shape[0] == 1 else offsets.astype(np.int32)
 
 
 def _sum(values):
@@ -87,7 +100,17 @@ def _sum(values):
 
 
 def _dot(a, b):
+    """Cycles' dot: a float2's x * x + y * y fuses its first product into the sum; float3
+    and float4 use SSE's dot-product instruction."""
+    if a.shape[0] == 2:
+        return fused_multiply_add(a[0], b[0], a[1] * b[1])
     return _sum(a * b)
+
+
+def _power(base, exponent):
+    """powf to float32 rounding (NumPy's own float32 power is a few ulps off glibc's)."""
+    return np.power(np.asarray(base, np.float64), np.asarray(exponent, np.float64)).astype(
+        np.float32)
 
 
 def _length(a):
@@ -119,7 +142,7 @@ def voronoi_distance(a, b, metric: str, exponent):
     if metric == "CHEBYCHEV":
         return np.max(np.abs(difference), axis=0)
     if metric == "MINKOWSKI":
-        return np.power(_sum(np.power(np.abs(difference), exponent)), _ONE / exponent)
+        return _power(_sum(_power(np.abs(difference), exponent)), _ONE / exponent)
     raise ValueError(f"Voronoi distance {metric!r} is not one of {', '.join(METRICS)}")
 
 
@@ -138,14 +161,28 @@ def _position(point):
 
 
 def _neighbours(coord, reach, randomness):
-    """The cell of each point, its position in it, and for each neighbouring cell (the
-    offsets, (d, cells, 1)), its random point relative to the point's cell (d, cells, m)."""
+    """The cell of each point (floor(coord), and the index Cycles hashes), its position in
+    it, and for each neighbouring cell (the offsets, (d, cells, 1)), its random point
+    relative to the point's cell (d, cells, m)."""
     cell = np.floor(coord)
     local = coord - cell
-    d = coord.shape[0]
-    offsets = _OFFSETS[(d, reach)][:, :, None]
-    points = offsets + _cell_points(cell[:, None] + offsets) * randomness
-    return cell, local, offsets, points
+    index = _cell_index(cell)
+    offsets = _OFFSETS[(coord.shape[0], reach)][:, :, None]
+    # offset + hash * randomness, fused as Blender's build computes it.
+    points = fused_multiply_add(_cell_points(index[:, None] + _offset_index(offsets)),
+                                randomness, offsets)
+    return cell, index, local, offsets, points
+
+
+def _distance_bound(a, b, metric: str, exponent):
+    """Cycles' voronoi_distance_bound: what orders distances as voronoi_distance does,
+    cheaper (no root)."""
+    difference = a - b
+    if metric == "EUCLIDEAN":
+        return _dot(difference, difference)
+    if metric == "MINKOWSKI":
+        return _sum(_power(np.abs(difference), exponent))
+    return voronoi_distance(a, b, metric, exponent)
 
 
 def _nearest(distances):
@@ -165,26 +202,31 @@ def _pick(values, index, found):
 
 
 def voronoi_f1(params: VoronoiParams, coord):
-    """(distance, colour (3, m), position (4, m)) of the nearest cell point."""
-    cell, local, offsets, points = _neighbours(coord, 1, params.randomness)
-    distances = voronoi_distance(points, local[:, None], params.metric, params.exponent)
-    index, best, found = _nearest(distances)
-    target_offset = _pick(offsets, index, found)
-    target_point = _pick(points, index, found)
-    return (np.where(found, best, FLT_MAX), _cell_colour(cell + target_offset),
-            _position(target_point + cell))
+    """(distance, colour (3, m), position (4, m)) of the nearest cell point (2D to 4D
+    search by the distance bound, and measure the winner)."""
+    cell, index, local, offsets, points = _neighbours(coord, 1, params.randomness)
+    one_d = coord.shape[0] == 1
+    measure = voronoi_distance if one_d else _distance_bound
+    nearest, best, found = _nearest(measure(points, local[:, None], params.metric,
+                                            params.exponent))
+    target_offset = _pick(offsets, nearest, found)
+    target_point = _pick(points, nearest, found)
+    distance = best if one_d else voronoi_distance(target_point, local, params.metric,
+                                                   params.exponent)
+    return (np.where(found, distance, FLT_MAX),
+            _cell_colour(index + _offset_index(target_offset)), _position(target_point + cell))
 
 
 def voronoi_f2(params: VoronoiParams, coord):
     """(distance, colour, position) of the second nearest cell point."""
-    cell, local, offsets, points = _neighbours(coord, 1, params.randomness)
+    cell, index, local, offsets, points = _neighbours(coord, 1, params.randomness)
     distances = voronoi_distance(points, local[:, None], params.metric, params.exponent)
     first, _, _ = _nearest(distances)
     np.put_along_axis(distances, first[None], np.float32(np.inf), axis=0)
-    index, best, found = _nearest(distances)
-    target_offset = _pick(offsets, index, found)
-    target_point = _pick(points, index, found)
-    return (np.where(found, best, FLT_MAX), _cell_colour(cell + target_offset),
+    second, best, found = _nearest(distances)
+    target_offset = _pick(offsets, second, found)
+    target_point = _pick(points, second, found)
+    return (np.where(found, best, FLT_MAX), _cell_colour(index + _offset_index(target_offset)),
             _position(target_point + cell))
 
 
@@ -198,19 +240,19 @@ def _smoothstep(x):
 def voronoi_smooth_f1(params: VoronoiParams, coord):
     """(distance, colour, position) smoothly blended over the 5**d cells around each point,
     in Cycles' order (the blend is sequential, so it runs cell by cell)."""
-    cell, local, offsets, points = _neighbours(coord, 2, params.randomness)
+    cell, index, local, offsets, points = _neighbours(coord, 2, params.randomness)
     distances = voronoi_distance(points, local[:, None], params.metric, params.exponent)
-    colours = _cell_colour(cell[:, None] + offsets)
+    colours = _cell_colour(index[:, None] + _offset_index(offsets))
     smoothness = params.smoothness
     damping = _ONE + np.float32(3.0) * smoothness
     distance, colour, position = distances[0], colours[:, 0], points[:, 0]
     for k in range(1, distances.shape[0]):
         h = _smoothstep(_HALF + _HALF * (distance - distances[k]) / smoothness)
         correction = smoothness * h * (_ONE - h)
-        distance = lerp(distance, distances[k], h) - correction
+        distance = fused_lerp(distance, distances[k], h) - correction
         correction = correction / damping
-        colour = lerp(colour, colours[:, k], h) - correction
-        position = lerp(position, points[:, k], h) - correction
+        colour = fused_lerp(colour, colours[:, k], h) - correction
+        position = fused_lerp(position, points[:, k], h) - correction
     return distance, colour, _position(cell + position)
 
 
@@ -221,13 +263,14 @@ def voronoi_distance_to_edge(params: VoronoiParams, coord):
     if d == 1:
         cell = np.floor(coord[0])
         local = coord[0] - cell
-        middle = hash_float_to_float(cell) * randomness
-        left = -_ONE + hash_float_to_float(cell - _ONE) * randomness
-        right = _ONE + hash_float_to_float(cell + _ONE) * randomness
-        to_left = np.abs((middle + left) * _HALF - local)
-        to_right = np.abs((middle + right) * _HALF - local)
+        middle = hash_float_to_float(cell)
+        left = fused_multiply_add(hash_float_to_float(cell - _ONE), randomness, -_ONE)
+        right = fused_multiply_add(hash_float_to_float(cell + _ONE), randomness, _ONE)
+        # The middle point's product fuses into both sums that use it.
+        to_left = np.abs(fused_multiply_add(middle, randomness, left) * _HALF - local)
+        to_right = np.abs(fused_multiply_add(middle, randomness, right) * _HALF - local)
         return np.minimum(to_left, to_right)
-    cell, local, offsets, points = _neighbours(coord, 1, randomness)
+    _, _, local, _, points = _neighbours(coord, 1, randomness)
     to_points = points - local[:, None]
     index, _, found = _nearest(_dot(to_points, to_points))
     to_closest = _pick(to_points, index, found)[:, None]
@@ -242,16 +285,18 @@ def voronoi_distance_to_edge(params: VoronoiParams, coord):
 def voronoi_n_sphere_radius(params: VoronoiParams, coord):
     """Half the distance from each point's nearest cell point to the point nearest to that
     one: the radius of the largest sphere around it that touches no other cell's sphere."""
-    cell, local, offsets, points = _neighbours(coord, 1, params.randomness)
-    distances = voronoi_distance(points, local[:, None], "EUCLIDEAN", None)
-    index, _, found = _nearest(distances)
-    closest = _pick(points, index, found)
-    closest_offset = _pick(offsets, index, found)
+    cell, index, local, offsets, points = _neighbours(coord, 1, params.randomness)
+    one_d = coord.shape[0] == 1
+    # 1D compares distances, the others squared distances (Cycles' len_squared).
+    measure = voronoi_distance if one_d else _distance_bound
+    nearest, _, found = _nearest(measure(points, local[:, None], "EUCLIDEAN", None))
+    closest = _pick(points, nearest, found)
+    closest_offset = _pick(offsets, nearest, found)
     around = offsets[:, np.any(offsets[:, :, 0] != 0, axis=0)] + closest_offset[:, None]
-    others = around + _cell_points(cell[:, None] + around) * params.randomness
-    gaps = voronoi_distance(closest[:, None], others, "EUCLIDEAN", None)
-    index, _, found = _nearest(gaps)
-    nearest_other = _pick(others, index, found)
+    others = fused_multiply_add(_cell_points(index[:, None] + _offset_index(around)),
+                                params.randomness, around)
+    nearest, _, found = _nearest(measure(closest[:, None], others, "EUCLIDEAN", None))
+    nearest_other = _pick(others, nearest, found)
     return voronoi_distance(nearest_other, closest, "EUCLIDEAN", None) / np.float32(2.0)
 
 
