@@ -23,7 +23,7 @@ import numpy as np
 
 from .hash import hash_float_to_float, hash_float_to_float3, hash_int2_to_float2, \
     hash_int2_to_float3, hash_int3_to_float3, hash_int4_to_float3, hash_int4_to_float4
-from .noise import float_to_int, fused_lerp, fused_multiply_add, lerp
+from .noise import float_to_int, fused_lerp, fused_multiply_add
 
 FLT_MAX = np.float32(np.finfo(np.float32).max)
 _ZERO, _HALF, _ONE = np.float32(0.0), np.float32(0.5), np.float32(1.0)
@@ -347,22 +347,24 @@ def fractal_voronoi(params: VoronoiParams, coord):
                 break
         full = _mask(i <= detail)
         partial = _mask((i > detail) & (i <= np.ceil(detail)) & (remainder != 0))
-        scaled_position = _divide(octave_position, scale)
+        # The sums and lerps below fuse their products, as Blender's build does; the
+        # position's lerp towards octave_position / scale (a float4 times 1 / scale) fuses
+        # that product too: position + amplitude * fma(octave_position, 1 / scale, -position).
+        summed_distance = fused_multiply_add(octave_distance, amplitude, distance)
+        summed_colour = fused_multiply_add(octave_colour, amplitude, colour)
+        towards = fused_multiply_add(octave_position, _ONE / scale, -position)
+        moved_position = fused_multiply_add(amplitude, towards, position)
         if full is not False:
-            new_position = lerp(position, scaled_position, amplitude)
             max_amplitude = _when(full, max_amplitude + amplitude, max_amplitude)
-            distance = _when(full, distance + octave_distance * amplitude, distance)
-            colour = _when(full, colour + octave_colour * amplitude, colour)
-            position = _when(full, new_position, position)
+            distance = _when(full, summed_distance, distance)
+            colour = _when(full, summed_colour, colour)
+            position = _when(full, moved_position, position)
         if partial is not False:
-            max_amplitude = _when(partial, lerp(max_amplitude, max_amplitude + amplitude,
-                                                remainder), max_amplitude)
-            distance = _when(partial, lerp(distance, distance + octave_distance * amplitude,
-                                           remainder), distance)
-            colour = _when(partial, lerp(colour, colour + octave_colour * amplitude, remainder),
-                           colour)
-            position = _when(partial, lerp(position, lerp(position, scaled_position, amplitude),
-                                           remainder), position)
+            max_amplitude = _when(partial, fused_lerp(max_amplitude, max_amplitude + amplitude,
+                                                      remainder), max_amplitude)
+            distance = _when(partial, fused_lerp(distance, summed_distance, remainder), distance)
+            colour = _when(partial, fused_lerp(colour, summed_colour, remainder), colour)
+            position = _when(partial, fused_lerp(position, moved_position, remainder), position)
         scale = _when(full, scale * params.lacunarity, scale)
         amplitude = _when(full, amplitude * params.roughness, amplitude)
     if zero_input is not False:
@@ -371,7 +373,7 @@ def fractal_voronoi(params: VoronoiParams, coord):
                                       zip(first, (distance, colour, position)))
     if params.normalize:
         distance = distance / (max_amplitude * params.max_distance)
-        colour = colour / max_amplitude
+        colour = colour * (_ONE / max_amplitude)  # float3 /= float multiplies by 1 / float
     safe_scale = np.where(params.scale != 0, params.scale, _ONE)
     position = np.where(params.scale != 0, _divide(position, safe_scale), _ZERO)
     return distance, colour, position
@@ -396,15 +398,15 @@ def fractal_voronoi_distance_to_edge(params: VoronoiParams, coord):
         full = _mask(i <= detail)
         partial = _mask((i > detail) & (i <= np.ceil(detail)) & (remainder != 0))
         scaled_max = params.max_distance / scale
-        nearer = lerp(distance, np.minimum(distance, octave_distance / scale), amplitude)
+        nearer = fused_lerp(distance, np.minimum(distance, octave_distance / scale), amplitude)
+        lower_amplitude = fused_lerp(max_amplitude, scaled_max, amplitude)
         if partial is not False:
-            partial_amplitude = lerp(max_amplitude, lerp(max_amplitude, scaled_max, amplitude),
-                                     remainder)
-            partial_distance = lerp(distance, np.minimum(distance, nearer), remainder)
+            partial_amplitude = fused_lerp(max_amplitude, lower_amplitude, remainder)
+            partial_distance = fused_lerp(distance, np.minimum(distance, nearer), remainder)
             max_amplitude = _when(partial, partial_amplitude, max_amplitude)
             distance = _when(partial, partial_distance, distance)
         if full is not False:
-            max_amplitude = _when(full, lerp(max_amplitude, scaled_max, amplitude), max_amplitude)
+            max_amplitude = _when(full, lower_amplitude, max_amplitude)
             distance = _when(full, nearer, distance)
         scale = _when(full, scale * params.lacunarity, scale)
         amplitude = _when(full, amplitude * params.roughness, amplitude)
@@ -418,7 +420,7 @@ def fractal_voronoi_distance_to_edge(params: VoronoiParams, coord):
 def max_distance(feature: str, metric: str, dimensions: int, randomness, exponent):
     """Cycles' params.max_distance: the largest F1 (F2: twice it) distance a point can have,
     which Normalize divides by."""
-    reach = _HALF + _HALF * randomness
+    reach = fused_multiply_add(_HALF, randomness, _HALF)
     if feature == "DISTANCE_TO_EDGE":
         return reach
     factor = np.float32(2.0) if feature == "F2" else _ONE
