@@ -20,7 +20,7 @@ import numpy as np
 from .hash import hash_float2_to_float, hash_float2_to_float3, hash_float3_to_float, \
     hash_float3_to_float3, hash_float4_to_float, hash_float4_to_float3, hash_float_to_float, \
     hash_float_to_float3
-from .noise import NOISE_TYPES, float_to_int, noise_fbm, noise_texture
+from .noise import NOISE_TYPES, float_to_int, fused_multiply_add, noise_fbm, noise_texture
 from .registry import COLOR, FLOAT, VECTOR, node
 from .voronoi import FEATURES, METRICS, VoronoiParams, fractal_voronoi, \
     fractal_voronoi_distance_to_edge, max_distance, voronoi_n_sphere_radius
@@ -33,9 +33,11 @@ _F32 = np.float32
 _DIMENSIONS = {"1D": 1, "2D": 2, "3D": 3, "4D": 4}
 _OUTPUT_SHAPES = {FLOAT: (), VECTOR: (3,), COLOR: (3,)}
 
-#: Cycles' M_PI_2_F and M_2PI_F.
+#: Cycles' M_PI_2_F and M_2PI_F, and what Blender's build (fast-math) divides by 2 pi with:
+#: a product by its float32 reciprocal.
 _HALF_PI = _F32(1.5707963267948966)
 _TWO_PI = _F32(6.2831853071795864)
+_ONE_OVER_TWO_PI = _F32(1.0) / _TWO_PI
 
 
 def _option(node_type: str, name: str, value, allowed):
@@ -190,7 +192,9 @@ WAVE_PROFILES = ("SIN", "SAW", "TRI")
 
 def wave(p, wave_type, bands_direction, rings_direction, wave_profile, distortion, detail,
          detail_scale, detail_roughness, phase):
-    """Cycles' svm_wave at the scaled (3, m) points p."""
+    """Cycles' svm_wave at the scaled (3, m) points p.  Multiply-adds are fused where
+    Blender's build fuses them (measured against its renders), and the division by 2 pi is
+    its product by 1 / 2 pi."""
     p = (p + _F32(0.000001)) * _F32(0.999999)
     if wave_type == "BANDS":
         if bands_direction == "DIAGONAL":
@@ -200,19 +204,23 @@ def wave(p, wave_type, bands_direction, rings_direction, wave_profile, distortio
     else:
         rp = p if rings_direction == "SPHERICAL" else p * np.array(
             [[axis != rings_direction] for axis in "XYZ"], _F32)
-        n = np.sqrt((rp[0] * rp[0] + rp[1] * rp[1]) + rp[2] * rp[2]) * _F32(20.0)
+        length = np.sqrt((rp[0] * rp[0] + rp[1] * rp[1]) + rp[2] * rp[2])
+        n = length * _F32(20.0)
     n = n + phase
     distorted = distortion != 0
     if np.any(distorted):
         fbm = noise_fbm(p * detail_scale, detail, detail_roughness, _F32(2.0), True)
-        shifted = n + distortion * (fbm * _F32(2.0) - _F32(1.0))
+        shifted = fused_multiply_add(distortion, fused_multiply_add(fbm, _F32(2.0), _F32(-1.0)),
+                                     n)
         n = np.where(distorted, shifted, n)
     if wave_profile == "SIN":
-        return _F32(0.5) + _F32(0.5) * _sin(n - _HALF_PI)
-    n = n / _TWO_PI
+        return fused_multiply_add(_F32(0.5), _sin(n - _HALF_PI), _F32(0.5))
+    n_turns = n * _ONE_OVER_TWO_PI
     if wave_profile == "SAW":
-        return n - np.floor(n)
-    return np.abs(n - np.floor(n + _F32(0.5))) * _F32(2.0)
+        return n_turns - np.floor(n_turns)
+    # The build fuses the product into n + 0.5 (not into the difference).
+    nearest = np.floor(fused_multiply_add(n, _ONE_OVER_TWO_PI, _F32(0.5)))
+    return np.abs(n_turns - nearest) * _F32(2.0)
 
 
 @node("ShaderNodeTexWave",
@@ -289,8 +297,9 @@ def magic(p, scale, depth: int, distortion):
                        value if axis == 2 else z)
     distorted = distortion != 0
     if np.any(distorted):
-        twice = np.where(distorted, distortion * _F32(2.0), _F32(1.0))
-        x, y, z = (np.where(distorted, c / twice, c) for c in (x, y, z))
+        # x /= 2 distortion, and y and z: the build divides once and multiplies thrice.
+        inverse = _F32(1.0) / np.where(distorted, distortion * _F32(2.0), _F32(1.0))
+        x, y, z = (np.where(distorted, c * inverse, c) for c in (x, y, z))
     half = _F32(0.5)
     return np.stack(np.broadcast_arrays(half - x, half - y, half - z))
 
@@ -313,14 +322,15 @@ def gradient(p, gradient_type: str):
     elif gradient_type == "EASING":
         r = np.clip(x, zero, one)
         t = r * r
-        f = _F32(3.0) * t - _F32(2.0) * t * r
+        f = fused_multiply_add(_F32(3.0), t, -(_F32(2.0) * t * r))
     elif gradient_type == "DIAGONAL":
         f = (x + y) * _F32(0.5)
     elif gradient_type == "RADIAL":
         angle = np.arctan2(y.astype(np.float64), x.astype(np.float64)).astype(_F32)
-        f = angle / _TWO_PI + _F32(0.5)
+        f = fused_multiply_add(angle, _ONE_OVER_TWO_PI, _F32(0.5))
     else:
-        r = np.maximum(_F32(0.999999) - np.sqrt(x * x + y * y + z * z), zero)
+        length = np.sqrt(fused_multiply_add(z, z, fused_multiply_add(x, x, y * y)))
+        r = np.maximum(_F32(0.999999) - length, zero)
         f = r * r if gradient_type == "QUADRATIC_SPHERE" else r
     return np.clip(f, zero, one)
 
@@ -373,8 +383,8 @@ def _brick_noise(n):
 def _smoothstepf(f):
     """Cycles' smoothstepf: 3 f^2 - 2 f^3 on [0, 1], clamped outside."""
     ff = f * f
-    return np.where(f <= 0, _F32(0.0), np.where(f >= 1, _F32(1.0),
-                                                _F32(3.0) * ff - _F32(2.0) * ff * f))
+    cubic = fused_multiply_add(_F32(3.0), ff, -(_F32(2.0) * ff * f))
+    return np.where(f <= 0, _F32(0.0), np.where(f >= 1, _F32(1.0), cubic))
 
 
 def brick(p, mortar_size, mortar_smooth, bias, brick_width, row_height, offset_amount,
@@ -418,8 +428,10 @@ def brick_texture_node(points, vector, color1, color2, mortar, scale, mortar_siz
         tint, fac = brick(vector * scale, mortar_size, mortar_smooth, bias, brick_width,
                           row_height, _F32(offset), int(offset_frequency), _F32(squash),
                           int(squash_frequency))
-        brick_colour = np.where(fac != 1, (_F32(1.0) - tint) * color1 + tint * color2, color1)
-        return brick_colour * (_F32(1.0) - fac) + mortar_colour * fac, fac
+        # Each sum of two products fuses its second product (evaluated first).
+        tinted = fused_multiply_add(tint, color2, (_F32(1.0) - tint) * color1)
+        brick_colour = np.where(fac != 1, tinted, color1)
+        return fused_multiply_add(mortar_colour, fac, brick_colour * (_F32(1.0) - fac)), fac
 
     return _blockwise(kernel, [_vector(vector), _vector(color1), _vector(color2),
                                _vector(mortar)] + _floats(scale, mortar_size, mortar_smooth,
