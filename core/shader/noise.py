@@ -23,6 +23,7 @@ from .hash import hash_float2_to_float, hash_float_to_float, hash_uint, \
 #: Perlin noise repeats every 100000 units on each axis (Cycles' guard against float
 #: precision loss far from the origin).
 NOISE_PERIOD = np.float32(100000.0)
+PRECISION_LIMIT = np.float32(1000000.0)
 
 #: Cycles' scale of each dimension's Perlin noise to about [-1, 1].
 _NOISE_SCALES = {1: np.float32(0.2500), 2: np.float32(0.6616), 3: np.float32(0.9820),
@@ -189,8 +190,13 @@ _PERLIN = {1: perlin_1d, 2: perlin_2d, 3: perlin_3d, 4: perlin_4d}
 
 
 def _perlin(p) -> tuple[np.float32, np.ndarray]:
-    """(scale, Perlin noise at p wrapped to the noise's period): snoise without its scaling."""
-    p = np.fmod(float32(p), NOISE_PERIOD)
+    """(scale, Perlin noise at p wrapped to the noise's period): snoise without its scaling.
+    Components of a million or more, whose float32 has at most a few fractional bits, are
+    moved half a cell once wrapped, as Cycles does (else they would land on lattice points,
+    where Perlin noise is 0)."""
+    p = float32(p)
+    correction = np.where(np.abs(p) >= PRECISION_LIMIT, np.float32(0.5), np.float32(0.0))
+    p = np.fmod(p, NOISE_PERIOD) + correction
     dimensions = p.shape[0]
     return _NOISE_SCALES[dimensions], _PERLIN[dimensions](*p)
 
