@@ -7,8 +7,9 @@ plane and one material per tile; Cycles renders one sample per pixel with a 0.01
 filter, which hits each pixel's centre (measured: a ramp of the Object coordinate comes back
 within 1.2e-7 of the centres).  Each material feeds the texture its Vector (the plane's Object
 coordinate through a Mapping node, which turns and shifts it so that all three components
-vary over the tile; or, left unlinked, the Generated coordinate) and a W that varies across
-the tile, and writes them into shader AOVs beside the texture's outputs.  The EXR's AOVs thus
+vary over the tile; or the socket left unlinked, which Cycles reads as the Generated
+coordinate, or for White Noise as the socket's value) and a W that varies across the tile,
+and writes them into shader AOVs beside the texture's outputs.  The EXR's AOVs thus
 hold, per pixel, the exact float32 coordinates Cycles evaluated the texture at and what it
 found there, and the test calls the node function on those same coordinates: the comparison
 sees only the texture's arithmetic, not how either renderer computes a hit point.
@@ -46,12 +47,14 @@ COLOUR_AOVS = ("vector", "c0", "c1", "c2")
 class Case:
     """One texture node: its type, options (node properties), input values by socket
     identifier (the rest keep Blender's defaults), and how its Vector is fed: 'object' (the
-    Object coordinate mapped by ``location``, ``rotation``, ``scale``) or 'generated' (the
-    socket left unlinked)."""
+    Object coordinate mapped by ``location``, ``rotation``, ``scale``), or left unlinked.
+    exact: whether Cycles' AVX2 kernel was measured to give these values bit for bit."""
 
     kind: str
     options: dict = field(default_factory=dict)
     inputs: dict = field(default_factory=dict)
+    #: 'object', 'generated' (unlinked, Cycles links the Generated coordinate) or 'socket'
+    #: (unlinked, the socket's own value: White Noise's).
     vector: str = "object"
     location: tuple = (0.0, 0.0, 0.0)
     rotation: tuple = (0.6, 0.4, 0.2)
@@ -60,6 +63,7 @@ class Case:
     w_scale: float = 1.5
     w_offset: float = 0.25
     name: str = ""
+    exact: bool = True
 
     def label(self) -> str:
         if self.name:
@@ -140,7 +144,7 @@ def _material(case: Case, index: int):
         vector = mapping.outputs["Vector"]
         links.new(vector, _input(texture, "Vector"))
     else:
-        vector = coordinates.outputs["Generated"]
+        vector = coordinates.outputs["Generated"]  # what an unlinked texture Vector reads
     separate = nodes.new("ShaderNodeSeparateXYZ")
     links.new(vector, separate.inputs[0])
     w = nodes.new("ShaderNodeMath")
@@ -170,7 +174,7 @@ def _material(case: Case, index: int):
               emission.inputs["Color"])
     links.new(emission.outputs[0], nodes["Material Output"].inputs["Surface"])
     inputs = {socket.identifier: _socket_value(socket) for socket in texture.inputs
-              if socket.identifier not in ("Vector", "W")}
+              if socket.identifier != "W"}
     return material, captured, inputs
 
 
@@ -229,8 +233,12 @@ def render_cases(cases: list[Case], tile: int = TILE) -> list[Result]:
         row, column = divmod(index, COLUMNS)
         rows_ = slice(row * tile, (row + 1) * tile)
         columns_ = slice(column * tile, (column + 1) * tile)
+        vector = plane("vector", VECTOR, rows_, columns_)
+        if case.vector == "socket":
+            vector = np.broadcast_to(np.asarray(inputs["Vector"], np.float32).reshape(3, 1),
+                                     vector.shape)
         results.append(Result(
-            case, plane("vector", VECTOR, rows_, columns_), plane("w", FLOAT, rows_, columns_),
+            case, vector, plane("w", FLOAT, rows_, columns_),
             {identifier: plane(name, kind, rows_, columns_)
              for identifier, (name, kind) in outputs.items()},
             inputs, (tile, tile)))

@@ -247,7 +247,9 @@ def voronoi_smooth_f1(params: VoronoiParams, coord):
     damping = _ONE + np.float32(3.0) * smoothness
     distance, colour, position = distances[0], colours[:, 0], points[:, 0]
     for k in range(1, distances.shape[0]):
-        h = _smoothstep(_HALF + _HALF * (distance - distances[k]) / smoothness)
+        # Points whose smoothness is 0 take F1 instead (``_feature``); their 0 / 0 is unused.
+        with np.errstate(divide="ignore", invalid="ignore"):
+            h = _smoothstep(_HALF + _HALF * (distance - distances[k]) / smoothness)
         correction = smoothness * h * (_ONE - h)
         distance = fused_lerp(distance, distances[k], h) - correction
         correction = correction / damping
