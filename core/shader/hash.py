@@ -26,16 +26,16 @@ _UINT_TO_UNIT = np.float32(1.0 / 4294967296.0)
 
 
 def _words(*keys) -> tuple[tuple, list[np.ndarray]]:
-    """The keys broadcast to one shape, as flat uint32 arrays of their own (so that in-place
-    operations never touch the caller's arrays), and that shape."""
+    """The keys broadcast to one shape, as flat uint32 arrays (the caller's own arrays when
+    they are contiguous uint32 already: the hashes only read them), and that shape."""
     arrays = np.broadcast_arrays(*[np.asarray(key) for key in keys])
     shape = arrays[0].shape
     words = []
     for array in arrays:
         if array.dtype.kind == "f":
             raise TypeError("hash_uint* take integers; hash floats with hash_float*")
-        # astype copies, and casting signed integers to uint32 wraps as C's cast does.
-        words.append(array.astype(_U32).reshape(-1))
+        # Casting signed integers to uint32 wraps as C's cast does.
+        words.append(np.ascontiguousarray(array).astype(_U32, copy=False).reshape(-1))
     return shape, words
 
 
@@ -69,40 +69,32 @@ def _mix(a, b, c) -> None:
         np.add(y, z, out=y)
 
 
-def _start(count: int, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    return tuple(np.full(size, _SEEDS[count], _U32) for _ in range(3))
+def _seeded(count: int, word: np.ndarray) -> np.ndarray:
+    """A new array: word + lookup3's initial value for count words."""
+    return word + _U32(_SEEDS[count])
 
 
 def hash_uint(kx) -> np.ndarray:
     shape, (x,) = _words(kx)
-    a, b, c = _start(1, x.size)
-    a += x
+    a = _seeded(1, x)
+    b, c = np.full_like(a, _SEEDS[1]), np.full_like(a, _SEEDS[1])
     return _final(a, b, c).reshape(shape)
 
 
 def hash_uint2(kx, ky) -> np.ndarray:
     shape, (x, y) = _words(kx, ky)
-    a, b, c = _start(2, x.size)
-    b += y
-    a += x
-    return _final(a, b, c).reshape(shape)
+    a, b = _seeded(2, x), _seeded(2, y)
+    return _final(a, b, np.full_like(a, _SEEDS[2])).reshape(shape)
 
 
 def hash_uint3(kx, ky, kz) -> np.ndarray:
     shape, (x, y, z) = _words(kx, ky, kz)
-    a, b, c = _start(3, x.size)
-    c += z
-    b += y
-    a += x
-    return _final(a, b, c).reshape(shape)
+    return _final(_seeded(3, x), _seeded(3, y), _seeded(3, z)).reshape(shape)
 
 
 def hash_uint4(kx, ky, kz, kw) -> np.ndarray:
     shape, (x, y, z, w) = _words(kx, ky, kz, kw)
-    a, b, c = _start(4, x.size)
-    a += x
-    b += y
-    c += z
+    a, b, c = _seeded(4, x), _seeded(4, y), _seeded(4, z)
     _mix(a, b, c)
     a += w
     return _final(a, b, c).reshape(shape)

@@ -49,7 +49,12 @@ def fused_multiply_add(a, b, c):
     two float32 is exact in float64, and the sum's rounding to float64 then float32 differs
     from a single rounding only when it falls exactly halfway between two float32, which
     the 29 spare bits make vanishingly rare."""
-    return (np.multiply(a, b, dtype=np.float64) + c).astype(np.float32)
+    product = np.multiply(a, b, dtype=np.float64)
+    if isinstance(product, np.ndarray) and product.shape == np.broadcast(product, c).shape:
+        product += c  # in place: one temporary fewer
+    else:
+        product = product + c
+    return np.asarray(product).astype(np.float32)
 
 
 def fused_lerp(a, b, t):
@@ -88,40 +93,47 @@ def _fade(t):
     return (t * t) * (t * _fade_polynomial(t))
 
 
-def _negate_where(value, condition):
-    return np.where(condition, -value, value)
+def _cycles_gradient(h: int, d: int) -> list[float]:
+    """The coefficients of Cycles' grad<d>(h, x, y, ...) on each of x, y, ... (each is one
+    of u, v, s, up to sign: noise.h's grad1 to grad4 on one hash h, written out once)."""
+    if d == 1:
+        h &= 15
+        return [(-1.0 if h & 8 else 1.0) * (1 + (h & 7))]
+    if d == 2:
+        h &= 7
+        u, v = (0, 1) if h < 4 else (1, 0)
+        terms = [(u, -1.0 if h & 1 else 1.0), (v, -2.0 if h & 2 else 2.0)]
+    elif d == 3:
+        h &= 15
+        u = 0 if h < 8 else 1
+        v = 1 if h < 4 else (0 if h in (12, 14) else 2)
+        terms = [(u, -1.0 if h & 1 else 1.0), (v, -1.0 if h & 2 else 1.0)]
+    else:
+        h &= 31
+        terms = [(0 if h < 24 else 1, -1.0 if h & 1 else 1.0),
+                 (1 if h < 16 else 2, -1.0 if h & 2 else 1.0),
+                 (2 if h < 8 else 3, -1.0 if h & 4 else 1.0)]
+    coefficients = [0.0] * d
+    for axis, sign in terms:
+        coefficients[axis] = sign
+    return coefficients
 
 
-def _grad2(h, x, y):
-    h = h & 7
-    low = h < 4
-    u = np.where(low, x, y)
-    v = np.float32(2.0) * np.where(low, y, x)
-    return _negate_where(u, (h & 1) != 0) + _negate_where(v, (h & 2) != 0)
+#: (d, hashes) each dimension's gradient coefficients for every value of its hash's low bits.
+_GRADIENTS = {d: np.array([_cycles_gradient(h, d) for h in range(32 if d == 4 else 16)],
+                          np.float32).T.copy() for d in (1, 2, 3, 4)}
 
 
-def _grad3(h, x, y, z):
-    h = h & 15
-    u = np.where(h < 8, x, y)
-    vt = np.where((h == 12) | (h == 14), x, z)
-    v = np.where(h < 4, y, vt)
-    return _negate_where(u, (h & 1) != 0) + _negate_where(v, (h & 2) != 0)
-
-
-def _grad4(h, x, y, z, w):
-    h = h & 31
-    u = np.where(h < 24, x, y)
-    v = np.where(h < 16, y, z)
-    s = np.where(h < 8, z, w)
-    return (_negate_where(u, (h & 1) != 0) + _negate_where(v, (h & 2) != 0)
-            + _negate_where(s, (h & 4) != 0))
-
-
-def _gradient1(h):
-    """grad1's slope: 1 to 8, negative when bit 3 of the hash is set."""
-    h = h & 15
-    g = (1 + (h & 7)).astype(np.float32)
-    return _negate_where(g, (h & 8) != 0)
+def _gradient_dot(h, relative):
+    """Cycles' grad<d>(h, relative...): the sum of the (up to three) signed components it
+    picks, in axis order as Cycles adds them (products by 0, 1 or 2 are exact, and adding
+    an exact 0 changes nothing)."""
+    table = _GRADIENTS[len(relative)]
+    index = (h & np.uint32(table.shape[1] - 1)).astype(np.intp)
+    total = np.take(table[0], index) * relative[0]
+    for axis in range(1, len(relative)):
+        total = total + np.take(table[axis], index) * relative[axis]
+    return total
 
 
 def perlin_1d(x):
@@ -129,19 +141,65 @@ def perlin_1d(x):
     the sums that use it, b - a and a + u * (b - a)."""
     fx, X = floorfrac(x)
     u = _fade_scalar(fx)
-    g0, g1 = _gradient1(hash_uint(X)), _gradient1(hash_uint(X + np.uint32(1)))
+    slopes = _GRADIENTS[1][0]
+    g0 = np.take(slopes, (hash_uint(X) & np.uint32(15)).astype(np.intp))
+    g1 = np.take(slopes, (hash_uint(X + np.uint32(1)) & np.uint32(15)).astype(np.intp))
     difference = fused_multiply_add(-g0, fx, g1 * (fx - np.float32(1.0)))
     return fused_multiply_add(g0, fx, u * difference)
 
 
-def _corners(cells, fractions, offsets):
-    """For each corner offset (tuple of 0/1 per axis): the corner's cell (uint32) and the
-    point's position relative to it, stacked on a new first axis."""
-    lattice = [np.stack([cell + np.uint32(o[axis]) for o in offsets])
-               for axis, cell in enumerate(cells)]
-    relative = [np.stack([fraction - np.float32(o[axis]) for o in offsets])
-                for axis, fraction in enumerate(fractions)]
-    return lattice, relative
+#: Hashing each run of points that share a cell once pays when runs average two points or
+#: more (spatially coherent points, as a frame's pixels are in their order).
+_RUN_SHARE = 0.5
+
+
+def cell_runs(cells):
+    """Runs of consecutive points that share a cell: (index of each run's first point, run
+    of every point), over the flattened points of the d integer arrays ``cells``; None when
+    the runs are too short for hashing per run to pay."""
+    flat = [np.ravel(cell) for cell in cells]
+    count = flat[0].size
+    if count < 64:
+        return None
+    changes = np.zeros(count, bool)
+    changes[0] = True
+    for cell in flat:
+        changes[1:] |= cell[1:] != cell[:-1]
+    first = np.flatnonzero(changes)
+    if first.size > _RUN_SHARE * count:
+        return None
+    return first, np.cumsum(changes) - 1
+
+
+def _steps(offsets, ndim: int, dtype):
+    """(d, corners, 1, ...) the corner offsets, shaped to broadcast against (d, 1, ...)."""
+    table = np.array(offsets, dtype).T
+    return table.reshape(table.shape + (1,) * ndim)
+
+
+def _corner_hashes(cells, offsets, hash_function):
+    """(corners, ...) the hash of each lattice corner around each point, corners in the
+    order of ``offsets`` (a (corners, d) table of 0 and 1); cells are hashed once per run of
+    points that share them (``cell_runs``)."""
+    shape = np.shape(cells[0])
+    runs = cell_runs(cells)
+    if runs is not None:
+        first, run = runs
+        cells = [np.ravel(cell)[first] for cell in cells]
+    # order="C": NumPy would otherwise follow the inputs' strides and put the corners last
+    # in memory, making every later pass over them strided.
+    lattice = np.add(np.stack(cells)[:, None], _steps(offsets, np.ndim(cells[0]), np.uint32),
+                     order="C")
+    hashes = hash_function(*lattice)
+    if runs is None:
+        return hashes
+    return np.take(hashes, run, axis=1).reshape((len(offsets),) + shape)
+
+
+def _corner_offsets(fractions, offsets):
+    """(d, corners, ...) each point's position relative to each corner."""
+    return np.subtract(np.stack(fractions)[:, None],
+                       _steps(offsets, np.ndim(fractions[0]), np.float32), order="C")
 
 
 #: SSE's 2D corner order: (X, Y), (X, Y + 1), (X + 1, Y), (X + 1, Y + 1).
@@ -155,8 +213,8 @@ _CORNERS_4D = tuple((x, y, z, w) for w in (0, 1) for x in (0, 1) for y in (0, 1)
 def perlin_2d(x, y):
     (fx, X), (fy, Y) = floorfrac(x), floorfrac(y)
     u, v = _fade(fx), _fade(fy)
-    (cx, cy), (rx, ry) = _corners((X, Y), (fx, fy), _CORNERS_2D)
-    g = _grad2(hash_uint2(cx, cy), rx, ry)
+    g = _gradient_dot(_corner_hashes((X, Y), _CORNERS_2D, hash_uint2),
+                      _corner_offsets((fx, fy), _CORNERS_2D))
     # bi_mix: along x between (g0, g2) and (g1, g3), then along y.
     along_x = fused_lerp(g[0:2], g[2:4], u)
     return fused_lerp(along_x[0], along_x[1], v)
@@ -172,16 +230,16 @@ def _tri_mix(g, u, v, w):
 def perlin_3d(x, y, z):
     (fx, X), (fy, Y), (fz, Z) = floorfrac(x), floorfrac(y), floorfrac(z)
     u, v, w = _fade(fx), _fade(fy), _fade(fz)
-    (cx, cy, cz), (rx, ry, rz) = _corners((X, Y, Z), (fx, fy, fz), _CORNERS_3D)
-    g = _grad3(hash_uint3(cx, cy, cz), rx, ry, rz)
+    g = _gradient_dot(_corner_hashes((X, Y, Z), _CORNERS_3D, hash_uint3),
+                      _corner_offsets((fx, fy, fz), _CORNERS_3D))
     return _tri_mix(g, u, v, w)
 
 
 def perlin_4d(x, y, z, w):
     (fx, X), (fy, Y), (fz, Z), (fw, W) = floorfrac(x), floorfrac(y), floorfrac(z), floorfrac(w)
     u, v, t, s = _fade(fx), _fade(fy), _fade(fz), _fade(fw)
-    (cx, cy, cz, cw), (rx, ry, rz, rw) = _corners((X, Y, Z, W), (fx, fy, fz, fw), _CORNERS_4D)
-    g = _grad4(hash_uint4(cx, cy, cz, cw), rx, ry, rz, rw)
+    g = _gradient_dot(_corner_hashes((X, Y, Z, W), _CORNERS_4D, hash_uint4),
+                      _corner_offsets((fx, fy, fz, fw), _CORNERS_4D))
     # AVX quad_mix: along w first, then the 3D interpolation.
     return _tri_mix(fused_lerp(g[0:8], g[8:16], s), u, v, t)
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from .hash import hash_float_to_float, hash_float_to_float3, hash_int2_to_float2, \
     hash_int2_to_float3, hash_int3_to_float3, hash_int4_to_float3, hash_int4_to_float4
-from .noise import float_to_int, fused_lerp, fused_multiply_add
+from .noise import cell_runs, float_to_int, fused_lerp, fused_multiply_add
 
 FLT_MAX = np.float32(np.finfo(np.float32).max)
 _ZERO, _HALF, _ONE = np.float32(0.0), np.float32(0.5), np.float32(1.0)
@@ -160,18 +160,50 @@ def _position(point):
     return point
 
 
+def _neighbour_hashes(function, index, offsets, runs):
+    """(c, cells, m) function of each point's neighbouring cells (index (d, m) plus the
+    offsets (d, cells, 1)), computed once per run of points that share a cell (``runs``,
+    from ``cell_runs``, or None)."""
+    if runs is None:
+        return function(index[:, None] + _offset_index(offsets))
+    first, run = runs
+    return np.take(function(index[:, first][:, None] + _offset_index(offsets)), run, axis=-1)
+
+
 def _neighbours(coord, reach, randomness):
     """The cell of each point (floor(coord), and the index Cycles hashes), its position in
-    it, and for each neighbouring cell (the offsets, (d, cells, 1)), its random point
-    relative to the point's cell (d, cells, m)."""
+    it, for each neighbouring cell (the offsets, (d, cells, 1)) its random point relative to
+    the point's cell (d, cells, m), and the runs of points sharing a cell (``cell_runs``)."""
     cell = np.floor(coord)
     local = coord - cell
     index = _cell_index(cell)
     offsets = _OFFSETS[(coord.shape[0], reach)][:, :, None]
-    # offset + hash * randomness, fused as Blender's build computes it.
-    points = fused_multiply_add(_cell_points(index[:, None] + _offset_index(offsets)),
-                                randomness, offsets)
-    return cell, index, local, offsets, points
+    runs = cell_runs(index) if index.ndim == 2 else None
+
+    def random_points(cells):
+        # offset + hash * randomness, fused as Blender's build computes it.
+        return fused_multiply_add(_cell_points(cells), randomness, offsets)
+
+    if np.ndim(randomness) == 0:  # the same for every point: once per run of points
+        points = _neighbour_hashes(random_points, index, offsets, runs)
+    else:
+        points = fused_multiply_add(_neighbour_hashes(_cell_points, index, offsets, runs),
+                                    randomness, offsets)
+    return cell, index, local, offsets, points, runs
+
+
+def _target_colour(index, offsets, target, found, runs):
+    """(3, m) the colour of each point's chosen cell (offsets[:, target]; cell 0 where none
+    was found): hashed per point, or per run of points when runs are long enough that
+    hashing all of a run's neighbours costs less."""
+    cells = offsets.shape[1]
+    if runs is None or runs[0].size * cells > index.shape[-1]:
+        return _cell_colour(index + _offset_index(_pick(offsets, target, found)))
+    colours = _neighbour_hashes(_cell_colour, index, offsets, runs)
+    chosen = np.take_along_axis(colours, target[None, None], axis=1)[:, 0]
+    # Where nothing was found Cycles hashes the point's own cell (offset 0).
+    own = np.flatnonzero(np.all(offsets[:, :, 0] == 0, axis=0))[0]
+    return np.where(found, chosen, colours[:, own])
 
 
 def _distance_bound(a, b, metric: str, exponent):
@@ -204,29 +236,27 @@ def _pick(values, index, found):
 def voronoi_f1(params: VoronoiParams, coord):
     """(distance, colour (3, m), position (4, m)) of the nearest cell point (2D to 4D
     search by the distance bound, and measure the winner)."""
-    cell, index, local, offsets, points = _neighbours(coord, 1, params.randomness)
+    cell, index, local, offsets, points, runs = _neighbours(coord, 1, params.randomness)
     one_d = coord.shape[0] == 1
     measure = voronoi_distance if one_d else _distance_bound
     nearest, best, found = _nearest(measure(points, local[:, None], params.metric,
                                             params.exponent))
-    target_offset = _pick(offsets, nearest, found)
     target_point = _pick(points, nearest, found)
     distance = best if one_d else voronoi_distance(target_point, local, params.metric,
                                                    params.exponent)
     return (np.where(found, distance, FLT_MAX),
-            _cell_colour(index + _offset_index(target_offset)), _position(target_point + cell))
+            _target_colour(index, offsets, nearest, found, runs), _position(target_point + cell))
 
 
 def voronoi_f2(params: VoronoiParams, coord):
     """(distance, colour, position) of the second nearest cell point."""
-    cell, index, local, offsets, points = _neighbours(coord, 1, params.randomness)
+    cell, index, local, offsets, points, runs = _neighbours(coord, 1, params.randomness)
     distances = voronoi_distance(points, local[:, None], params.metric, params.exponent)
     first, _, _ = _nearest(distances)
     np.put_along_axis(distances, first[None], np.float32(np.inf), axis=0)
     second, best, found = _nearest(distances)
-    target_offset = _pick(offsets, second, found)
     target_point = _pick(points, second, found)
-    return (np.where(found, best, FLT_MAX), _cell_colour(index + _offset_index(target_offset)),
+    return (np.where(found, best, FLT_MAX), _target_colour(index, offsets, second, found, runs),
             _position(target_point + cell))
 
 
@@ -240,9 +270,9 @@ def _smoothstep(x):
 def voronoi_smooth_f1(params: VoronoiParams, coord):
     """(distance, colour, position) smoothly blended over the 5**d cells around each point,
     in Cycles' order (the blend is sequential, so it runs cell by cell)."""
-    cell, index, local, offsets, points = _neighbours(coord, 2, params.randomness)
+    cell, index, local, offsets, points, runs = _neighbours(coord, 2, params.randomness)
     distances = voronoi_distance(points, local[:, None], params.metric, params.exponent)
-    colours = _cell_colour(index[:, None] + _offset_index(offsets))
+    colours = _neighbour_hashes(_cell_colour, index, offsets, runs)
     smoothness = params.smoothness
     damping = _ONE + np.float32(3.0) * smoothness
     distance, colour, position = distances[0], colours[:, 0], points[:, 0]
@@ -272,7 +302,7 @@ def voronoi_distance_to_edge(params: VoronoiParams, coord):
         to_left = np.abs(fused_multiply_add(middle, randomness, left) * _HALF - local)
         to_right = np.abs(fused_multiply_add(middle, randomness, right) * _HALF - local)
         return np.minimum(to_left, to_right)
-    _, _, local, _, points = _neighbours(coord, 1, randomness)
+    _, _, local, _, points, _ = _neighbours(coord, 1, randomness)
     to_points = points - local[:, None]
     index, _, found = _nearest(_dot(to_points, to_points))
     to_closest = _pick(to_points, index, found)[:, None]
@@ -287,7 +317,7 @@ def voronoi_distance_to_edge(params: VoronoiParams, coord):
 def voronoi_n_sphere_radius(params: VoronoiParams, coord):
     """Half the distance from each point's nearest cell point to the point nearest to that
     one: the radius of the largest sphere around it that touches no other cell's sphere."""
-    cell, index, local, offsets, points = _neighbours(coord, 1, params.randomness)
+    cell, index, local, offsets, points, _ = _neighbours(coord, 1, params.randomness)
     one_d = coord.shape[0] == 1
     # 1D compares distances, the others squared distances (Cycles' len_squared).
     measure = voronoi_distance if one_d else _distance_bound
