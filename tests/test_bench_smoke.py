@@ -77,3 +77,12 @@ def test_scale_cases_render_the_same_scene_in_glint_and_cycles(tmp_path):
     assert statuses["(scale 1"] in ("PASS", "FAIL") and statuses["(scale 2"] in ("PASS", "FAIL")
     assert statuses["(scale 3"] == "MEASURED" and statuses["(scale 4"] == "NOT MEASURED"
     assert len(report.table(bench)) == 2 + 2 * len(results)
+
+
+def test_texture_bench_times_every_case_on_a_tiny_frame(capsys):
+    from bench import textures
+
+    assert textures.main(["--width", "16", "--height", "8", "--repeats", "1"]) == 0
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| ")]
+    assert len(rows) == 1 + len(textures.cases(textures.frame_points(2, 1)))
+    assert textures.frame_points(4, 2).shape == (3, 8)

@@ -474,3 +474,21 @@ def test_an_unknown_option_is_named_in_one_line(kind, option, value):
     message = str(raised.value)
     assert kind in message and option in message and repr(value) in message
     assert "\n" not in message
+
+
+@pytest.mark.parametrize("kind,options,read", [
+    (NOISE, {"noise_dimensions": "3D"}, "Fac"), (NOISE, {"noise_dimensions": "1D"}, "Fac"),
+    (VORONOI, {"feature": "F1"}, "Distance"), (VORONOI, {"feature": "SMOOTH_F1"}, "Position"),
+    (VORONOI, {"feature": "F2", "voronoi_dimensions": "2D"}, "Distance")])
+def test_outputs_not_needed_are_skipped_and_the_rest_unchanged(kind, options, read):
+    spec = NODES[kind]
+    rng = np.random.default_rng(5)
+    arguments = _constants(spec, Scale=4.0, Detail=1.5)
+    arguments[0] = rng.uniform(-3, 3, (3, 400)).astype(np.float32)
+    everything = dict(zip([i for i, _ in spec.outputs], spec.function(None, *arguments,
+                                                                      **options)))
+    some = dict(zip([i for i, _ in spec.outputs],
+                    spec.function(None, *arguments, needed={read}, **options)))
+    np.testing.assert_array_equal(some[read], everything[read])
+    assert np.any(everything["Color"] != 0)
+    assert not np.any(some["Color"])

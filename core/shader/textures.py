@@ -117,9 +117,12 @@ def _cos(x):
       options=("noise_dimensions", "noise_type", "normalize"),
       implicit={"Vector": "generated"})
 def noise_texture_node(points, vector, w, scale, detail, roughness, lacunarity, offset, gain,
-                       distortion, *, noise_dimensions="3D", noise_type="FBM", normalize=True):
+                       distortion, *, noise_dimensions="3D", noise_type="FBM", normalize=True,
+                       needed=None):
     """Fractal Perlin noise (Cycles' svm_node_tex_noise): Fac, and Color, Fac with two more
-    fractal sums at offset points (three times the work)."""
+    fractal sums at offset points (three times the work: ``needed``, the identifiers of the
+    outputs the program reads, None for all, skips it when Color is not among them; an
+    output not needed comes back as 0)."""
     dimensions = _dimensions("ShaderNodeTexNoise", "noise_dimensions", noise_dimensions)
     _option("ShaderNodeTexNoise", "noise_type", noise_type, NOISE_TYPES)
 
@@ -127,8 +130,11 @@ def noise_texture_node(points, vector, w, scale, detail, roughness, lacunarity, 
         detail = np.clip(detail, _F32(0.0), _F32(15.0))
         roughness = np.maximum(roughness, _F32(0.0))
         p = _coordinates(dimensions, vector * scale, w * scale)
-        return noise_texture(p, detail, roughness, lacunarity, offset, gain, distortion,
-                             noise_type, bool(normalize))
+        value, colour = noise_texture(p, detail, roughness, lacunarity, offset, gain,
+                                      distortion, noise_type, bool(normalize), colour=coloured)
+        return value, (_F32(0.0) if colour is None else colour)
+
+    coloured = needed is None or "Color" in needed
 
     return _blockwise(kernel, [_vector(vector)] + _floats(w, scale, detail, roughness,
                                                           lacunarity, offset, gain, distortion),
@@ -147,9 +153,10 @@ def noise_texture_node(points, vector, w, scale, detail, roughness, lacunarity, 
       implicit={"Vector": "generated"})
 def voronoi_texture_node(points, vector, w, scale, detail, roughness, lacunarity, smoothness,
                          exponent, randomness, *, voronoi_dimensions="3D", distance="EUCLIDEAN",
-                         feature="F1", normalize=False):
+                         feature="F1", normalize=False, needed=None):
     """Worley noise (Cycles' svm_node_tex_voronoi).  Distance to Edge sets only Distance,
-    N-Sphere Radius only Radius; the other outputs are 0 as in Cycles."""
+    N-Sphere Radius only Radius; the other outputs are 0 as in Cycles.  needed: as Noise's
+    (the colour's hashes are skipped when Color is not read)."""
     node_type = "ShaderNodeTexVoronoi"
     dimensions = _dimensions(node_type, "voronoi_dimensions", voronoi_dimensions)
     _option(node_type, "distance", distance, METRICS)
@@ -165,7 +172,8 @@ def voronoi_texture_node(points, vector, w, scale, detail, roughness, lacunarity
             smoothness=np.clip(smoothness / _F32(2.0), _F32(0.0), _F32(0.5)),
             exponent=exponent, randomness=randomness,
             max_distance=max_distance(feature, distance, dimensions, randomness, exponent),
-            normalize=bool(normalize), feature=feature, metric=distance)
+            normalize=bool(normalize), feature=feature, metric=distance,
+            colour=needed is None or "Color" in needed)
         coord = _coordinates(dimensions, vector * scale, w * scale)
         zero = np.zeros(coord.shape[1:], _F32)
         if feature == "DISTANCE_TO_EDGE":

@@ -47,6 +47,8 @@ class VoronoiParams:
     normalize: bool
     feature: str
     metric: str
+    #: Whether the colour is wanted (False leaves it 0, and skips its hashes).
+    colour: bool = True
 
 
 def _offsets(dimensions: int, reach: int) -> np.ndarray:
@@ -192,10 +194,12 @@ def _neighbours(coord, reach, randomness):
     return cell, index, local, offsets, points, runs
 
 
-def _target_colour(index, offsets, target, found, runs):
+def _target_colour(params: VoronoiParams, index, offsets, target, found, runs):
     """(3, m) the colour of each point's chosen cell (offsets[:, target]; cell 0 where none
     was found): hashed per point, or per run of points when runs are long enough that
-    hashing all of a run's neighbours costs less."""
+    hashing all of a run's neighbours costs less; 0 when the colour is not wanted."""
+    if not params.colour:
+        return np.zeros((3,) + index.shape[1:], np.float32)
     cells = offsets.shape[1]
     if runs is None or runs[0].size * cells > index.shape[-1]:
         return _cell_colour(index + _offset_index(_pick(offsets, target, found)))
@@ -245,7 +249,7 @@ def voronoi_f1(params: VoronoiParams, coord):
     distance = best if one_d else voronoi_distance(target_point, local, params.metric,
                                                    params.exponent)
     return (np.where(found, distance, FLT_MAX),
-            _target_colour(index, offsets, nearest, found, runs), _position(target_point + cell))
+            _target_colour(params, index, offsets, nearest, found, runs), _position(target_point + cell))
 
 
 def voronoi_f2(params: VoronoiParams, coord):
@@ -256,7 +260,7 @@ def voronoi_f2(params: VoronoiParams, coord):
     np.put_along_axis(distances, first[None], np.float32(np.inf), axis=0)
     second, best, found = _nearest(distances)
     target_point = _pick(points, second, found)
-    return (np.where(found, best, FLT_MAX), _target_colour(index, offsets, second, found, runs),
+    return (np.where(found, best, FLT_MAX), _target_colour(params, index, offsets, second, found, runs),
             _position(target_point + cell))
 
 
@@ -272,10 +276,11 @@ def voronoi_smooth_f1(params: VoronoiParams, coord):
     in Cycles' order (the blend is sequential, so it runs cell by cell)."""
     cell, index, local, offsets, points, runs = _neighbours(coord, 2, params.randomness)
     distances = voronoi_distance(points, local[:, None], params.metric, params.exponent)
-    colours = _neighbour_hashes(_cell_colour, index, offsets, runs)
+    colours = _neighbour_hashes(_cell_colour, index, offsets, runs) if params.colour else None
     smoothness = params.smoothness
     damping = _ONE + np.float32(3.0) * smoothness
-    distance, colour, position = distances[0], colours[:, 0], points[:, 0]
+    distance, position = distances[0], points[:, 0]
+    colour = colours[:, 0] if params.colour else np.zeros((3,) + distance.shape, np.float32)
     for k in range(1, distances.shape[0]):
         # Points whose smoothness is 0 take F1 instead (``_feature``); their 0 / 0 is unused.
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -283,7 +288,8 @@ def voronoi_smooth_f1(params: VoronoiParams, coord):
         correction = smoothness * h * (_ONE - h)
         distance = fused_lerp(distance, distances[k], h) - correction
         correction = correction / damping
-        colour = fused_lerp(colour, colours[:, k], h) - correction
+        if params.colour:
+            colour = fused_lerp(colour, colours[:, k], h) - correction
         position = fused_lerp(position, points[:, k], h) - correction
     return distance, colour, _position(cell + position)
 
