@@ -31,6 +31,7 @@ from addon_support import link
 from cycles_support import cycles_scene
 from exr import read_exr
 
+from glint.addon.export.node_options import OPTION_READERS
 from glint.core.shader import textures  # noqa: F401  (registers the texture nodes)
 from glint.core.shader.registry import COLOR, FLOAT, NODES, VECTOR
 
@@ -64,6 +65,10 @@ class Case:
     w_offset: float = 0.25
     name: str = ""
     exact: bool = True
+    #: The node's Texture Mapping: {property of TexMapping: value}, set in Blender.
+    texture_mapping: dict = field(default_factory=dict)
+    #: The outputs to compare (all when empty).
+    compared: tuple = ()
 
     def label(self) -> str:
         if self.name:
@@ -76,7 +81,8 @@ class Case:
 @dataclass
 class Result:
     """What Cycles gave for one case: the points (vector (3, n), w (n,)), the outputs
-    {identifier: (n,) or (3, n)}, the input values the node had, and the tile's shape."""
+    {identifier: (n,) or (3, n)}, the input values the node had, the tile's shape, and the
+    options the add-on's readers (``addon.export.node_options``) found on the node."""
 
     case: Case
     vector: np.ndarray
@@ -84,6 +90,7 @@ class Result:
     outputs: dict
     inputs: dict
     shape: tuple
+    read_options: dict = field(default_factory=dict)
 
     def glint(self) -> dict:
         """The node function's outputs at the same points, by identifier."""
@@ -98,7 +105,7 @@ class Result:
                 arguments.append(np.asarray(self.inputs[identifier], np.float32))
             else:
                 arguments.append(np.asarray(self.inputs[identifier], np.float32).reshape(3, 1))
-        values = spec.function(None, *arguments, **self.case.options)
+        values = spec.function(None, *arguments, **self.case.options, **self.read_options)
         return {identifier: np.broadcast_to(value, self.outputs[identifier].shape)
                 for (identifier, _), value in zip(spec.outputs, values)
                 if identifier in self.outputs}
@@ -130,6 +137,10 @@ def _material(case: Case, index: int):
     texture = nodes.new(case.kind)
     for key, value in case.options.items():
         setattr(texture, key, value)
+    for key, value in case.texture_mapping.items():
+        setattr(texture.texture_mapping, key, value)
+    reader = OPTION_READERS.get(case.kind)
+    read_options = reader(texture) if reader else {}
     for key, value in case.inputs.items():
         socket = _input(texture, key)
         socket.default_value = (*value, 1.0) if isinstance(value, tuple) and len(value) == 3 \
@@ -175,7 +186,7 @@ def _material(case: Case, index: int):
     links.new(emission.outputs[0], nodes["Material Output"].inputs["Surface"])
     inputs = {socket.identifier: _socket_value(socket) for socket in texture.inputs
               if socket.identifier != "W"}
-    return material, captured, inputs
+    return material, captured, inputs, read_options
 
 
 def _tile_mesh():
@@ -204,14 +215,14 @@ def render_cases(cases: list[Case], tile: int = TILE) -> list[Result]:
         aov.name, aov.type = name, 'VALUE' if name in FLOAT_AOVS else 'COLOR'
     captured = []
     for index, case in enumerate(cases):
-        material, outputs, inputs = _material(case, index)
+        material, outputs, inputs, read_options = _material(case, index)
         mesh = _tile_mesh()
         mesh.materials.append(material)
         plane = link(bpy.data.objects.new(f"tile{index}", mesh))
         row, column = divmod(index, COLUMNS)
         plane.location = (column + 0.5, -row - 0.5, 0.0)
         plane.scale = (0.5, 0.5, 0.5)
-        captured.append((outputs, inputs))
+        captured.append((outputs, inputs, read_options))
     settings = scene.render.image_settings
     settings.media_type = 'MULTI_LAYER_IMAGE'
     settings.exr_codec, settings.color_depth = 'NONE', '32'
@@ -229,7 +240,7 @@ def render_cases(cases: list[Case], tile: int = TILE) -> list[Result]:
                          for c in "RGB"])
 
     results = []
-    for index, (case, (outputs, inputs)) in enumerate(zip(cases, captured)):
+    for index, (case, (outputs, inputs, read_options)) in enumerate(zip(cases, captured)):
         row, column = divmod(index, COLUMNS)
         rows_ = slice(row * tile, (row + 1) * tile)
         columns_ = slice(column * tile, (column + 1) * tile)
@@ -241,5 +252,5 @@ def render_cases(cases: list[Case], tile: int = TILE) -> list[Result]:
             case, vector, plane("w", FLOAT, rows_, columns_),
             {identifier: plane(name, kind, rows_, columns_)
              for identifier, (name, kind) in outputs.items()},
-            inputs, (tile, tile)))
+            inputs, (tile, tile), read_options))
     return results

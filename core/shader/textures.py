@@ -9,8 +9,11 @@ builds its kernels with fused multiply-adds and fast-math).  Points are evaluate
 (``_blockwise``) that keep each block's temporaries small.
 
 A texture's unlinked Vector is the Generated coordinate, except White Noise's, which is its
-socket value (Cycles links no coordinate to it).  Cycles' texture mapping (a texture node's
-``texture_mapping``, set in the sidebar) is not applied: the add-on reads none of it.
+socket value (Cycles links no coordinate to it).  Every texture but White Noise takes the
+option ``texture_mapping``: the node's Texture Mapping (the sidebar's translation, rotation,
+scale, vector type and axis mapping, as ``addon.export.node_options`` reads it; None or an
+identity mapping leave the Vector as it is), applied to the Vector first as Cycles does.
+Cycles reads neither its Min/Max clamp nor the node's Color Mapping, nor does Glint.
 """
 
 from __future__ import annotations
@@ -94,6 +97,76 @@ def _coordinates(dimensions: int, vector, w) -> np.ndarray:
     return np.stack([x, y, z, w])
 
 
+# ---- Texture Mapping ---------------------------------------------------------------------
+
+MAPPING_TYPES = ("POINT", "TEXTURE", "VECTOR", "NORMAL")
+MAPPING_AXES = ("NONE", "X", "Y", "Z")
+
+
+def _rotation(angle: float, axis: int) -> np.ndarray:
+    """Cycles' transform_rotate about a coordinate axis (Rodrigues' formula)."""
+    k = np.eye(3)[axis]
+    cross = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return (np.cos(angle) * np.eye(3) + np.sin(angle) * cross
+            + (1.0 - np.cos(angle)) * np.outer(k, k))
+
+
+def _euler_matrix(rotation) -> np.ndarray:
+    """Cycles' transform_euler: Rz @ Ry @ Rx (X applies first)."""
+    return _rotation(rotation[2], 2) @ _rotation(rotation[1], 1) @ _rotation(rotation[0], 0)
+
+
+def texture_mapping_transform(mapping) -> np.ndarray | None:
+    """(3, 4) float32: Cycles' TextureMapping::compute_transform of a texture node's mapping
+    (a dict of translation, rotation, scale, vector_type, mapping_x, mapping_y, mapping_z), or
+    None when Cycles skips it (no mapping, or an identity one; the vector type alone does not
+    count).  Computed in float64 and rounded once: Cycles builds it in float32, so an entry may
+    differ from its in the last bit."""
+    if not mapping:
+        return None
+    translation = np.array(mapping.get("translation", (0.0, 0.0, 0.0)), np.float64)
+    rotation = np.array(mapping.get("rotation", (0.0, 0.0, 0.0)), np.float64)
+    scale = np.array(mapping.get("scale", (1.0, 1.0, 1.0)), np.float64)
+    kind = _option("texture_mapping", "vector_type", mapping.get("vector_type", "POINT"),
+                   MAPPING_TYPES)
+    axes = [_option("texture_mapping", name, mapping.get(name, default), MAPPING_AXES)
+            for name, default in (("mapping_x", "X"), ("mapping_y", "Y"), ("mapping_z", "Z"))]
+    if (not translation.any() and not rotation.any() and (scale == 1).all()
+            and axes == ["X", "Y", "Z"]):
+        return None
+    projection = np.zeros((3, 3))
+    for row, axis in enumerate(axes):
+        if axis != "NONE":
+            projection[row, MAPPING_AXES.index(axis) - 1] = 1.0
+    if kind in ("TEXTURE", "NORMAL"):  # keep the matrix invertible
+        scale = np.where(np.abs(scale) < 1e-5, np.where(scale < 0, -1e-5, 1e-5), scale)
+    linear = _euler_matrix(rotation) @ np.diag(scale)
+    offset = translation if kind in ("POINT", "TEXTURE") else np.zeros(3)
+    if kind == "TEXTURE":  # the inverse on the coordinate moves the texture forward
+        linear = np.linalg.inv(linear)
+        offset = -linear @ translation
+    elif kind == "NORMAL":
+        linear = np.linalg.inv(linear).T
+    return np.concatenate([linear @ projection, offset[:, None]], axis=1).astype(_F32)
+
+
+def _mapped(vector, mapping):
+    """The (3, m) vector through the node's texture mapping (Cycles' transform_point, with its
+    fused multiply-adds; NORMAL then normalizes)."""
+    matrix = texture_mapping_transform(mapping)
+    if matrix is None:
+        return vector
+    columns = matrix[:, :, None]
+    result = fused_multiply_add(vector[2], columns[:, 2], columns[:, 3])
+    result = fused_multiply_add(vector[1], columns[:, 1], result)
+    result = fused_multiply_add(vector[0], columns[:, 0], result)
+    if mapping.get("vector_type") == "NORMAL":
+        length = np.sqrt((result[0] * result[0] + result[1] * result[1]) + result[2] * result[2])
+        result = np.where(length != 0, result * (_F32(1.0) / np.where(length != 0, length, 1)),
+                          result)
+    return result
+
+
 def _grey(value):
     return np.broadcast_to(value, (3,) + np.shape(value))
 
@@ -114,11 +187,11 @@ def _cos(x):
               ("Roughness", FLOAT), ("Lacunarity", FLOAT), ("Offset", FLOAT), ("Gain", FLOAT),
               ("Distortion", FLOAT)),
       outputs=(("Fac", FLOAT), ("Color", COLOR)),
-      options=("noise_dimensions", "noise_type", "normalize"),
+      options=("noise_dimensions", "noise_type", "normalize", "texture_mapping"),
       implicit={"Vector": "generated"})
 def noise_texture_node(points, vector, w, scale, detail, roughness, lacunarity, offset, gain,
                        distortion, *, noise_dimensions="3D", noise_type="FBM", normalize=True,
-                       needed=None):
+                       texture_mapping=None, needed=None):
     """Fractal Perlin noise (Cycles' svm_node_tex_noise): Fac, and Color, Fac with two more
     fractal sums at offset points (three times the work: ``needed``, the identifiers of the
     outputs the program reads, None for all, skips it when Color is not among them; an
@@ -136,8 +209,9 @@ def noise_texture_node(points, vector, w, scale, detail, roughness, lacunarity, 
 
     coloured = needed is None or "Color" in needed
 
-    return _blockwise(kernel, [_vector(vector)] + _floats(w, scale, detail, roughness,
-                                                          lacunarity, offset, gain, distortion),
+    return _blockwise(kernel, [_mapped(_vector(vector), texture_mapping)]
+                      + _floats(w, scale, detail, roughness, lacunarity, offset, gain,
+                                distortion),
                       (FLOAT, COLOR), cost=2 ** (dimensions + 1))
 
 
@@ -149,11 +223,11 @@ def noise_texture_node(points, vector, w, scale, detail, roughness, lacunarity, 
               ("Exponent", FLOAT), ("Randomness", FLOAT)),
       outputs=(("Distance", FLOAT), ("Color", COLOR), ("Position", VECTOR), ("W", FLOAT),
                ("Radius", FLOAT)),
-      options=("voronoi_dimensions", "distance", "feature", "normalize"),
+      options=("voronoi_dimensions", "distance", "feature", "normalize", "texture_mapping"),
       implicit={"Vector": "generated"})
 def voronoi_texture_node(points, vector, w, scale, detail, roughness, lacunarity, smoothness,
                          exponent, randomness, *, voronoi_dimensions="3D", distance="EUCLIDEAN",
-                         feature="F1", normalize=False, needed=None):
+                         feature="F1", normalize=False, texture_mapping=None, needed=None):
     """Worley noise (Cycles' svm_node_tex_voronoi).  Distance to Edge sets only Distance,
     N-Sphere Radius only Radius; the other outputs are 0 as in Cycles.  needed: as Noise's
     (the colour's hashes are skipped when Color is not read)."""
@@ -184,9 +258,9 @@ def voronoi_texture_node(points, vector, w, scale, detail, roughness, lacunarity
         found, colour, position = fractal_voronoi(params, coord)
         return found, colour, position[:3], position[3], zero
 
-    return _blockwise(kernel, [_vector(vector)] + _floats(w, scale, detail, roughness,
-                                                          lacunarity, smoothness, exponent,
-                                                          randomness),
+    return _blockwise(kernel, [_mapped(_vector(vector), texture_mapping)]
+                      + _floats(w, scale, detail, roughness, lacunarity, smoothness, exponent,
+                                randomness),
                       (FLOAT, COLOR, VECTOR, FLOAT, FLOAT), cost=4 * cells)
 
 
@@ -235,11 +309,12 @@ def wave(p, wave_type, bands_direction, rings_direction, wave_profile, distortio
       inputs=(("Vector", VECTOR), ("Scale", FLOAT), ("Distortion", FLOAT), ("Detail", FLOAT),
               ("Detail Scale", FLOAT), ("Detail Roughness", FLOAT), ("Phase Offset", FLOAT)),
       outputs=(("Color", COLOR), ("Fac", FLOAT)),
-      options=("wave_type", "bands_direction", "rings_direction", "wave_profile"),
+      options=("wave_type", "bands_direction", "rings_direction", "wave_profile",
+               "texture_mapping"),
       implicit={"Vector": "generated"})
 def wave_texture_node(points, vector, scale, distortion, detail, detail_scale, detail_roughness,
                       phase_offset, *, wave_type="BANDS", bands_direction="X",
-                      rings_direction="X", wave_profile="SIN"):
+                      rings_direction="X", wave_profile="SIN", texture_mapping=None):
     """Bands or rings (Cycles' svm_node_tex_wave); Color is Fac in grey."""
     node_type = "ShaderNodeTexWave"
     _option(node_type, "wave_type", wave_type, WAVE_TYPES)
@@ -252,8 +327,9 @@ def wave_texture_node(points, vector, scale, distortion, detail, detail_scale, d
                    distortion, detail, detail_scale, detail_roughness, phase)
         return _grey(fac), fac
 
-    return _blockwise(kernel, [_vector(vector)] + _floats(scale, distortion, detail, detail_scale,
-                                                          detail_roughness, phase_offset),
+    return _blockwise(kernel, [_mapped(_vector(vector), texture_mapping)]
+                      + _floats(scale, distortion, detail, detail_scale, detail_roughness,
+                                phase_offset),
                       (COLOR, FLOAT), cost=16)
 
 
@@ -262,9 +338,10 @@ def wave_texture_node(points, vector, scale, distortion, detail, detail_scale, d
 @node("ShaderNodeTexMagic",
       inputs=(("Vector", VECTOR), ("Scale", FLOAT), ("Distortion", FLOAT)),
       outputs=(("Color", COLOR), ("Fac", FLOAT)),
-      options=("turbulence_depth",),
+      options=("turbulence_depth", "texture_mapping"),
       implicit={"Vector": "generated"})
-def magic_texture_node(points, vector, scale, distortion, *, turbulence_depth=2):
+def magic_texture_node(points, vector, scale, distortion, *, turbulence_depth=2,
+                       texture_mapping=None):
     """Psychedelic sines (Cycles' svm_node_tex_magic); Fac is the colour's average."""
     depth = int(turbulence_depth)
 
@@ -272,7 +349,8 @@ def magic_texture_node(points, vector, scale, distortion, *, turbulence_depth=2)
         colour = magic(vector, scale, depth, distortion)
         return colour, (colour[0] + colour[1] + colour[2]) * _F32(1.0 / 3.0)
 
-    return _blockwise(kernel, [_vector(vector)] + _floats(scale, distortion), (COLOR, FLOAT))
+    return _blockwise(kernel, [_mapped(_vector(vector), texture_mapping)]
+                      + _floats(scale, distortion), (COLOR, FLOAT))
 
 
 def magic(p, scale, depth: int, distortion):
@@ -346,13 +424,13 @@ def gradient(p, gradient_type: str):
 @node("ShaderNodeTexGradient",
       inputs=(("Vector", VECTOR),),
       outputs=(("Color", COLOR), ("Fac", FLOAT)),
-      options=("gradient_type",),
+      options=("gradient_type", "texture_mapping"),
       implicit={"Vector": "generated"})
-def gradient_texture_node(points, vector, *, gradient_type="LINEAR"):
+def gradient_texture_node(points, vector, *, gradient_type="LINEAR", texture_mapping=None):
     """A ramp along x, its variants and spheres (Cycles' svm_node_tex_gradient); Color is
     Fac in grey."""
     _option("ShaderNodeTexGradient", "gradient_type", gradient_type, GRADIENT_TYPES)
-    fac = gradient(_vector(vector), gradient_type)
+    fac = gradient(_mapped(_vector(vector), texture_mapping), gradient_type)
     return _grey(fac), fac
 
 
@@ -369,10 +447,12 @@ def checker(p):
 @node("ShaderNodeTexChecker",
       inputs=(("Vector", VECTOR), ("Color1", COLOR), ("Color2", COLOR), ("Scale", FLOAT)),
       outputs=(("Color", COLOR), ("Fac", FLOAT)),
+      options=("texture_mapping",),
       implicit={"Vector": "generated"})
-def checker_texture_node(points, vector, color1, color2, scale):
+def checker_texture_node(points, vector, color1, color2, scale, *, texture_mapping=None):
     """Checkerboard (Cycles' svm_node_tex_checker)."""
-    vector, color1, color2 = _vector(vector), _vector(color1), _vector(color2)
+    vector = _mapped(_vector(vector), texture_mapping)
+    color1, color2 = _vector(color1), _vector(color2)
     fac = checker(vector * np.asarray(scale, _F32))
     return np.where(fac == 1, color1, color2), fac
 
@@ -423,11 +503,12 @@ def brick(p, mortar_size, mortar_smooth, bias, brick_width, row_height, offset_a
               ("Scale", FLOAT), ("Mortar Size", FLOAT), ("Mortar Smooth", FLOAT), ("Bias", FLOAT),
               ("Brick Width", FLOAT), ("Row Height", FLOAT)),
       outputs=(("Color", COLOR), ("Fac", FLOAT)),
-      options=("offset", "offset_frequency", "squash", "squash_frequency"),
+      options=("offset", "offset_frequency", "squash", "squash_frequency", "texture_mapping"),
       implicit={"Vector": "generated"})
 def brick_texture_node(points, vector, color1, color2, mortar, scale, mortar_size,
                        mortar_smooth, bias, brick_width, row_height, *, offset=0.5,
-                       offset_frequency=2, squash=1.0, squash_frequency=2):
+                       offset_frequency=2, squash=1.0, squash_frequency=2,
+                       texture_mapping=None):
     """Bricks and mortar (Cycles' svm_node_tex_brick): Fac is the mortar's weight, Color
     each brick's random mix of Color1 and Color2 blended with Mortar by it."""
 
@@ -441,9 +522,10 @@ def brick_texture_node(points, vector, color1, color2, mortar, scale, mortar_siz
         brick_colour = np.where(fac != 1, tinted, color1)
         return fused_multiply_add(mortar_colour, fac, brick_colour * (_F32(1.0) - fac)), fac
 
-    return _blockwise(kernel, [_vector(vector), _vector(color1), _vector(color2),
-                               _vector(mortar)] + _floats(scale, mortar_size, mortar_smooth,
-                                                          bias, brick_width, row_height),
+    return _blockwise(kernel, [_mapped(_vector(vector), texture_mapping), _vector(color1),
+                               _vector(color2), _vector(mortar)]
+                      + _floats(scale, mortar_size, mortar_smooth, bias, brick_width,
+                                row_height),
                       (COLOR, FLOAT))
 
 
