@@ -347,8 +347,8 @@ def test_uint_hashes_are_lookup3_of_their_words():
     """Cycles' hash_uint<k>(x...) is hashlittle of the k little-endian words with initval
     13, for any words (wrapping, sign bits, zero)."""
     rng = np.random.default_rng(7)
-    words = np.concatenate([rng.integers(0, 2 ** 32, (4, 60), dtype=np.uint64),
-                            np.array([[0, 1, 2 ** 31, 2 ** 32 - 1]] * 4, np.uint64).T.reshape(4, -1)],
+    special = np.array([[0, 1, 2 ** 31, 2 ** 32 - 1]] * 4, np.uint64)  # each in every word
+    words = np.concatenate([rng.integers(0, 2 ** 32, (4, 60), dtype=np.uint64), special],
                            axis=1).astype(np.uint32)
     functions = (hashes.hash_uint, hashes.hash_uint2, hashes.hash_uint3, hashes.hash_uint4)
     for count, function in enumerate(functions, start=1):

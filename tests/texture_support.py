@@ -33,7 +33,7 @@ from exr import read_exr
 
 from glint.addon.export.node_options import OPTION_READERS
 from glint.core.shader import textures  # noqa: F401  (registers the texture nodes)
-from glint.core.shader.registry import COLOR, FLOAT, NODES, VECTOR
+from glint.core.shader.registry import FLOAT, NODES, VECTOR
 
 TILE = 24
 COLUMNS = 8

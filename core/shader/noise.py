@@ -11,6 +11,9 @@ and the fused multiply-adds that kernel computes (``fused_multiply_add``: its ex
 madd()s, and the a * b + c its compiler contracts), so that Perlin noise comes out bit for
 bit as Blender's on such a machine.  On a CPU without AVX2 Cycles runs its SSE kernel,
 without fused multiply-adds, and values differ in their last bits.
+
+Lattice cells are hashed once per run of consecutive points that share one (``cell_runs``):
+a frame's shading points come in pixel order, so most neighbours share their cells.
 """
 
 from __future__ import annotations
@@ -38,12 +41,6 @@ def float32(x) -> np.ndarray:
     return np.asarray(x, dtype=np.float32)
 
 
-def lerp(a, b, t):
-    """Cycles' mix(a, b, t) = a + t * (b - a), rounded twice (where the compiler does not
-    fuse it: see ``fused_lerp``)."""
-    return a + t * (b - a)
-
-
 def fused_multiply_add(a, b, c):
     """a * b + c rounded once to float32, as an FMA instruction computes it: the product of
     two float32 is exact in float64, and the sum's rounding to float64 then float32 differs
@@ -58,7 +55,8 @@ def fused_multiply_add(a, b, c):
 
 
 def fused_lerp(a, b, t):
-    """Cycles' mix(a, b, t) as the AVX2 kernel computes it: fma(t, b - a, a)."""
+    """Cycles' mix(a, b, t) = a + t * (b - a) as the AVX2 kernel computes it: fma(t, b - a,
+    a)."""
     return fused_multiply_add(t, b - a, a)
 
 
@@ -271,11 +269,6 @@ def snoise_plus(p, offset) -> np.ndarray:
     return fused_multiply_add(scale, value, offset)
 
 
-def noise(p) -> np.ndarray:
-    """Unsigned noise, [0, 1]: Cycles' noise_1d to _4d."""
-    return np.float32(0.5) * snoise(p) + np.float32(0.5)
-
-
 def random_offset(seed: float, dimensions: int) -> np.ndarray:
     """(d, 1) Cycles' random_float_offset / random_float<d>_offset(seed): a fixed offset in
     [100, 200] per axis that makes an independent copy of the noise."""
@@ -387,7 +380,7 @@ def noise_hybrid_multi_fractal(p, detail, roughness, lacunarity, offset, gain):
     pwr, value, weight = np.float32(1.0), np.float32(0.0), np.float32(1.0)
     one = np.float32(1.0)
     for i in range(most + 1):
-        active = (weight > _WEIGHT_FLOOR) & _as_mask(_active(i, whole))
+        active = (weight > _WEIGHT_FLOOR) & np.asarray(_active(i, whole))
         if not _any(active):
             break
         weight = _update(active, np.minimum(weight, one), weight)
@@ -402,10 +395,6 @@ def noise_hybrid_multi_fractal(p, detail, roughness, lacunarity, offset, gain):
     signal = snoise_plus(p, offset) * pwr
     return np.where(last, fused_multiply_add(remainder * np.minimum(weight, one), signal, value),
                     value)
-
-
-def _as_mask(active):
-    return np.asarray(active)
 
 
 def noise_ridged_multi_fractal(p, detail, roughness, lacunarity, offset, gain):

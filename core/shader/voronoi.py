@@ -9,7 +9,9 @@ as (d, cells, m) arrays, and the nearest is chosen with ``argmin``, which keeps 
 equal distances as Cycles' loop (``distance < best``) does, in Cycles' loop order (x
 fastest).  As in Cycles, 1D cells are hashed as floats (lookup3 of their bits), 2D to 4D
 cells as integers (PCG), and F1 and N-Sphere Radius compare squared Euclidean distances (or
-the Minkowski sum before its root) and take the root of the winner only.  Cycles' vector
+the Minkowski sum before its root) and take the root of the winner only.  The neighbours'
+hashes are computed once per run of consecutive points in the same cell (``cell_runs``), and
+multiply-adds are fused where Blender's build fuses them.  Cycles' vector
 helpers are followed where they round differently: a float2 or float4 divided by a float is
 multiplied by its reciprocal, a float3 is divided.
 """
@@ -249,7 +251,8 @@ def voronoi_f1(params: VoronoiParams, coord):
     distance = best if one_d else voronoi_distance(target_point, local, params.metric,
                                                    params.exponent)
     return (np.where(found, distance, FLT_MAX),
-            _target_colour(params, index, offsets, nearest, found, runs), _position(target_point + cell))
+            _target_colour(params, index, offsets, nearest, found, runs),
+            _position(target_point + cell))
 
 
 def voronoi_f2(params: VoronoiParams, coord):
@@ -260,7 +263,8 @@ def voronoi_f2(params: VoronoiParams, coord):
     np.put_along_axis(distances, first[None], np.float32(np.inf), axis=0)
     second, best, found = _nearest(distances)
     target_point = _pick(points, second, found)
-    return (np.where(found, best, FLT_MAX), _target_colour(params, index, offsets, second, found, runs),
+    return (np.where(found, best, FLT_MAX),
+            _target_colour(params, index, offsets, second, found, runs),
             _position(target_point + cell))
 
 
