@@ -512,3 +512,16 @@ def test_outputs_not_needed_are_skipped_and_the_rest_unchanged(kind, options, re
     np.testing.assert_array_equal(some[read], everything[read])
     assert np.any(everything["Color"] != 0)
     assert not np.any(some["Color"])
+
+
+@pytest.mark.parametrize("dimensions", [1, 2, 3, 4])
+def test_unsigned_noise_is_the_normalized_single_octave(dimensions):
+    """noise() (Cycles' noise_<d>d) is what the Noise node's Fac gives with Detail 0, which
+    the renders above check against Cycles."""
+    points = np.random.default_rng(dimensions).uniform(-50, 50, (dimensions, 500))
+    points = points.astype(np.float32)
+    unsigned = noise.noise(points)
+    assert 0 <= unsigned.min() and unsigned.max() <= 1 and unsigned.std() > 0.05
+    np.testing.assert_array_equal(unsigned, noise.noise_fbm(points, np.float32(0.0),
+                                                            np.float32(0.5), np.float32(2.0),
+                                                            True))

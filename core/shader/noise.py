@@ -263,6 +263,11 @@ def snoise(p) -> np.ndarray:
     return scale * value
 
 
+def noise(p) -> np.ndarray:
+    """Unsigned noise at the (d, ...) points p, in [0, 1]: Cycles' noise_1d to _4d."""
+    return np.float32(0.5) * snoise(p) + np.float32(0.5)
+
+
 def snoise_plus(p, offset) -> np.ndarray:
     """snoise(p) + offset as the compiler fuses it: fma(scale, perlin, offset)."""
     scale, value = _perlin(p)

@@ -121,7 +121,7 @@ def texture_mapping_transform(mapping) -> np.ndarray | None:
     (a dict of translation, rotation, scale, vector_type, mapping_x, mapping_y, mapping_z), or
     None when Cycles skips it (no mapping, or an identity one; the vector type alone does not
     count).  Computed in float64 and rounded once: Cycles builds it in float32, so an entry may
-    differ from its in the last bit."""
+    differ from Cycles' in the last bit."""
     if not mapping:
         return None
     translation = np.array(mapping.get("translation", (0.0, 0.0, 0.0)), np.float64)
