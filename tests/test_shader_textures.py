@@ -10,8 +10,8 @@ What must agree, and how closely:
 * Hashes are integer arithmetic: White Noise and every Voronoi colour agree bit for bit on
   any machine.
 * On a CPU with AVX2 and FMA, Blender runs Cycles' AVX2 kernel, whose fused multiply-adds
-  Glint reproduces: the cases marked exact (Noise, Voronoi, Gradient, Checker, Brick with
-  most options) must agree bit for bit.  Elsewhere Cycles' SSE kernel rounds each product
+  Glint reproduces: the cases marked exact (Noise, Voronoi but Minkowski's, Gradient but
+  Radial, Checker, Brick with most options, Wave's saw and triangle) must agree bit for bit.  Elsewhere Cycles' SSE kernel rounds each product
   separately, and these cases fall under the tolerance below.
 * Otherwise within TOLERANCE = 1e-5 (absolute, plus the same relative): float32 holds 24
   bits (6e-8 of a value), and the longest chains here (15 fBM octaves, Magic's ten nested
