@@ -151,7 +151,8 @@ def other_cases():
             # atan2f rounds a few angles differently from float64's.
             cases.append(Case(GRADIENT, {"gradient_type": gradient_type}, vector=vector,
                               location=(0.2, 0.1, 0.0), scale=(0.8, 0.8, 0.8),
-                              exact=gradient_type != "RADIAL"))
+                              exact=gradient_type != "RADIAL",
+                              name=f"Gradient {gradient_type}, {vector}"))
     cases += [
         Case(CHECKER, {}, {"Scale": 3.0, "Color1": (0.9, 0.2, 0.1), "Color2": (0.1, 0.3, 0.8)}),
         Case(CHECKER, {}, {"Scale": 7.0}, vector="generated"),
@@ -189,7 +190,8 @@ def other_cases():
 def white_noise_cases():
     cases = [Case(WHITE, {"noise_dimensions": dimensions}, location=(1.5, -2.0, 0.5),
                   scale=(3.0, 3.0, 3.0)) for dimensions in DIMENSIONS]
-    return cases + [Case(WHITE, {}, vector="socket"), Case(WHITE, {}, **FAR)]
+    return cases + [Case(WHITE, {}, vector="socket"), Case(WHITE, {}, **FAR),
+                    Case(WHITE, {}, rotation=(0.0, 0.0, 0.0), name="object centres")]
 
 
 FAMILIES = {"noise": noise_cases(), "voronoi": voronoi_cases(), "others": other_cases(),
@@ -282,6 +284,23 @@ def test_white_noise_hashes_are_cycles_bit_for_bit(rendered, index):
         assert distinct == 1  # an unlinked Vector is the socket's value, not a coordinate
     else:
         assert distinct > result.w.size // 2
+
+
+def test_the_aovs_hold_the_coordinates_of_each_pixels_centre(rendered):
+    """The comparison evaluates Glint at the coordinates Cycles wrote: check that they are
+    each pixel centre's, on the tilted plane z = 0.3 x - 0.2 y of every tile (object space
+    [-1, 1]^2; its Generated coordinate is that box mapped to [0, 1]^3, z spanning
+    [-0.5, 0.5]), to the float32 rounding of Cycles' hit points: world coordinates up to 8
+    carry ulps of 1e-6, doubled by the tiles' 0.5 scale on the way back to object space."""
+    named = {result.case.name: result
+             for result in rendered("white noise") + rendered("others")}
+    tile = named["object centres"].shape[0]
+    centres = (np.arange(tile) + 0.5) / tile * 2 - 1
+    x, y = np.meshgrid(centres, -centres)
+    expected = np.stack([x.ravel(), y.ravel(), 0.3 * x.ravel() - 0.2 * y.ravel()])
+    np.testing.assert_allclose(named["object centres"].vector, expected, atol=5e-6)
+    generated = (expected + [[1.0], [1.0], [0.5]]) / [[2.0], [2.0], [1.0]]
+    np.testing.assert_allclose(named["Gradient LINEAR, generated"].vector, generated, atol=5e-6)
 
 
 def test_voronoi_colours_are_cycles_bit_for_bit_on_any_cpu(rendered):

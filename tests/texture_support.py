@@ -4,8 +4,8 @@ points, pixel by pixel.
 Each ``Case`` is one texture node with its options and input values.  Cases are laid out as
 square tiles in one orthographic render looking straight down (-Z) at a grid of planes, one
 plane and one material per tile; Cycles renders one sample per pixel with a 0.01-pixel
-filter, which hits each pixel's centre (measured: a ramp of the Object coordinate comes back
-within 1.2e-7 of the centres).  Each material feeds the texture its Vector (the plane's Object
+filter, which hits each pixel's centre (the test checks the Object and Generated coordinates
+Cycles reports against the centres: within 2.3e-6, the rounding of its hit points).  Each material feeds the texture its Vector (the plane's Object
 coordinate through a Mapping node, which turns and shifts it so that all three components
 vary over the tile; or the socket left unlinked, which Cycles reads as the Generated
 coordinate, or for White Noise as the socket's value) and a W that varies across the tile,
