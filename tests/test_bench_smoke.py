@@ -99,3 +99,12 @@ def test_the_readme_picture_puts_glint_beside_cycles(tmp_path):
     assert result["similarity"]["r"] > 0.8
     # Glint lacks the bounced light: a few per cent darker (0.97 at the default size).
     assert 0.8 < result["similarity"]["brightness_ratio"] < 1.05
+
+
+def test_texture_bench_times_every_case_on_a_tiny_frame(capsys):
+    from bench import textures
+
+    assert textures.main(["--width", "16", "--height", "8", "--repeats", "1"]) == 0
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| ")]
+    assert len(rows) == 1 + len(textures.cases(textures.frame_points(2, 1)))
+    assert textures.frame_points(4, 2).shape == (3, 8)

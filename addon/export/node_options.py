@@ -14,6 +14,11 @@ image nodes take their ``core.shader.images.ImageData`` from its image exporter
 (``ExportContext.image_exporter``: each image read once per export), and warnings go to it.
 A context may name what is being compiled in ``owner`` ("material 'Wood'"); without it the
 owner is found from the node's tree.
+
+Every procedural texture but White Noise has a Texture Mapping (``node.texture_mapping``, a
+``TexMapping`` struct, set in the node's sidebar) that Cycles applies to the Vector before
+the texture; ``texture_mapping`` reads the parts Cycles reads (not Min/Max, and not the
+node's Color Mapping, which Cycles ignores).
 """
 
 from __future__ import annotations
@@ -194,6 +199,17 @@ def environment_texture_options(node, context) -> dict:
                 projection=node.projection)
 
 
+def texture_mapping(node) -> dict:
+    """{'texture_mapping': {translation, rotation, scale (3-tuples of floats), vector_type,
+    mapping_x, mapping_y, mapping_z (enum identifiers)}}."""
+    mapping = node.texture_mapping
+    return {"texture_mapping": {
+        "translation": tuple(mapping.translation), "rotation": tuple(mapping.rotation),
+        "scale": tuple(mapping.scale), "vector_type": mapping.vector_type,
+        "mapping_x": mapping.mapping_x, "mapping_y": mapping.mapping_y,
+        "mapping_z": mapping.mapping_z}}
+
+
 OPTION_READERS = {
     "ShaderNodeTexImage": image_texture_options,
     "ShaderNodeTexEnvironment": environment_texture_options,
@@ -209,3 +225,6 @@ OPTION_READERS = {
     "ShaderNodeBlackbody": blackbody,
     "ShaderNodeWavelength": wavelength,
 }
+OPTION_READERS.update({node_type: texture_mapping for node_type in (
+    "ShaderNodeTexNoise", "ShaderNodeTexVoronoi", "ShaderNodeTexWave", "ShaderNodeTexMagic",
+    "ShaderNodeTexGradient", "ShaderNodeTexChecker", "ShaderNodeTexBrick")})

@@ -67,6 +67,25 @@ def _point_at_rest(dtype=np.float64) -> ShadingPoints:
     return ShadingPoints(np.zeros((3, 1), dtype), up, up, up)
 
 
+def _with_needed(instructions, result) -> tuple:
+    """The instructions, those of nodes that can skip outputs nobody reads (their function
+    takes ``needed``: a Noise's colour costs 4x its Fac) told which outputs are read."""
+    read = {result.index} if isinstance(result, Register) else set()
+    for instruction in instructions:
+        read |= {a.index for a in instruction.arguments if isinstance(a, Register)}
+    done = []
+    for instruction in instructions:
+        spec = NODES[instruction.node]
+        if "needed" in inspect.signature(spec.function).parameters:
+            needed = tuple(identifier for (identifier, _), register
+                           in zip(spec.outputs, instruction.outputs) if register in read)
+            options = tuple(sorted(dict(instruction.options, needed=needed).items()))
+            instruction = Instruction(instruction.node, instruction.arguments, options,
+                                      instruction.outputs)
+        done.append(instruction)
+    return tuple(done)
+
+
 def _nan_alpha(node, sockets) -> bool:
     alpha = sockets.get("Alpha")
     return (node.bl_idname == "ShaderNodeBsdfPrincipled" and alpha is not None
@@ -303,8 +322,8 @@ class ShaderCompiler:
         value = self.argument(socket, (), kind)
         if _is_constant(value):
             return value
-        return ShaderProgram(tuple(self.instructions), value, self.registers, self.owner,
-                             frozenset(self.coordinates))
+        return ShaderProgram(_with_needed(self.instructions, value), value, self.registers,
+                             self.owner, frozenset(self.coordinates))
 
 
 def _constant(value):
