@@ -226,10 +226,28 @@ def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces, frame)
     programs = {row: material.program for row, material in enumerate(arrays.materials.entries)
                 if getattr(material, "program", None) is not None}
     tables = SurfaceTables.of(scene, frame) if programs else None
+    world = None
+    if scene.world is not None:
+        from .emitters import world_light
+        from .shader.program import run
+        from .shader.world import world_points
+
+        def run_world(directions):
+            value = run(scene.world, world_points(directions))
+            return np.broadcast_to(np.maximum(value.emission, 0), directions.shape)
+        world = world_light(scene.world, run_world, _world_image_size(scene.world))
     return path_setup(settings, lights, mesh, arrays.background,
                       any_holdout=surfaces.any_holdout, programs=programs,
                       surface_tables=tables, world_program=scene.world,
-                      pixel=pixel_footprint(scene.camera))
+                      pixel=pixel_footprint(scene.camera), world_light=world)
+
+
+def _world_image_size(program):
+    """(width, height) of the largest image a world program reads (an Environment
+    Texture's), or None."""
+    sizes = [(value.width, value.height) for instruction in program.instructions
+             for _, value in instruction.options if hasattr(value, "width")]
+    return max(sizes, key=lambda size: size[0] * size[1]) if sizes else None
 
 
 def pixel_footprint(camera) -> tuple[float, float]:

@@ -358,3 +358,41 @@ def mesh_light_pdf(lights: MeshLights, primitive, t, cos_l):
         lookup[lights.primitives] = lights.areas
         area = np.where(emitting, lookup[primitive], 1)
     return np.where(emitting, chosen / area * t * t / np.maximum(np.abs(cos_l), 1e-9), 0)
+
+
+#: The largest map a world program is baked into for its sampling distribution.
+WORLD_MAP_MAX = (1024, 512)
+#: A world without an image of its own is baked at this size.
+WORLD_MAP_DEFAULT = (256, 128)
+
+
+@dataclass(frozen=True, eq=False)
+class WorldLight:
+    """A world whose radiance varies with direction (a program: an HDRI, a sky), as a light:
+    directions drawn from ``environment`` (``core.environment.EnvironmentMap``, Cycles'
+    background map, of the world baked at its resolution), its radiance the program's own
+    value in each (so the map only steers the samples, exactly or not)."""
+
+    environment: object
+    power: float
+
+
+def world_light(program, run_world, size=None) -> WorldLight:
+    """The WorldLight of a world program: ``run_world(directions (3, n)) -> (3, n)`` its
+    radiance; size: (width, height) of the bake (None: ``WORLD_MAP_DEFAULT``)."""
+    from .environment import EnvironmentMap, equirectangular_directions
+    width, height = size or WORLD_MAP_DEFAULT
+    width = max(8, min(int(width), WORLD_MAP_MAX[0]))
+    height = max(4, min(int(height), WORLD_MAP_MAX[1]))
+    rgb = np.empty((height, width, 3), np.float32)
+    u = (np.arange(width) + 0.5) / width
+    for row in range(0, height, 64):
+        rows = np.arange(row, min(row + 64, height))
+        v = 1 - (rows + 0.5) / height            # image row 0 looks up (+Z)
+        directions = equirectangular_directions(np.tile(u, len(rows)), np.repeat(v, width))
+        rgb[rows] = np.asarray(run_world(directions), np.float32).T.reshape(len(rows), width, 3)
+    rgb = np.nan_to_num(rgb, nan=0.0, posinf=0.0, neginf=0.0)
+    environment = EnvironmentMap.from_array("world", rgb)
+    sin_theta = np.sin(np.pi * (np.arange(height) + 0.5) / height)[:, None, None]
+    power = float(np.abs(rgb * sin_theta).mean() * 2 * np.pi ** 2)
+    return WorldLight(environment, power)

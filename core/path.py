@@ -32,8 +32,8 @@ import numpy as np
 from . import closures as lobes
 from .camera import CameraRays
 from .closures import Closures
-from .emitters import (SAMPLED_EACH, MeshLights, light_hit, mesh_light_pdf, sample_light,
-                       sample_mesh_light)
+from .emitters import (SAMPLED_EACH, LightSample, MeshLights, WorldLight, light_hit,
+                       mesh_light_pdf, sample_light, sample_mesh_light)
 from .rays import RayBatch, RayStats, ray_offsets
 from .sampler import bounce_groups, index_bits, sample_group
 from .shader.program import run
@@ -179,6 +179,8 @@ def _next_event(ctx, setup, closures, choice, points, normal, geometric, to_view
         source = sources[i]
         if isinstance(source, MeshLights):
             sample, _ = sample_mesh_light(source, where, (u_pick[rows] + shift) % 1.0, u1, u2)
+        elif isinstance(source, WorldLight):
+            sample = _sample_world(ctx, source, u1, u2, dtype)
         else:
             sample = sample_light(source, where, u1, u2)
         part = closures.take(rows)
@@ -202,6 +204,17 @@ def _next_event(ctx, setup, closures, choice, points, normal, geometric, to_view
         open_ = useful[~blocked]
         total[:, rows[open_]] += contribution[:, ~blocked]
     return total
+
+
+def _sample_world(ctx, world: WorldLight, u1, u2, dtype) -> LightSample:
+    """Directions towards a WorldLight drawn from its map, the world's radiance in each."""
+    towards, pdf, _ = world.environment.sample(u1, u2)
+    towards = towards.astype(dtype)
+    radiance = world_radiance(ctx, towards)
+    pdf = pdf.astype(dtype)
+    over = np.where(pdf > 0, radiance / np.where(pdf > 0, pdf, 1), 0)
+    k = len(u1)
+    return LightSample(towards, np.full(k, np.inf, dtype), radiance, pdf, over)
 
 
 def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> PathResult:
@@ -268,7 +281,16 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
                 np.add.at(transparency, path[escaped], throughput[:, escaped].mean(axis=0))
             shown = missed[~camera_view[missed]] if film == "transparent" else missed
             if len(shown) and setup.world_shines:
-                seen = world_radiance(ctx, take(batch.directions, shown))
+                towards = take(batch.directions, shown)
+                seen = world_radiance(ctx, towards)
+                world = setup.world_light
+                if world is not None:
+                    # Weighted against the world's light samples, which could have found it.
+                    light_pdf = (world.environment.pdf(towards).astype(dtype)
+                                 * setup.light_probability[world])
+                    before = last_pdf[shown]
+                    seen = seen * np.where(before > 0, _power_heuristic(before, light_pdf),
+                                           1.0)
                 _add(colour, path[shown], _clamp(throughput[:, shown] * seen, limit))
         if len(hits) == 0:
             break
@@ -469,6 +491,7 @@ class PathSetup:
     world_program: object = None
     pixel_base: float = 0.0
     pixel_spread: float = 0.0
+    world_light: object = None
 
     @property
     def world_shines(self) -> bool:
@@ -482,7 +505,8 @@ class PathSetup:
 
 
 def path_setup(settings, lights, mesh, world, any_holdout: bool, programs=None,
-               surface_tables=None, world_program=None, pixel=(0.0, 0.0)) -> PathSetup:
+               surface_tables=None, world_program=None, pixel=(0.0, 0.0),
+               world_light=None) -> PathSetup:
     """The frame's ``PathSetup`` (settings: ``RenderSettings``; lights: prepared
     ``core.emitters.Light``s; mesh: ``MeshLights`` or None; world: (3,) radiance;
     programs: {material table row: its ShaderProgram}; surface_tables: what the programs'
@@ -490,7 +514,8 @@ def path_setup(settings, lights, mesh, world, any_holdout: bool, programs=None,
     world's ShaderProgram or None; pixel: (base, spread) of a ray's footprint, base +
     spread x distance travelled: a pixel's size on the view plane at unit depth is the
     perspective's spread, an orthographic pixel's size its base)."""
-    sources = tuple(lights) + ((mesh,) if mesh is not None else ())
+    sources = (tuple(lights) + ((mesh,) if mesh is not None else ())
+               + ((world_light,) if world_light is not None else ()))
     power = np.array([max(source.power, 0.0) for source in sources]) if sources else np.zeros(0)
     if len(power) and power.sum() > 0:
         probability = power / power.sum()
@@ -514,7 +539,7 @@ def path_setup(settings, lights, mesh, world, any_holdout: bool, programs=None,
         world=np.asarray(world, np.float64), any_holdout=any_holdout,
         index_bits=index_bits(settings.samples), programs=dict(programs or {}),
         surface_tables=surface_tables, world_program=world_program,
-        pixel_base=float(pixel[0]), pixel_spread=float(pixel[1]))
+        pixel_base=float(pixel[0]), pixel_spread=float(pixel[1]), world_light=world_light)
 
 
 def filter_offsets(u, filter_type: str, width: float):

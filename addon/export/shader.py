@@ -274,8 +274,8 @@ class ShaderCompiler:
         self.coordinates |= child.coordinates
         if _is_constant(value):
             return value
-        return ShaderProgram(tuple(child.instructions), value, child.registers, self.owner,
-                             frozenset(child.coordinates))
+        return ShaderProgram(_with_needed(child.instructions, value), value, child.registers,
+                             self.owner, frozenset(child.coordinates))
 
     def _options(self, node, spec) -> tuple:
         from .node_options import OPTION_READERS   # (the readers import the node modules)
