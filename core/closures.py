@@ -340,7 +340,9 @@ def evaluate(closures: Closures, choice: LobeChoice, normal, to_view, towards):
     rough = closures.alpha > DELTA_ALPHA
     if (p[GLOSSY] * rough).any():
         alpha = np.maximum(closures.alpha, DELTA_ALPHA)
-        half, _ = normalize(towards + to_view)
+        half = towards + to_view      # (0 for light straight through: no reflection there)
+        size = np.sqrt(dot(half, half))
+        half = np.where(size > 0, half / np.where(size > 0, size, 1), normal)
         cos_h = np.clip(dot(normal, half), 0, 1)
         d = _ggx_d(cos_h, alpha)
         reflectance = fresnel(closures, np.clip(dot(towards, half), 0, 1))

@@ -239,7 +239,24 @@ def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces, frame)
     return path_setup(settings, lights, mesh, arrays.background,
                       any_holdout=surfaces.any_holdout, programs=programs,
                       surface_tables=tables, world_program=scene.world,
-                      pixel=pixel_footprint(scene.camera), world_light=world)
+                      pixel=pixel_footprint(scene.camera), world_light=world,
+                      transparent_shadows=bool(surfaces.transparency.any()) or any(
+                          may_be_transparent(program) for program in programs.values()))
+
+
+def may_be_transparent(program) -> bool:
+    """Whether a material's program may give a hit some transparency: a Transparent BSDF in
+    it, or a Principled BSDF whose Alpha is not a constant 1 (so shadow rays must look
+    through its surfaces)."""
+    from .shader.program import Register
+    for instruction in program.instructions:
+        if instruction.node == "ShaderNodeBsdfTransparent":
+            return True
+        if instruction.node == "ShaderNodeBsdfPrincipled":
+            alpha = instruction.arguments[4]
+            if isinstance(alpha, Register) or float(alpha) < 1:
+                return True
+    return False
 
 
 def _world_image_size(program):

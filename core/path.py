@@ -128,11 +128,25 @@ def world_radiance(ctx, directions) -> np.ndarray:
         directions.dtype)
 
 
-def _blocked(ctx, points, towards, distance, exclude, lift, stats):
+def _transmittance(ctx, points, towards, distance, exclude, lift, stats):
+    """(3, k) what reaches points (3, k) from along unit ``towards`` (k,) before ``distance``
+    (k,) (inf: never): 1 where nothing is in the way, 0 where something opaque is, and
+    where the scene may hold transparent surfaces (``PathSetup.transparent_shadows``) the
+    product of their Transparent BSDF colours (Cycles' transparent shadows, up to its
+    transparent bounces; glass and every other lobe block, as in Cycles).  exclude (k,): the
+    primitive each ray ignores; lift: the points' ``TerminatorLift`` or None."""
+    if ctx.paths.transparent_shadows:
+        return _blocked(ctx, points, towards, distance, exclude, lift, stats, any_hit=False)
+    open_ = ~_blocked(ctx, points, towards, distance, exclude, lift, stats)
+    return np.broadcast_to(open_.astype(points.dtype), points.shape)
+
+
+def _blocked(ctx, points, towards, distance, exclude, lift, stats, any_hit=True):
     """(k,) whether shadow rays from points (3, k) along unit ``towards`` are blocked before
     ``distance`` (k,) (inf: never), ignoring ``exclude`` (k,); ``lift`` the points'
     ``TerminatorLift`` or None.  Segments to a light stop short of it by the light's own
-    offset, so an emitting triangle does not block its own light."""
+    offset, so an emitting triangle does not block its own light.  any_hit False: (3, k)
+    the transmittance through transparent surfaces instead (``_transmittance``)."""
     offset = ray_offsets(points)
     reach = np.where(np.isfinite(distance), distance - ray_offsets(
         points + towards * np.where(np.isfinite(distance), distance, 0)), np.inf)
@@ -145,8 +159,53 @@ def _blocked(ctx, points, towards, distance, exclude, lift, stats):
             origins[:, moved] = lifted
             exclusion = exclude.copy()
             exclusion[moved] = ignored
-    return ctx.geometry.occluded(
-        RayBatch(origins, towards, offset, reach, None, exclusion, source=exclusion), stats)
+    if any_hit:
+        return ctx.geometry.occluded(
+            RayBatch(origins, towards, offset, reach, None, exclusion, source=exclusion),
+            stats)
+    return _through_transparency(ctx, origins, towards, offset, reach, exclusion, stats)
+
+
+def _through_transparency(ctx, origins, towards, offset, reach, exclude, stats):
+    """(3, k) the transmittance of shadow segments through the surfaces they cross: each
+    crossing multiplies by the hit's transparency (its closures, programs included), until
+    the segment's end, an opaque hit, or the transparent bounce limit."""
+    setup = ctx.paths
+    k = towards.shape[1]
+    dtype = towards.dtype
+    result = np.ones((3, k), dtype)
+    rows = np.arange(k)
+    origins = np.broadcast_to(origins, towards.shape).copy()
+    start = np.broadcast_to(np.asarray(offset, dtype), (k,)).copy()
+    reach = np.broadcast_to(np.asarray(reach, dtype), (k,)).copy()
+    exclude = np.broadcast_to(exclude, (k,)).copy()
+    for _ in range(setup.transparent_bounces + 1):
+        batch = RayBatch(origins, take(towards, rows), start, reach, None, exclude)
+        stats.shadow_rays += len(rows)
+        hits = ctx.geometry.nearest(batch, stats)
+        if len(hits) == 0:
+            return result
+        front = hits.front
+        normal = facing(hits.shading, front)
+        closures = closures_at(ctx, hits, normal, facing(hits.normals, front), front)
+        passed = closures.transparency
+        # Only a surface that is nothing but transparent lets light through whole; any other
+        # lobe's share blocks (Cycles' shadow rays see the transparent closure's weight).
+        index = rows[hits.rays]
+        result[:, index] *= passed
+        going = np.flatnonzero(np.abs(passed).max(axis=0) > 0)
+        if len(going) == 0:
+            return result
+        rows = index[going]
+        points = take(hits.points, going)
+        spawned = ctx.geometry.spawn(points, take(hits.normals, going), hits.primitive[going],
+                                     take(towards, rows), ~front[going])
+        origins = spawned.origins
+        exclude = spawned.exclude
+        start = np.zeros(len(rows), dtype)
+        reach = reach[hits.rays[going]] - hits.t[going]
+    result[:, rows] = 0     # past the transparent bounce limit: blocked
+    return result
 
 
 def _next_event(ctx, setup, closures, choice, points, normal, geometric, to_view, exclude,
@@ -198,11 +257,10 @@ def _next_event(ctx, setup, closures, choice, points, normal, geometric, to_view
         light_pdf = sample.pdf[useful] * probability
         weight = np.where(np.isinf(light_pdf), 1.0, _power_heuristic(light_pdf, pdf[useful]))
         contribution = f[:, useful] * sample.over_pdf[:, useful] * (weight / probability)
-        blocked = _blocked(ctx, take(where, useful), take(sample.towards, useful),
-                           sample.distance[useful], ignore[useful],
-                           None if lift is None else lift.take(rows[useful]), stats)
-        open_ = useful[~blocked]
-        total[:, rows[open_]] += contribution[:, ~blocked]
+        passed = _transmittance(ctx, take(where, useful), take(sample.towards, useful),
+                                sample.distance[useful], ignore[useful],
+                                None if lift is None else lift.take(rows[useful]), stats)
+        total[:, rows[useful]] += contribution * passed
     return total
 
 
@@ -492,6 +550,7 @@ class PathSetup:
     pixel_base: float = 0.0
     pixel_spread: float = 0.0
     world_light: object = None
+    transparent_shadows: bool = False
 
     @property
     def world_shines(self) -> bool:
@@ -506,7 +565,7 @@ class PathSetup:
 
 def path_setup(settings, lights, mesh, world, any_holdout: bool, programs=None,
                surface_tables=None, world_program=None, pixel=(0.0, 0.0),
-               world_light=None) -> PathSetup:
+               world_light=None, transparent_shadows: bool = False) -> PathSetup:
     """The frame's ``PathSetup`` (settings: ``RenderSettings``; lights: prepared
     ``core.emitters.Light``s; mesh: ``MeshLights`` or None; world: (3,) radiance;
     programs: {material table row: its ShaderProgram}; surface_tables: what the programs'
@@ -539,7 +598,8 @@ def path_setup(settings, lights, mesh, world, any_holdout: bool, programs=None,
         world=np.asarray(world, np.float64), any_holdout=any_holdout,
         index_bits=index_bits(settings.samples), programs=dict(programs or {}),
         surface_tables=surface_tables, world_program=world_program,
-        pixel_base=float(pixel[0]), pixel_spread=float(pixel[1]), world_light=world_light)
+        pixel_base=float(pixel[0]), pixel_spread=float(pixel[1]), world_light=world_light,
+        transparent_shadows=transparent_shadows)
 
 
 def filter_offsets(u, filter_type: str, width: float):

@@ -135,3 +135,21 @@ def test_rough_metal_reflects_a_coloured_backdrop_as_in_cycles():
     mask = cs.sphere_mask(ball)
     ratios = glint[mask, :3].mean(axis=0) / cycles[mask, :3].mean(axis=0)
     np.testing.assert_allclose(ratios, 1.0, atol=0.04, err_msg=str(ratios))
+
+
+def test_light_through_a_semi_transparent_sheet_casts_a_grey_shadow_as_in_cycles():
+    # A sheet of Alpha 0.3 between a sun and a floor: shadow rays see its Transparent
+    # share (0.7) and are dimmed by it, not blocked; Cycles' and Glint's floors agree per
+    # pixel (sun light: both nearly noise-free).
+    cs.cycles_scene(bounces=0, samples=256)
+    cs.add_light('SUN', (0, -5, 5), (math.radians(20), 0, math.radians(10)), energy=3.0)
+    sheet = cs.node_material("sheet", "ShaderNodeBsdfPrincipled",
+                             **{"Base Color": (0.9, 0.2, 0.1), "Alpha": 0.3})
+    _wall("sheet", (0, 0.5, 0.5), (0.4, 0, 0), sheet, half=0.75)
+    _wall("floor", (0, 0, -1), (0, 0, 0), cs.diffuse("floor", (0.8, 0.8, 0.8)), half=4.0)
+    glint, cycles = core_image(), cs.render_cycles()
+    error = np.abs(glint[..., :3] - cycles[..., :3]).max(axis=2)
+    assert np.percentile(error, 99) < 0.01 * cycles[..., :3].max()
+    # The shadow is there, and grey: some floor pixels lit at 0.7 of the open floor.
+    floor = cycles[cs.HEIGHT // 2:, :, 0]
+    assert (floor < 0.8 * floor.max()).any()
