@@ -657,6 +657,19 @@ def converged(total, half, count, threshold: float):
     return difference / (1e-4 + normalise) < threshold
 
 
+def camera_space(camera, normal):
+    """(3, n) world normals in Cycles' camera space (x right, y up, z along the view), the
+    space of its Denoising Normal pass."""
+    from .camera import camera_to_world
+    from .scene import BlenderCamera
+    if not isinstance(camera, BlenderCamera):
+        return normal
+    rotation = camera_to_world(camera)[0].astype(normal.dtype)
+    local = rotation.T @ normal
+    local[2] *= -1
+    return local
+
+
 def render_path_tile(ctx, camera, job, stop=None):
     """(sums (h, w, channels), stats) of a ``core.progressive.TileJob``: the tile's live
     pixels traced with samples job.first..job.last, each positioned by the pixel filter's
@@ -709,7 +722,7 @@ def render_path_tile(ctx, camera, job, stop=None):
                    result.colour[0] * odd, result.colour[1] * odd, result.colour[2] * odd,
                    result.alpha, None]
         if channels > SUM_CHANNELS:
-            columns += list(result.albedo) + list(result.normal)
+            columns += list(result.albedo) + list(camera_space(camera, result.normal))
         for row, values in enumerate(columns):
             if values is not None:
                 sums[row] += np.bincount(pixel, values, n)

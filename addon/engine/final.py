@@ -40,8 +40,8 @@ from ..utils.colour import render_result_pixels
 from ..export import ExportError
 from .job import failure_message, prepare_job
 from ...core.passes import PrimaryPasses, primitive_sources
-from .passes import enabled_passes, pass_pixels, pass_warning, register_passes, \
-    scene_pass_indices
+from .passes import (denoising_passes, enabled_passes, pass_pixels, pass_warning,
+                     register_passes, scene_pass_indices)
 from .preview import prepare_preview_job
 from .viewport import ViewportEngine
 
@@ -170,17 +170,22 @@ class GlintRenderEngine(bpy.types.RenderEngine):
         ) if passes and fill else None
         tiles = TileHandOver(self, region, height, view_layer.name, job.settings.semantics,
                              TilePasses.of(job.scene, passes, primary)) if fill else None
+        guides = bool(denoising_passes(view_layer)) and not self.is_preview and fill
         result = job.run(progress=progress, should_cancel=should_cancel,
                          on_tile=tiles.hand_over if tiles is not None else None,
-                         passes=primary if primary is not None else False,
+                         passes=primary if primary is not None else False, guides=guides,
                          # Beside the job's frame, Blender holds a float32 frame (the
                          # render result, or render.py's colour-managed Image) and, while it
                          # saves, its display buffers: measured, render.py peaks at 3.35
                          # frames at 16K (14.36 GB for 4.29 GB), so 2.5 frames more.
                          reserve_bytes=5 * job.frame_bytes // 2)
-        if result.denoised and tiles is not None:
-            # The tiles Blender holds are the noisy ones: the denoised frame replaces them.
-            tiles.hand_over((0, height, 0, width), result.image)
+        whole = {}
+        if guides and result.albedo is not None:
+            whole = {"Denoising Albedo": result.albedo, "Denoising Normal": result.normal}
+        if (result.denoised or whole) and tiles is not None:
+            # The tiles Blender holds are the noisy ones: the denoised frame replaces them
+            # (with the denoising guides, known once the frame is done).
+            tiles.hand_over((0, height, 0, width), result.image, whole)
         self.update_stats("Glint", f"{summary}, {result.precision}")
         if result.fallback is not None:
             self.report({'WARNING'}, f"Glint: {result.fallback}")
@@ -230,7 +235,10 @@ class TileHandOver:
         self.semantics = semantics
         self.passes = passes
 
-    def hand_over(self, tile, rgba: np.ndarray) -> None:
+    def hand_over(self, tile, rgba: np.ndarray, whole: Optional[dict] = None) -> None:
+        """Hand a tile over; whole: {pass name: (H, W, C) frame-sized array, rows from the
+        top} of passes to write beside it (the denoising guides, known once the frame is
+        done)."""
         y0, y1, x0, x1 = tile
         # Rows from the bottom of the frame, intersected with the region.
         bottom, top = self.frame_height - y1, self.frame_height - y0
@@ -242,6 +250,9 @@ class TileHandOver:
         pixels = blender_pixels(rgba[top - high:top - low, left - x0:right - x0],
                                 self.semantics)
         extra = self.passes.pixels((left, low, right, high)) if self.passes else {}
+        for name, frame in (whole or {}).items():
+            rows = frame[self.frame_height - high:self.frame_height - low, left:right][::-1]
+            extra[name] = np.ascontiguousarray(rows, np.float32).reshape(-1)
         result = self.engine.begin_result(left - rx0, low - ry0, right - left, high - low,
                                           layer=self.layer)
         try:

@@ -115,6 +115,10 @@ class JobResult:
     parallelism: str = "threads"
     fallback: Optional[str] = None
     denoised: bool = False   # the image was denoised after its tiles landed
+    #: (H, W, 3) float32 the first hits' albedo and normal (denoising's guides, the
+    #: Denoising Albedo and Normal passes), when the job asked for them; else None.
+    albedo: Optional[np.ndarray] = None
+    normal: Optional[np.ndarray] = None
 
 
 @dataclass
@@ -148,19 +152,20 @@ class RenderJob:
             should_cancel: Optional[Callable[[], bool]] = None,
             reserve_bytes: int = 0,
             on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None,
-            passes=False) -> JobResult:
+            passes=False, guides: bool = False) -> JobResult:
         """The finished frame (module docstring).  Raises core.RenderCancelled if
         should_cancel() answers True, core.SceneError for settings the core rejects or a
         render that cannot fit in memory with ``reserve_bytes`` more (the caller's copies).
         on_tile(tile, rgba): each tile as it lands (``core.render``'s tile, rows from the top),
         its pixels finished as the frame's will be (a copy the callee may keep).
         passes: also compute the render passes (``core.passes``) into JobResult.passes (a
-        ``PrimaryPasses`` given here is filled in place, tile by tile, before on_tile)."""
+        ``PrimaryPasses`` given here is filled in place, tile by tile, before on_tile).
+        guides: also return the denoising guides (JobResult.albedo and .normal)."""
         def finished_tile(tile, rgba):
             on_tile(tile, np.array(rgba, np.float32, copy=True))
 
         denoising = self.denoise and denoise_available()
-        settings = (dataclasses.replace(self.settings, guides=True) if denoising
+        settings = (dataclasses.replace(self.settings, guides=True) if denoising or guides
                     else self.settings)
         result = render(self.scene, settings, progress=progress,
                         should_cancel=should_cancel, image_dtype=np.float32,
@@ -172,8 +177,10 @@ class RenderJob:
         if denoised:
             image = np.array(image, np.float32, copy=True)
             image[..., :3] = denoise(image[..., :3], result.albedo, result.normal)
+        copy = (lambda a: None if a is None else np.array(a, np.float32, copy=True))  # noqa: E731
         return JobResult(image, result.precision, result.stats, result.passes,
-                         result.parallelism, result.fallback, denoised)
+                         result.parallelism, result.fallback, denoised,
+                         copy(result.albedo), copy(result.normal))
 
 
 def failure_message(error: BaseException) -> str:
