@@ -10,9 +10,13 @@ The lobes, per hit (each weight a colour, as a sum of Cycles' closures of one ki
 * glossy: GGX of alpha = roughness^2 with Fresnel from ``f0`` to ``f90`` (Schlick's curve,
   blended by ``dielectric`` towards a dielectric's of index ``specular_ior``) and Turquin's
   multiple-scattering compensation (``core.bsdf``); alpha at most ``DELTA_ALPHA`` is a mirror;
-* transmission: sharp refraction by Snell's law (``ior`` inside over outside), weight
-  ``transmission`` x (1 - ``transmission_fresnel`` F), F Schlick's for the index on the less
-  dense side; under total internal reflection that share is reflected;
+* transmission: refraction by Snell's law (``ior`` inside over outside) through the normal,
+  or for rough glass through a microfacet drawn from GGX's visible normals (weighed by its
+  shadowing G1 of the refracted direction), weight ``transmission`` x (1 -
+  ``transmission_fresnel`` F), F Schlick's for the index on the less dense side; under total
+  internal reflection that share is reflected.  Refraction is sampled only (no density):
+  light reaches through glass by BSDF rays, as through Cycles' glass without caustics
+  tricks;
 * translucent: Lambert on the back side, albedo ``translucency``;
 * transparent: straight through, weight ``transparency``.
 
@@ -421,14 +425,29 @@ def sample(closures: Closures, choice: LobeChoice, normal, to_view, entering, u_
     if refracting.any():
         index = np.flatnonzero(refracting)
         part = closures.take(index)
-        c = cos_o[index]
-        refracted, returned, total, eta, cos_t = _transmission_share(part, c, entering[index])
-        d = -take(to_view, index)
+        view = take(to_view, index)
         n = take(normal, index)
-        bent, _ = normalize(eta * d + (eta * c - cos_t) * n)
-        directions[:, index] = np.where(total, take(reflected, index), bent)
-        weight[:, index] = (np.where(total, returned, refracted)
-                            / safe(probability[TRANSMISSION][index]))
+        # Rough glass refracts through a microfacet drawn from GGX's visible normals (its
+        # shadowing weighs the ray by G1 of where it goes); smooth glass through the normal.
+        rough_glass = part.alpha > DELTA_ALPHA
+        facet = n
+        if rough_glass.any():
+            facet = n.copy()
+            rows = np.flatnonzero(rough_glass)
+            facet[:, rows] = ggx_visible_normal(take(n, rows), take(view, rows),
+                                                part.alpha[rows], u1[index[rows]],
+                                                u2[index[rows]])
+        c = np.clip(dot(view, facet), 1e-6, 1)
+        refracted, returned, total, eta, cos_t = _transmission_share(part, c, entering[index])
+        bent, _ = normalize(-eta * view + (eta * c - cos_t) * facet)
+        mirrored = 2 * c * facet - view
+        directions[:, index] = np.where(total, mirrored, bent)
+        shares = np.where(total, returned, refracted)
+        if rough_glass.any():
+            going = np.abs(dot(n, directions[:, index]))
+            shadowing = _smith_g1(np.maximum(going, 1e-6), np.maximum(part.alpha, DELTA_ALPHA))
+            shares = shares * np.where(rough_glass, shadowing, 1.0)
+        weight[:, index] = shares / safe(probability[TRANSMISSION][index])
         through[index] = ~total
 
     scattered = diffuse | translucent | rough

@@ -153,3 +153,29 @@ def test_light_through_a_semi_transparent_sheet_casts_a_grey_shadow_as_in_cycles
     # The shadow is there, and grey: some floor pixels lit at 0.7 of the open floor.
     floor = cycles[cs.HEIGHT // 2:, :, 0]
     assert (floor < 0.8 * floor.max()).any()
+
+
+@pytest.mark.parametrize("roughness", [0.0, 0.3])
+def test_glass_in_front_of_a_coloured_backdrop_matches_cycles(roughness):
+    # A glass ball (sharp, then rough) in front of an emitting backdrop: what it shows is the
+    # backdrop refracted (and blurred), its edges the backdrop reflected.
+    scene = cs.cycles_scene(bounces=8, samples=512)
+    scene.glint.samples = 256
+    glass = cs.node_material("glass", "ShaderNodeBsdfGlass", Color=(1.0, 1.0, 1.0),
+                             Roughness=roughness, IOR=1.45)
+    ball = cs.add_ball("ball", (0.0, 0.0, 0.0), 1.0, glass)
+    backdrop = bpy.data.materials.new("stripes")
+    tree = backdrop.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    emission = tree.nodes.new("ShaderNodeEmission")
+    checker = tree.nodes.new("ShaderNodeTexChecker")
+    checker.inputs["Scale"].default_value = 4.0
+    checker.inputs["Color1"].default_value = (1.0, 0.6, 0.2, 1.0)
+    checker.inputs["Color2"].default_value = (0.1, 0.3, 1.0, 1.0)
+    tree.links.new(checker.outputs["Color"], emission.inputs["Color"])
+    tree.links.new(emission.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    _wall("backdrop", (0, 3, 0), (math.pi / 2, 0, 0), backdrop, half=6.0)
+    glint, cycles = core_image(), cs.render_cycles()
+    mask = cs.sphere_mask(ball)
+    ratios = glint[mask, :3].mean(axis=0) / cycles[mask, :3].mean(axis=0)
+    np.testing.assert_allclose(ratios, 1.0, atol=0.04, err_msg=str(ratios))
