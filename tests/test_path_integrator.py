@@ -136,6 +136,27 @@ def test_sobol_samples_are_stratified_in_one_and_two_dimensions_per_pixel():
             assert len(np.unique(cells)) == 16
 
 
+def test_bit_reversal_reverses_every_bit():
+    values = np.random.default_rng(3).integers(0, 2 ** 32, 1000, dtype=np.uint64).astype(np.uint32)
+    expected = [int(f"{int(v):032b}"[::-1], 2) for v in values]
+    assert sampler.reverse_bits(values).tolist() == expected
+    assert sampler.reverse_bits(np.array([[1]], np.uint32)).tolist() == [[2 ** 31]]
+
+
+def test_ggx_albedo_is_bilinear_in_its_table():
+    from core import bsdf
+    cosines, alphas, table = bsdf._ALBEDO_COSINES, bsdf._ALBEDO_ALPHAS, bsdf._ALBEDO_TABLE
+    # On the grid's nodes the table's own values; halfway, the mean of the four corners;
+    # outside it, the edge's values.
+    c, a = np.meshgrid(cosines, alphas)
+    assert np.allclose(bsdf.directional_albedo(c.ravel(), a.ravel()), table.ravel())
+    mid_c, mid_a = (cosines[3] + cosines[4]) / 2, (alphas[7] + alphas[8]) / 2
+    assert bsdf.directional_albedo(np.array([mid_c]), np.array([mid_a]))[0] == pytest.approx(
+        table[7:9, 3:5].mean())
+    assert bsdf.directional_albedo(np.array([0.0, 2.0]), np.array([-1.0, 5.0])).tolist() == (
+        pytest.approx([table[0, 0], table[-1, -1]]))
+
+
 def test_pixels_draw_different_samples():
     points = sampler.sample_group(sampler.pixel_seeds(np.arange(1000), np.zeros(1000, int)),
                                   np.zeros(1000, int), 1, bits=4)
