@@ -611,28 +611,31 @@ def filter_offsets(u, filter_type: str, width: float):
 
 
 _FILTER_TABLES: dict = {}
+#: Entries of a filter's inverse distribution, as Cycles' FILTER_TABLE_SIZE.
+FILTER_TABLE_SIZE = 1024
 
 
 def _filter_table(filter_type: str, width: float) -> np.ndarray:
     """The inverse cumulative distribution of Cycles' filter (``film.cpp``'s filter table):
-    a box over the width; a Gaussian exp(-2 (6 x / width)^2) over it; Blackman-Harris over
-    twice the width (Cycles doubles it: the window is narrow)."""
+    a box over the width; a Gaussian over three times the width, exp(-2 (6 x / span)^2),
+    so its standard deviation is a quarter of the width; Blackman-Harris over twice the
+    width (Cycles widens both: their tails are thin)."""
     key = (filter_type, width)
     table = _FILTER_TABLES.get(key)
     if table is None:
-        span = 2 * width if filter_type == "BLACKMAN_HARRIS" else width
+        span = {"BLACKMAN_HARRIS": 2 * width, "GAUSSIAN": 3 * width}.get(filter_type, width)
         x = np.linspace(-0.5, 0.5, 4097) * span
         if filter_type == "BOX":
             weight = np.ones_like(x)
         elif filter_type == "GAUSSIAN":
-            weight = np.exp(-2 * (6 * x / width) ** 2)
+            weight = np.exp(-2 * (6 * x / span) ** 2)
         else:
             t = np.linspace(0, 1, len(x))
             weight = (0.35875 - 0.48829 * np.cos(2 * np.pi * t)
                       + 0.14128 * np.cos(4 * np.pi * t) - 0.01168 * np.cos(6 * np.pi * t))
         cumulative = np.concatenate([[0], np.cumsum((weight[1:] + weight[:-1]) / 2)])
         cumulative /= cumulative[-1]
-        table = np.interp(np.linspace(0, 1, 257), cumulative, x)
+        table = np.interp(np.linspace(0, 1, FILTER_TABLE_SIZE), cumulative, x)
         _FILTER_TABLES[key] = table
     return table
 

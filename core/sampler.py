@@ -94,6 +94,10 @@ def reverse_bits(x: np.ndarray) -> np.ndarray:
             | (table.take(b2) << _U32(8)) | table.take(b3))
 
 
+#: ``_MATRICES`` with each column's bits reversed.
+_REVERSED_MATRICES = reverse_bits(_MATRICES)
+
+
 def _reversed_owen(x: np.ndarray, seed: np.ndarray) -> np.ndarray:
     """Owen scrambling of bit-reversed values (Burley's hash, as Cycles'
     ``reversed_bit_owen``): each bit flipped by a hash of the bits above it in the
@@ -105,14 +109,14 @@ def _reversed_owen(x: np.ndarray, seed: np.ndarray) -> np.ndarray:
     return x ^ (x * _U32(0x53A22864))
 
 
-def _sobol(index: np.ndarray, bits: int) -> np.ndarray:
-    """(4, n) uint32 the first 4 Sobol dimensions of points ``index`` (n,) uint32 below
-    2^bits."""
-    result = np.zeros((4, len(index)), _U32)
-    remaining = index.copy()
+def _sobol_reversed(reversed_index: np.ndarray, bits: int) -> np.ndarray:
+    """(4, n) uint32 the first 4 Sobol dimensions of points below 2^bits, bit-reversed,
+    from their indices ``reversed_index`` (n,) uint32 bit-reversed too: Owen scrambling
+    works on reversed values, so the points never need reversing on the way in."""
+    result = np.zeros((4, len(reversed_index)), _U32)
     for k in range(bits):
-        result ^= _MATRICES[:, k:k + 1] * (remaining & _U32(1))
-        remaining >>= _U32(1)
+        bit = (reversed_index >> _U32(31 - k)) & _U32(1)
+        result ^= _REVERSED_MATRICES[:, k:k + 1] * bit
     return result
 
 
@@ -133,14 +137,14 @@ def sample_group(seeds: np.ndarray, sample: np.ndarray, group: int, bits: int = 
     group_seed = hash_u32(seeds ^ hash_u32(np.uint32(0x1F0D6A3B + group)))
     index = np.broadcast_to(np.asarray(sample, np.int64).astype(_U32), seeds.shape)
     # Shuffle the pixel's sample order (a nested uniform scramble of the index), so that the
-    # pixels of an image do not draw the same points.
-    shuffled = reverse_bits(_reversed_owen(reverse_bits(index), group_seed ^ _U32(0xBFF95BFE)))
-    shuffled &= _U32((1 << bits) - 1)
-    points = _sobol(shuffled, bits)
+    # pixels of an image do not draw the same points; the top ``bits`` bits of the reversed
+    # shuffled index are the index's low bits.
+    shuffled = _reversed_owen(reverse_bits(index), group_seed ^ _U32(0xBFF95BFE))
+    points = _sobol_reversed(shuffled, bits)
     out = np.empty(points.shape, dtype)
     for dimension in range(4):
         seed = hash_u32(group_seed ^ _U32(0x635C77BD + dimension))
-        scrambled = reverse_bits(_reversed_owen(reverse_bits(points[dimension]), seed))
+        scrambled = reverse_bits(_reversed_owen(points[dimension], seed))
         # The top 24 bits, so that a float32 never rounds up to 1.
         out[dimension] = (scrambled >> _U32(8)).astype(np.float64) * (1.0 / (1 << 24))
     return out
