@@ -393,9 +393,11 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
         alive = ~emission_only
         if held is not None:
             alive[held] = False
+        # The vertex's choices: lobe, light, Russian roulette.
+        choices = sample_group(seed, sample, bounce_groups(depth)[1], bits, dtype)
         if depth > 0:
             survive = np.minimum(np.sqrt(np.abs(throughput).max(axis=0)), 1.0)
-            u_rr = sample_group(seed, sample, bounce_groups(depth)[1], bits, dtype)[2]
+            u_rr = choices[2]
             roulette = bounce >= 1
             alive &= ~roulette | (u_rr < survive)
             throughput = np.where(roulette & (survive > 0), throughput
@@ -406,7 +408,7 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
         if len(go) < len(alive):
             path, throughput, seed, sample = path[go], throughput[:, go], seed[go], sample[go]
             bounce, camera_view, min_pdf = bounce[go], camera_view[go], min_pdf[go]
-            last_pdf, travelled = last_pdf[go], travelled[go]
+            last_pdf, travelled, choices = last_pdf[go], travelled[go], choices[:, go]
             by_diffuse = by_diffuse[go]
             diffuse_bounce, glossy_bounce = diffuse_bounce[go], glossy_bounce[go]
             transmission_bounce, transparent_bounce = (transmission_bounce[go],
@@ -426,7 +428,6 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
         if depth == 0:
             albedo[:, path] = np.clip(choice.albedo.sum(axis=0), 0, 1)
         numbers = sample_group(seed, sample, bounce_groups(depth)[0], bits, dtype)
-        choices = sample_group(seed, sample, bounce_groups(depth)[1], bits, dtype)
         if setup.sources:
             exclude = (geometry.exclusions(primitive, front),
                        geometry.exclusions(primitive, ~front))
