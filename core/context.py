@@ -241,7 +241,8 @@ def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces, frame)
                       surface_tables=tables, world_program=scene.world,
                       pixel=pixel_footprint(scene.camera), world_light=world,
                       transparent_shadows=bool(surfaces.transparency.any()) or any(
-                          may_be_transparent(program) for program in programs.values()))
+                          may_be_transparent(program) for program in programs.values()),
+                      frame=frame)
 
 
 def may_be_transparent(program) -> bool:

@@ -55,6 +55,9 @@ class PathResult:
     alpha: np.ndarray
     albedo: np.ndarray
     normal: np.ndarray
+    #: trace_paths(first_hits=True): each camera ray's first hit, (t, primitive, material)
+    #: (n,) each (primitive and material -1 where the ray escaped), the passes' source.
+    first_hits: tuple | None = None
 
 
 def _power_heuristic(a, b):
@@ -275,9 +278,11 @@ def _sample_world(ctx, world: WorldLight, u1, u2, dtype) -> LightSample:
     return LightSample(towards, np.full(k, np.inf, dtype), radiance, pdf, over)
 
 
-def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> PathResult:
+def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats,
+                first_hits: bool = False) -> PathResult:
     """Follow n camera rays (sample ``sample_index`` (n,) of the pixels whose sampler seeds
-    are ``seeds`` (n,)) to the end of their paths (module docstring)."""
+    are ``seeds`` (n,)) to the end of their paths (module docstring); first_hits: also
+    return what the camera rays hit first (``PathResult.first_hits``)."""
     setup = ctx.paths
     settings = ctx.settings
     dtype = ctx.dtype
@@ -312,6 +317,10 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
         hits = geometry.nearest(batch, stats)
         t_geometry = np.full(len(batch), np.inf, dtype)
         t_geometry[hits.rays] = hits.t
+        if depth == 0 and first_hits:
+            first = (t_geometry, np.full(n, -1, np.int64), np.full(n, -1, np.int64))
+            first[1][hits.rays] = hits.primitive
+            first[2][hits.rays] = hits.material
         seed = seeds[path]
         sample = sample_index[path]
         # Emission found by this depth's rays counts as the bounce before's light (Cycles'
@@ -482,7 +491,7 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
                                leave_front)
         stats.reflection_rays += len(go)
     alpha = np.clip(1 - transparency, 0, 1)
-    return PathResult(colour, alpha, albedo, first_normal)
+    return PathResult(colour, alpha, albedo, first_normal, first if first_hits else None)
 
 
 def _filter_closures(setup, closures: Closures, min_pdf, by_diffuse) -> None:
@@ -552,6 +561,9 @@ class PathSetup:
     pixel_spread: float = 0.0
     world_light: object = None
     transparent_shadows: bool = False
+    #: The ``core.frame.Frame`` that took the scene to the render's frame (passes'
+    #: positions and depths go back through it), or None.
+    frame: object = None
 
     @property
     def world_shines(self) -> bool:
@@ -566,7 +578,8 @@ class PathSetup:
 
 def path_setup(settings, lights, mesh, world, any_holdout: bool, programs=None,
                surface_tables=None, world_program=None, pixel=(0.0, 0.0),
-               world_light=None, transparent_shadows: bool = False) -> PathSetup:
+               world_light=None, transparent_shadows: bool = False,
+               frame=None) -> PathSetup:
     """The frame's ``PathSetup`` (settings: ``RenderSettings``; lights: prepared
     ``core.emitters.Light``s; mesh: ``MeshLights`` or None; world: (3,) radiance;
     programs: {material table row: its ShaderProgram}; surface_tables: what the programs'
@@ -600,7 +613,7 @@ def path_setup(settings, lights, mesh, world, any_holdout: bool, programs=None,
         index_bits=index_bits(settings.samples), programs=dict(programs or {}),
         surface_tables=surface_tables, world_program=world_program,
         pixel_base=float(pixel[0]), pixel_spread=float(pixel[1]), world_light=world_light,
-        transparent_shadows=transparent_shadows)
+        transparent_shadows=transparent_shadows, frame=frame)
 
 
 def filter_offsets(u, filter_type: str, width: float):
@@ -678,9 +691,11 @@ def render_path_tile(ctx, camera, job, stop=None):
     """(sums (h, w, channels), stats) of a ``core.progressive.TileJob``: the tile's live
     pixels traced with samples job.first..job.last, each positioned by the pixel filter's
     density; per pixel the sums ``core.progressive`` adds up (radiance, twice the odd
-    samples' radiance, alpha, the count, and with guides their sums).  A pixel's sums depend
-    only on its own samples: never on the tile."""
+    samples' radiance, alpha, the count, and with guides their sums), then for a job with
+    passes ``core.passes.PASS_CHANNELS`` more, the passes of what sample 0 hit first (0 in
+    later passes).  A pixel's sums depend only on its own samples: never on the tile."""
     from .camera import camera_rays, has_aperture
+    from .passes import PASS_CHANNELS, first_hit_channels
     from .progressive import GUIDE_SUM_CHANNELS, SUM_CHANNELS
     from .render import RenderCancelled, _pixel_grid
     from .sampler import PIXEL_GROUP, pixel_seeds
@@ -702,6 +717,9 @@ def render_path_tile(ctx, camera, job, stop=None):
     aperture = has_aperture(camera)
     channels = SUM_CHANNELS + (GUIDE_SUM_CHANNELS if settings.guides else 0)
     sums = np.zeros((channels, n))
+    # A frame with passes: its jobs carry them after the sums, filled by the first sample.
+    passes = np.zeros((n, PASS_CHANNELS)) if job.passes else None
+    first_hits = job.passes and job.first == 0
     count = job.last - job.first
     per_bundle = max(1, max(1024, settings.tile_size ** 2) // count)
     for first in range(0, n, per_bundle):
@@ -718,7 +736,15 @@ def render_path_tile(ctx, camera, job, stop=None):
         began = time.perf_counter()
         rays = camera_rays(camera, xs, ys, dtype, u[2:4] if aperture else None)
         traced = time.perf_counter()
-        result = trace_paths(ctx, rays, seeds[pixel], sample, stats)
+        result = trace_paths(ctx, rays, seeds[pixel], sample, stats, first_hits=first_hits)
+        if first_hits:
+            # As Cycles' passes: what each pixel's first sample hit.
+            zero = np.flatnonzero(sample == 0)
+            t, primitive, material = (values[zero] for values in result.first_hits)
+            origins = rays.origins if rays.origins.shape[1] == 1 else rays.origins[:, zero]
+            passes[pixel[zero]] = first_hit_channels(
+                camera, origins, rays.directions[:, zero], t, primitive, material,
+                result.normal[:, zero], ctx.paths.frame)
         stats.seconds_camera += traced - began
         stats.seconds_bounces += time.perf_counter() - traced
         odd = (sample & 1).astype(np.float64) * 2
@@ -731,7 +757,9 @@ def render_path_tile(ctx, camera, job, stop=None):
             if values is not None:
                 sums[row] += np.bincount(pixel, values, n)
     sums[7] = count
-    grid = np.zeros((h, w, channels))
+    if passes is not None:
+        sums = np.concatenate([sums, passes.T])
+    grid = np.zeros((h, w, len(sums)))
     grid[rows - y0, cols - x0] = sums.T
     stats.seconds_tiles += time.perf_counter() - start
     return grid, stats

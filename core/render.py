@@ -30,7 +30,7 @@ from .aggregate import builds_tree
 from .camera import camera_rays, has_aperture
 from .colour import linear_to_srgb
 from .context import RayStats, TraceContext, make_context, path_traced
-from .passes import PrimaryPasses, fill_tile_passes
+from .passes import PASS_CHANNELS, PrimaryPasses, fill_tile_passes, store_first_hits
 from .path import render_path_tile
 from .progressive import ProgressiveFrame, WorkQueue
 from .cull import PACKET_SIZE
@@ -713,7 +713,10 @@ def _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype, 
     """A path-traced frame, pass by pass (``core.progressive``), its tiles' passes on
     worker processes or threads like any frame's tiles."""
     image = np.zeros(shape, image_dtype)
-    frame = ProgressiveFrame(settings, tiles, image, guides=settings.guides)
+    # The passes of what each pixel's first sample hit come with the tiles' sums; the
+    # Emission pass follows whole camera paths of its own (``fill_passes``).
+    carried = primary is not None and primary.emission is None
+    frame = ProgressiveFrame(settings, tiles, image, guides=settings.guides, passes=carried)
     queue = WorkQueue(frame)
     stats = RayStats()
     total_samples = settings.samples
@@ -723,9 +726,13 @@ def _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype, 
             y0, y1, x0, x1 = job[:4]
             raise RenderError(f"pixels {x0}-{x1 - 1} x {y0}-{y1 - 1} came out NaN or "
                               f"infinite; please report this scene")
-        view = frame.land(job, sums)
-        if first_pass:
+        if carried:
+            if first_pass:
+                store_first_hits(primary, job[:4], sums[..., -PASS_CHANNELS:])
+            sums = sums[..., :-PASS_CHANNELS]
+        elif first_pass:
             fill_passes(job[:4], tile_stats)
+        view = frame.land(job, sums)
         stats.add(tile_stats)
         if on_tile is not None:
             on_tile(job[:4], view[..., :4])
@@ -746,7 +753,7 @@ def _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype, 
         def finish(job, sums, tile_stats, done, finite):
             landed(job, np.array(sums, np.float64), tile_stats, job.first == 0)
 
-        sums_shape = (shape[0], shape[1], frame.channels)
+        sums_shape = (shape[0], shape[1], frame.channels + (PASS_CHANNELS if carried else 0))
         try:
             _, unavailable = workers.render_tiles(ctx, scene.camera, queue, sums_shape,
                                                   np.float32, threads, finish, should_cancel)
@@ -757,7 +764,8 @@ def _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype, 
             pass
         except workers.ProcessesUnavailable as error:
             fallback = _fallback_line(str(error))
-        queue = WorkQueue(ProgressiveFrame(settings, tiles, image, guides=settings.guides))
+        queue = WorkQueue(ProgressiveFrame(settings, tiles, image, guides=settings.guides,
+                                           passes=carried))
         frame = queue.frame
 
     if threads == 1 or len(tiles) == 1:
