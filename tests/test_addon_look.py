@@ -164,6 +164,15 @@ def test_an_unsupported_shader_renders_grey_and_is_named(scene):
     assert any(node.name in w and "not supported" in w for w in warnings)
 
 
+@pytest.mark.parametrize("kind", ["ShaderNodeSubsurfaceScattering", "ShaderNodeBsdfSheen",
+                                  "ShaderNodeBsdfToon"])
+def test_approximated_shaders_are_a_diffuse_of_their_colour_with_one_note(scene, kind):
+    material, node = material_with(kind, Color=(0.2, 0.4, 0.6))
+    surface, warnings = exported_material(material)
+    np.testing.assert_allclose(surface.diffuse, (0.2, 0.4, 0.6), rtol=1e-6)
+    assert len([w for w in warnings if node.name in w and "approximated" in w]) == 1
+
+
 def test_without_a_linked_surface_the_material_is_black_as_in_cycles(scene):
     material = bpy.data.materials.new("unplugged")
     tree = material.node_tree

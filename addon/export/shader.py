@@ -106,6 +106,20 @@ def _read_option(node, name):
         return value
 
 
+def node_options(node, spec, context=None) -> dict:
+    """A node's options: each of ``spec.options`` Blender's node has, read as it is, then
+    what its reader in ``node_options.OPTION_READERS`` adds or replaces (a Texture
+    Mapping, a Color Ramp's stops, an image)."""
+    from .node_options import OPTION_READERS   # (the readers import the node modules)
+
+    values = {name: _read_option(node, name) for name in spec.options if hasattr(node, name)}
+    reader = OPTION_READERS.get(node.bl_idname)
+    if reader is not None:
+        takes_context = "context" in inspect.signature(reader).parameters
+        values.update(reader(node, context) if takes_context else reader(node))
+    return values
+
+
 class ShaderCompiler:
     """Compiles one node tree (``compile``); owner names it in notes ("material 'Wood'")."""
 
@@ -251,6 +265,8 @@ class ShaderCompiler:
             arguments.append(self.argument(socket, groups, kind, spec.implicit.get(identifier),
                                            shader))
         options = self._options(node, spec)
+        if spec.stand_in:
+            self.note(f"{self.owner}: node '{node.name}' ({node.bl_label}) is {spec.note}")
         reads = NODE_COORDINATES.get(node.bl_idname)
         if reads is not None:
             self.coordinates |= reads(node)
@@ -280,14 +296,7 @@ class ShaderCompiler:
     def _options(self, node, spec) -> tuple:
         from .node_options import OPTION_READERS   # (the readers import the node modules)
 
-        reader = OPTION_READERS.get(node.bl_idname)
-        if reader is not None:
-            takes_context = "context" in inspect.signature(reader).parameters
-            values = reader(node, self.context) if takes_context else reader(node)
-        else:
-            values = {name: _read_option(node, name) for name in spec.options
-                  if hasattr(node, name)}
-        return tuple(sorted(values.items()))
+        return tuple(sorted(node_options(node, spec, self.context).items()))
 
     def _emit(self, name: str, arguments: tuple, options: tuple, outputs: int) -> list:
         """The outputs of node ``name`` on ``arguments``: folded to constants where every

@@ -210,11 +210,12 @@ def _approximated_diffuse(points, colour, normal):
     return (_normal(points, lobes, normal),)
 
 
-for _kind, _why in (("ShaderNodeSubsurfaceScattering", "a Diffuse BSDF of its colour"),
-                    ("ShaderNodeBsdfSheen", "a Diffuse BSDF of its colour"),
-                    ("ShaderNodeBsdfToon", "a Diffuse BSDF of its colour")):
-    node(_kind, inputs=(("Color", COLOR), ("Normal", VECTOR)), outputs=(("BSDF", CLOSURE),),
-         implicit=_NORMAL, note=f"approximated by {_why}")(_approximated_diffuse)
+for _kind, _output in (("ShaderNodeSubsurfaceScattering", "BSSRDF"),
+                       ("ShaderNodeBsdfSheen", "BSDF"), ("ShaderNodeBsdfToon", "BSDF")):
+    node(_kind, inputs=(("Color", COLOR), ("Normal", VECTOR)), outputs=((_output, CLOSURE),),
+         implicit=_NORMAL, note="approximated by a Diffuse BSDF of its colour",
+         stand_in=True)(
+        _approximated_diffuse)
 
 
 @node("ShaderNodeBsdfGlossy", inputs=(("Color", COLOR), ("Roughness", FLOAT),
