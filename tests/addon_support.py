@@ -162,6 +162,9 @@ def simple_scene():
 
 
 def depsgraph():
+    # (Setting a property of scene.glint from Python does not tag the scene: without the
+    # tag its evaluated copy keeps the settings of the last evaluation.)
+    bpy.context.scene.update_tag()
     graph = bpy.context.evaluated_depsgraph_get()
     graph.update()
     return graph
