@@ -296,10 +296,17 @@ def ggx_visible_normal(normal, to_view, alpha, u1, u2):
 @dataclass
 class LobeChoice:
     """How a hit's lobes are chosen: probability (5, k) of each lobe (``LOBES`` order),
-    and the lobes' albedo estimates (5, 3, k) the probabilities come from."""
+    and the lobes' albedo estimates (5, 3, k) the probabilities come from; with them what
+    depends on the view alone, for ``evaluate`` at every light: compensation (3, k) the
+    glossy lobe's multiple-scattering factor."""
 
     probability: np.ndarray
     albedo: np.ndarray
+    compensation: np.ndarray
+
+    def take(self, rows) -> "LobeChoice":
+        return LobeChoice(self.probability[:, rows], self.albedo[:, :, rows],
+                          self.compensation[:, rows])
 
 
 def lobe_albedos(closures: Closures, normal, to_view, entering) -> LobeChoice:
@@ -321,13 +328,16 @@ def lobe_albedos(closures: Closures, normal, to_view, entering) -> LobeChoice:
     weight = np.maximum(albedo, 0).mean(axis=1)
     total = weight.sum(axis=0)
     probability = weight / np.where(total > 0, total, 1)
-    return LobeChoice(probability, albedo)
+    compensation = _compensation(closures.f0, directional_albedo(
+        cos_o, np.maximum(closures.alpha, DELTA_ALPHA)))
+    return LobeChoice(probability, albedo, compensation)
 
 
 def evaluate(closures: Closures, choice: LobeChoice, normal, to_view, towards):
     """(f cos (3, k), pdf (k,)) of the non-delta lobes for light arriving from unit
     ``towards`` (3, k), seen from ``to_view``; pdf the density of ``sample`` drawing that
-    direction (per solid angle, the lobes' choice included)."""
+    direction (per solid angle, the lobes' choice included).  choice: ``lobe_albedos`` of
+    the same hits, normals and view."""
     cos_o = np.clip(dot(normal, to_view), 1e-6, 1)
     cos_i = dot(normal, towards)
     above = cos_i > 0
@@ -339,7 +349,7 @@ def evaluate(closures: Closures, choice: LobeChoice, normal, to_view, towards):
     if closures.smooth is not None:
         softened = bump_shadowing(closures.smooth, normal, towards)
     if p[DIFFUSE].any():
-        f += diffuse_seen(closures, cos_o) * (lit / np.pi * softened)
+        f += choice.albedo[DIFFUSE] * (lit / np.pi * softened)
         pdf += p[DIFFUSE] * (lit / np.pi)
     rough = closures.alpha > DELTA_ALPHA
     if (p[GLOSSY] * rough).any():
@@ -350,7 +360,7 @@ def evaluate(closures: Closures, choice: LobeChoice, normal, to_view, towards):
         cos_h = np.clip(dot(normal, half), 0, 1)
         d = _ggx_d(cos_h, alpha)
         reflectance = fresnel(closures, np.clip(dot(towards, half), 0, 1))
-        compensation = _compensation(closures.f0, directional_albedo(cos_o, alpha))
+        compensation = choice.compensation
         lobe = d * _visibility(np.maximum(cos_i, 1e-6), cos_o, alpha * alpha) * lit
         f += np.where(rough & above, reflectance * compensation * lobe, 0)
         density = _smith_g1(cos_o, alpha) * d / (4 * cos_o)

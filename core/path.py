@@ -246,7 +246,7 @@ def _next_event(ctx, setup, closures, choice, points, normal, geometric, to_view
         else:
             sample = sample_light(source, where, u1, u2)
         part = closures.take(rows)
-        part_choice = lobes.LobeChoice(choice.probability[:, rows], choice.albedo[:, :, rows])
+        part_choice = choice.take(rows)
         shading = take(normal, rows)
         f, pdf = lobes.evaluate(part, part_choice, shading, take(to_view, rows),
                                 sample.towards)
