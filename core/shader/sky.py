@@ -44,7 +44,7 @@ import numpy as np
 from .colour_models import XYZ_TO_REC709, apply_matrix
 from .images import ImageData, image_from_pixels, lookup
 from .registry import COLOR, VECTOR, node
-from .textures import _blockwise, _mapped, _vector
+from .textures import _blockwise, _mapped, _vector, texture_mapping_transform
 
 SKY_TYPES = ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "PREETHAM")
 #: The size of Cycles' table of the physical skies (``SkyLoader::load_metadata``).
@@ -474,19 +474,19 @@ def _single_scattering(dx, dy, dz, sun, height, density_scale):
         density = [scale * value for scale, value in zip(density_scale, _densities(altitude))]
         for total, value in zip(depth, density):
             total += segment_length * value
-        lit = np.ones(n, bool)
-        if sun_below:   # the Earth in the way of the sun (``surface_intersection``)
+        lit = slice(None)
+        if sun_below:   # where the Earth is not in the way of the sun (``surface_intersection``)
             b = _F32(-2.0) * (sun[0] * -px + sun[1] * -py + sun[2] * -pz)
             c = (px * px + py * py + pz * pz) - _SS_EARTH_RADIUS * _SS_EARTH_RADIUS
-            lit = ~(b * b - _F32(4.0) * c >= 0)
-        light = _optical_depth(px, py, pz, *(np.full(n, s, _F32) for s in sun))
-        total = [d + scale * l for d, scale, l in zip(depth, density_scale, light)]
+            lit = np.flatnonzero(~(b * b - _F32(4.0) * c >= 0))
+        light = _optical_depth(px[lit], py[lit], pz[lit],
+                               *(np.full(len(px[lit]), s, _F32) for s in sun))
+        total = [d[lit] + scale * l for d, scale, l in zip(depth, density_scale, light)]
         attenuation = _exp(-((total[0] * _RAYLEIGH_COEFFICIENT + total[1] * _MIE_EXTINCTION)
                              + total[2] * _OZONE_COEFFICIENT))
-        scattered = (rayleigh_phase * (density[0] * _RAYLEIGH_COEFFICIENT)
-                     + mie_phase * (density[1] * _MIE_COEFFICIENT)) + _ZERO
-        spectrum += np.where(lit, ((attenuation * scattered) * _IRRADIANCE) * segment_length,
-                             _ZERO)
+        scattered = (rayleigh_phase[lit] * (density[0][lit] * _RAYLEIGH_COEFFICIENT)
+                     + mie_phase[lit] * (density[1][lit] * _MIE_COEFFICIENT)) + _ZERO
+        spectrum[:, lit] += ((attenuation * scattered) * _IRRADIANCE) * segment_length[lit]
         px, py, pz = px + sx, py + sy, pz + sz
     return spectrum
 
@@ -754,3 +754,50 @@ def sky_texture(points, vector, *, sky_type="MULTIPLE_SCATTERING", sun_disc=True
                                    xyz_to_scene=xyz_to_scene)
     direction = _mapped(_vector(vector), texture_mapping)
     return _blockwise(lambda d: (kernel(d),), [direction], (COLOR,), cost=16)
+
+
+# --------------------------------------------------------------------------------------------
+# The sun as a light.
+
+def world_sun(program):
+    """(direction (3,) float64 unit, half angle) of the sun disc a world ``program`` draws,
+    for the integrator to sample it on its own as Cycles does (``use_sun_guiding``); None
+    unless exactly one physical Sky Texture with its disc on reads the Generated coordinate
+    (Blender 5 lets no link into a physical sky's Vector; were one to, the sun could be
+    anywhere, and Cycles samples the map alone).  The direction is the kernel's sun undone
+    through the node's Texture Mapping."""
+    from .program import Coordinate
+    suns = []
+    for instruction in program.instructions:
+        if instruction.node != "ShaderNodeTexSky":
+            continue
+        options = dict(instruction.options)
+        if (options.get("sky_type", "MULTIPLE_SCATTERING") not in (
+                "SINGLE_SCATTERING", "MULTIPLE_SCATTERING")
+                or not options.get("sun_disc", True)):
+            continue
+        if instruction.arguments[0] != Coordinate("generated"):
+            return None
+        elevation, rotation = sun_position(options.get("sun_elevation", np.radians(15.0)),
+                                           options.get("sun_rotation", 0.0))
+        longitude = float(rotation) + np.pi / 2
+        direction = np.array([np.cos(elevation) * np.cos(longitude),
+                              np.cos(elevation) * np.sin(longitude), np.sin(elevation)])
+        matrix = texture_mapping_transform(options.get("texture_mapping"))
+        if matrix is not None:
+            direction = np.linalg.solve(matrix[:, :3].astype(np.float64), direction)
+        suns.append((direction / np.linalg.norm(direction),
+                     float(sun_diameter(options.get("sun_size", 0.009512))) / 2))
+    return suns[0] if len(suns) == 1 else None
+
+
+def without_sun_discs(program):
+    """``program`` with every Sky Texture's sun disc off: the world Cycles bakes its map of
+    when it samples the sun on its own (the kernel leaves the disc out of that bake)."""
+    from dataclasses import replace
+    instructions = tuple(
+        replace(instruction, options=tuple(sorted({**dict(instruction.options),
+                                                   "sun_disc": False}.items())))
+        if instruction.node == "ShaderNodeTexSky" else instruction
+        for instruction in program.instructions)
+    return replace(program, instructions=instructions)
