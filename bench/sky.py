@@ -70,6 +70,7 @@ def evaluation_cases(directions):
             ("Multiple Scattering, no disc", evaluate(sun_disc=False)),
             ("Single Scattering, sun disc", evaluate(sky_type="SINGLE_SCATTERING")),
             ("Preetham", evaluate(sky_type="PREETHAM")),
+            ("Hosek / Wilkie", evaluate(sky_type="HOSEK_WILKIE")),
             ("(Environment Texture, 1024 x 512, Linear)",
              lambda: environment_texture(points, directions, image=image))]
 

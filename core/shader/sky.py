@@ -42,11 +42,12 @@ import functools
 import numpy as np
 
 from .colour_models import XYZ_TO_REC709, apply_matrix
+from .hosek_wilkie import hosek_wilkie_state
 from .images import ImageData, image_from_pixels, lookup
 from .registry import COLOR, VECTOR, node
 from .textures import _blockwise, _mapped, _vector, texture_mapping_transform
 
-SKY_TYPES = ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "PREETHAM")
+SKY_TYPES = ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "PREETHAM", "HOSEK_WILKIE")
 #: The size of Cycles' table of the physical skies (``SkyLoader::load_metadata``).
 TABLE_WIDTH, TABLE_HEIGHT = 512, 256
 #: The smallest sun Cycles draws (``SkyTextureNode::get_sun_size``), radians.
@@ -705,6 +706,33 @@ def _preetham_sky(direction, parameters, xyz_to_scene):
     return _xyz_to_rgb(np.stack([big_x, luminance, big_z]), xyz_to_scene)
 
 
+def hosek_parameters(sun_direction, turbidity: float, ground_albedo: float) -> tuple:
+    """(theta, phi, (3,) radiances, (3, 9) configurations) of Hosek and Wilkie's model
+    (``sky_texture_precompute_hosek``): the sun clamped to the horizon, the turbidity to
+    [1, 10] (Blender's property stops at 1: Cycles would read outside its data below)."""
+    theta, phi = _sun_angles(sun_direction)
+    theta = np.clip(theta, _ZERO, _HALF_PI)
+    configurations, radiances = hosek_wilkie_state(
+        float(np.clip(_F32(turbidity), _ONE, _F32(10.0))), float(_F32(ground_albedo)),
+        float(_HALF_PI - theta))
+    return theta, phi, radiances.astype(_F32), configurations.astype(_F32)
+
+
+def _hosek_sky(direction, parameters, xyz_to_scene):
+    sun_theta, sun_phi, radiances, configurations = parameters
+    theta, gamma = _sun_gamma(direction, sun_theta, sun_phi)
+    cos_theta, cos_gamma = _cos(theta), _cos(gamma)
+    ray = cos_gamma * cos_gamma
+    zenith = np.sqrt(cos_theta)
+    xyz = []
+    for c, radiance in zip(configurations, radiances):
+        mie = (_ONE + ray) / _pow(_ONE + c[8] * c[8] - _TWO * c[8] * cos_gamma, _F32(1.5))
+        value = (_ONE + c[0] * _exp(c[1] / (cos_theta + _F32(0.01)))) * (
+            c[2] + c[3] * _exp(c[4] * gamma) + c[5] * ray + c[6] * mie + c[7] * zenith)
+        xyz.append(value * radiance)
+    return _xyz_to_rgb(np.stack(xyz), xyz_to_scene) * (_TWO_PI / _F32(683.0))
+
+
 # --------------------------------------------------------------------------------------------
 # The node.
 
@@ -739,6 +767,10 @@ def sky_texture(points, vector, *, sky_type="MULTIPLE_SCATTERING", sun_disc=True
     if sky_type == "PREETHAM":
         kernel = functools.partial(_preetham_sky, parameters=preetham_parameters(
             sun_direction, numbers["turbidity"]), xyz_to_scene=xyz_to_scene)
+    elif sky_type == "HOSEK_WILKIE":
+        kernel = functools.partial(_hosek_sky, parameters=hosek_parameters(
+            sun_direction, numbers["turbidity"], numbers["ground_albedo"]),
+            xyz_to_scene=xyz_to_scene)
     else:
         elevation, rotation = sun_position(numbers["sun_elevation"], numbers["sun_rotation"])
         atmosphere = (numbers["altitude"], numbers["air_density"], numbers["aerosol_density"],
