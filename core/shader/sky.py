@@ -11,11 +11,13 @@ Type, and the sun disc.
   a fit of higher-order scattering and the light the ground (albedo 0.3) sends back up; it
   covers the whole sphere (below the horizon: the ground seen through the air).  Single
   Scattering marches 32 steps over 21 wavelengths (Rayleigh, Mie and ozone, the optical depth
-  to the sun by an 8-node Gauss-Laguerre quadrature) above the horizon only; below it the
-  kernel fades the horizon's colour to black by 23.6 degrees down.
+  to the sun by an 8-node Gauss-Laguerre quadrature) above the horizon; the table's rows
+  below it hold the horizon's colour, faded to black by 23.6 degrees down.
 * The sun disc (both physical models): the sun's own light through the air at the disc's
   lowest and highest points (``SKY_*_precompute_sun``), blended across the disc by elevation
-  and darkened towards its limb; hidden where the Earth is in front of it.
+  and darkened towards its limb, added to the sky in XYZ; hidden where the Earth is in front
+  of it (``SKY_earth_intersection_angle``).  The path integrator samples it on its own
+  (``world_sun``, ``core.environment.SunGuidedMap``), as Cycles does.
 * Preetham and Hosek / Wilkie are analytic fits of the sky's radiance against the angle from
   the zenith and the angle from the sun (``Sun Direction``, ``Turbidity``; Hosek / Wilkie
   ``Ground Albedo`` too), evaluated per direction.
@@ -23,10 +25,10 @@ Type, and the sun disc.
 Everything is computed as Cycles does it, in float32 and in the same order of operations
 (the tables' integrations included: Blender builds ``intern/sky`` without fused multiply-adds
 or fast math), and the transcendental functions rounded from float64 as glibc's float
-functions are; the tables come out within float rounding of Cycles' own.  A table is computed
-once per process for each combination of the options it depends on (``sky_table``: about a
-second), so that a program carries only the node's options (plain numbers) to the worker
-processes.
+functions are; the colours come out within float rounding of Cycles' own.  A table is
+computed once per process for each combination of the options it depends on (``sky_table``:
+about a second of CPU), so that a program carries only the node's options (plain numbers) to
+the worker processes.
 
 The node's Color is in the file's working colour space (``xyz_to_scene``: Cycles converts
 the models' XYZ with the working space's matrix and clamps negative values to 0).  Its
