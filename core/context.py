@@ -232,8 +232,8 @@ def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces, frame)
         from .shader.program import run
         from .shader.world import world_points
 
-        def run_world(directions):
-            value = run(scene.world, world_points(directions))
+        def run_world(directions, program):
+            value = run(program, world_points(directions))
             return np.broadcast_to(np.maximum(value.emission, 0), directions.shape)
         world = world_light(scene.world, run_world, _world_image_size(scene.world))
     return path_setup(settings, lights, mesh, arrays.background,

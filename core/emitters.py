@@ -429,17 +429,24 @@ WORLD_MAP_DEFAULT = (256, 128)
 class WorldLight:
     """A world whose radiance varies with direction (a program: an HDRI, a sky), as a light:
     directions drawn from ``environment`` (``core.environment.EnvironmentMap``, Cycles'
-    background map, of the world baked at its resolution), its radiance the program's own
-    value in each (so the map only steers the samples, exactly or not)."""
+    background map, of the world baked at its resolution; a ``SunGuidedMap`` where a Sky
+    Texture's sun is sampled on its own), its radiance the program's own value in each (so
+    the map only steers the samples, exactly or not)."""
 
     environment: object
     power: float
 
 
 def world_light(program, run_world, size=None) -> WorldLight:
-    """The WorldLight of a world program: ``run_world(directions (3, n)) -> (3, n)`` its
-    radiance; size: (width, height) of the bake (None: ``WORLD_MAP_DEFAULT``)."""
-    from .environment import EnvironmentMap, equirectangular_directions
+    """The WorldLight of a world program: ``run_world(directions (3, n), program) -> (3, n)``
+    the radiance of ``program`` (the world's, or a variant of it); size: (width, height) of
+    the bake (None: ``WORLD_MAP_DEFAULT``).  A Sky Texture's sun disc (``shader.sky.
+    world_sun``) is sampled on its own and left out of the bake, as in Cycles: a disc of
+    half a degree would otherwise be a few cells of the map, or none."""
+    from .environment import EnvironmentMap, SunGuidedMap, equirectangular_directions
+    from .shader.sky import world_sun, without_sun_discs
+    sun = world_sun(program)
+    baked = program if sun is None else without_sun_discs(program)
     width, height = size or WORLD_MAP_DEFAULT
     width = max(8, min(int(width), WORLD_MAP_MAX[0]))
     height = max(4, min(int(height), WORLD_MAP_MAX[1]))
@@ -449,9 +456,18 @@ def world_light(program, run_world, size=None) -> WorldLight:
         rows = np.arange(row, min(row + 64, height))
         v = 1 - (rows + 0.5) / height            # image row 0 looks up (+Z)
         directions = equirectangular_directions(np.tile(u, len(rows)), np.repeat(v, width))
-        rgb[rows] = np.asarray(run_world(directions), np.float32).T.reshape(len(rows), width, 3)
+        rgb[rows] = np.asarray(run_world(directions, baked), np.float32).T.reshape(
+            len(rows), width, 3)
     rgb = np.nan_to_num(rgb, nan=0.0, posinf=0.0, neginf=0.0)
     environment = EnvironmentMap.from_array("world", rgb)
     sin_theta = np.sin(np.pi * (np.arange(height) + 0.5) / height)[:, None, None]
     power = float(np.abs(rgb * sin_theta).mean() * 2 * np.pi ** 2)
+    if sun is not None:
+        direction, half_angle = sun
+        centre = direction[:, None]
+        disc = np.abs(np.asarray(run_world(centre, program), np.float64)
+                      - np.asarray(run_world(centre, baked), np.float64)).mean()
+        # The disc's radiance at its centre over its solid angle, limb darkening's mean 0.8.
+        power += float(np.nan_to_num(disc)) * 0.8 * 2 * np.pi * (1 - np.cos(half_angle))
+        environment = SunGuidedMap(environment, direction, half_angle)
     return WorldLight(environment, power)

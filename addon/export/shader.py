@@ -120,6 +120,13 @@ def node_options(node, spec, context=None) -> dict:
     return values
 
 
+def _followed(socket) -> bool:
+    """Whether a link into ``socket`` counts: Blender keeps links into sockets a node hides
+    (a physical Sky Texture's Vector) or that are muted, and Cycles drops them, so that the
+    socket reads its coordinate as if unlinked."""
+    return socket.is_linked and socket.links[0].is_valid and not socket.links[0].is_muted
+
+
 class ShaderCompiler:
     """Compiles one node tree (``compile``); owner names it in notes ("material 'Wood'")."""
 
@@ -184,7 +191,7 @@ class ShaderCompiler:
         if output is None:
             if implicit == "normal" and closures_only:
                 return None     # a shader's own normal: the hit's (and foldable)
-            if implicit is not None and not where.is_linked:
+            if implicit is not None and not _followed(where):
                 self.coordinates.add(implicit)
                 return Coordinate(implicit)
             return self._default(where, kind)
