@@ -13,8 +13,8 @@ Bounces follow Cycles (``path_state_next``): a transparent bounce counts only ag
 ``transparent_bounces``; any other counts against ``max_bounces`` and its kind's limit
 (diffuse, glossy, transmission).  A path past a limit still traces its next ray, which
 collects only emission (so 0 bounces is direct light, from both of its estimators).
-Russian roulette from the second bounce on keeps a path with probability
-min(1, sqrt(max throughput)), as Cycles does.  Contributions are clamped as Cycles' film
+Russian roulette, at vertices two bounces or more from the camera (Cycles spares the
+first), keeps a path with probability min(1, sqrt(max throughput)), as Cycles does.  Contributions are clamped as Cycles' film
 clamps them (the sum of a sample's RGB, direct and indirect apart).
 
 Alpha and holdouts follow ``core.trace``'s rules: a path is on the camera's view while it
@@ -58,6 +58,11 @@ class PathResult:
     #: trace_paths(first_hits=True): each camera ray's first hit, (t, primitive, material)
     #: (n,) each (primitive and material -1 where the ray escaped), the passes' source.
     first_hits: tuple | None = None
+
+
+#: Bounces Russian roulette never ends a path at (Cycles' kernel min_bounce: the scene's
+#: Min Light Bounces, 0 by default, plus one).
+ROULETTE_SPARED_BOUNCES = 1
 
 
 def _power_heuristic(a, b):
@@ -404,10 +409,12 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats,
             alive[held] = False
         # The vertex's choices: lobe, light, Russian roulette.
         choices = sample_group(seed, sample, bounce_groups(depth)[1], bits, dtype)
-        if depth > 0:
+        if depth > 1:
+            # Cycles' Russian roulette spares the first bounce (its kernel's min_bounce is
+            # Min Light Bounces, 0, plus one): which matters where light is clamped.
             survive = np.minimum(np.sqrt(np.abs(throughput).max(axis=0)), 1.0)
             u_rr = choices[2]
-            roulette = bounce >= 1
+            roulette = bounce > ROULETTE_SPARED_BOUNCES
             alive &= ~roulette | (u_rr < survive)
             throughput = np.where(roulette & (survive > 0), throughput
                                   / np.where(survive > 0, survive, 1), throughput)
