@@ -216,7 +216,7 @@ def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces, frame)
     """The path integrator's frame (``core.path.PathSetup``): Blender's lights, the
     emitting triangles, the materials' and the world's programs."""
     from .emitters import mesh_lights, prepare_lights
-    from .path import path_setup
+    from .path import LIGHT_SAMPLE_RAY, path_setup
     from .surface_points import SurfaceTables
     # (A light scaled to 0 or of size 0 emits nothing, as in Cycles: ``emits``.)
     lights = prepare_lights([light for light in scene.lights if getattr(light, "emits", True)],
@@ -233,7 +233,9 @@ def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces, frame)
         from .shader.world import world_points
 
         def run_world(directions, program):
-            value = run(program, world_points(directions))
+            # (The map is the world as light samples see it: no ray type, as Cycles
+            # evaluates a background for its importance map.)
+            value = run(program, world_points(directions, LIGHT_SAMPLE_RAY))
             return np.broadcast_to(np.maximum(value.emission, 0), directions.shape)
         world = world_light(scene.world, run_world, _world_image_size(scene.world))
     return path_setup(settings, lights, mesh, arrays.background,

@@ -36,6 +36,8 @@ from .emitters import (SAMPLED_EACH, LightSample, MeshLights, WorldLight, light_
                        mesh_light_pdf, sample_light, sample_mesh_light)
 from .rays import RayBatch, RayStats, ray_offsets
 from .sampler import bounce_groups, index_bits, sample_group
+from .shader.input_nodes import (RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_REFLECT, RAY_SHADOW,
+                                 RAY_SINGULAR, RAY_TRANSMIT, RAY_TRANSPARENT)
 from .shader.program import run
 from .surface_points import surface_points
 from .vectors import dot, facing, take
@@ -60,6 +62,10 @@ class PathResult:
     first_hits: tuple | None = None
 
 
+#: What the Light Path node sees on a shadow ray, and where a light sample evaluates the
+#: world (Cycles' emission evaluation: no ray type).
+SHADOW_RAY = {"ray_type": RAY_SHADOW}
+LIGHT_SAMPLE_RAY = {"ray_type": 0}
 #: Bounces Russian roulette never ends a path at (Cycles' kernel min_bounce: the scene's
 #: Min Light Bounces, 0 by default, plus one).
 ROULETTE_SPARED_BOUNCES = 1
@@ -91,10 +97,12 @@ def _add(colour, path, values):
         colour[row] += np.bincount(path, values[row], colour.shape[1])
 
 
-def closures_at(ctx, hits, normal, geometric, front, travelled=None) -> Closures:
+def closures_at(ctx, hits, normal, geometric, front, travelled=None, ray=None) -> Closures:
     """The closures of ``hits``: their materials' table rows, and where a material has a
     program (``PathSetup.programs``), its value at those hits (normals facing the ray);
-    travelled: (k,) how far each hit's path has come (its footprint's growth)."""
+    travelled: (k,) how far each hit's path has come (its footprint's growth); ray: what the
+    Light Path node reads of the rays that found them ({'ray_type': codes, depths: (k,)
+    each or a number}; None: camera rays), their lengths added here."""
     closures = Closures.from_table(ctx.look.surfaces, hits.material)
     setup = ctx.paths
     if not setup.programs:
@@ -110,9 +118,15 @@ def closures_at(ctx, hits, normal, geometric, front, travelled=None) -> Closures
         if travelled is not None:
             footprint = (setup.pixel_base + setup.pixel_spread * travelled[rows]).astype(
                 ctx.dtype)
+        found = None
+        if ray is not None:
+            found = {name: (values[rows] if np.ndim(values) else values)
+                     for name, values in ray.items()}
+            found["ray_length"] = hits.t[rows] / setup.surface_tables.world_scale
         points = surface_points(setup.surface_tables, ctx.geometry, take(hits.points, rows),
                                 shading, take(geometric, rows), -take(hits.directions, rows),
-                                ~front[rows], hits.primitive[rows], barycentrics, footprint)
+                                ~front[rows], hits.primitive[rows], barycentrics, footprint,
+                                found)
         value = run(program, points).closures(len(rows), ctx.dtype, shading)
         value.holdout_object = closures.holdout_object[rows]
         if value.normal is not None:
@@ -124,14 +138,15 @@ def closures_at(ctx, hits, normal, geometric, front, travelled=None) -> Closures
     return closures
 
 
-def world_radiance(ctx, directions) -> np.ndarray:
+def world_radiance(ctx, directions, ray=None) -> np.ndarray:
     """(3, k) the world's radiance along unit ``directions`` (3, k): its program's value
-    there, or the constant background."""
+    there, or the constant background; ray: the Light Path node's coordinates of those
+    rays (``closures_at``; None: camera rays)."""
     setup = ctx.paths
     if setup.world_program is None:
         return np.broadcast_to(setup.world.astype(directions.dtype)[:, None], directions.shape)
     from .shader.world import world_points
-    value = run(setup.world_program, world_points(directions))
+    value = run(setup.world_program, world_points(directions, ray))
     return np.broadcast_to(np.maximum(value.emission, 0), directions.shape).astype(
         directions.dtype)
 
@@ -195,7 +210,8 @@ def _through_transparency(ctx, origins, towards, offset, reach, exclude, stats):
             return result
         front = hits.front
         normal = facing(hits.shading, front)
-        closures = closures_at(ctx, hits, normal, facing(hits.normals, front), front)
+        closures = closures_at(ctx, hits, normal, facing(hits.normals, front), front,
+                               ray=SHADOW_RAY)
         passed = closures.transparency
         # Only a surface that is nothing but transparent lets light through whole; any other
         # lobe's share blocks (Cycles' shadow rays see the transparent closure's weight).
@@ -276,7 +292,7 @@ def _sample_world(ctx, world: WorldLight, u1, u2, dtype) -> LightSample:
     """Directions towards a WorldLight drawn from its map, the world's radiance in each."""
     towards, pdf, _ = world.environment.sample(u1, u2)
     towards = towards.astype(dtype)
-    radiance = world_radiance(ctx, towards)
+    radiance = world_radiance(ctx, towards, LIGHT_SAMPLE_RAY)
     pdf = pdf.astype(dtype)
     over = np.where(pdf > 0, radiance / np.where(pdf > 0, pdf, 1), 0)
     k = len(u1)
@@ -313,6 +329,7 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats,
     by_diffuse = np.zeros(n, bool)         # the ray left a diffuse or translucent lobe
     min_pdf = np.full(n, np.inf, dtype)    # for Filter Glossy
     travelled = np.zeros(n, dtype)         # the path's length so far (ray footprints)
+    ray_type = np.full(n, RAY_CAMERA, np.int64)   # the Light Path node's flags of the ray
     origins = rays.origins
     batch = RayBatch(rays.origins, rays.directions, rays.t_min, rays.t_max,
                      ctx.camera_origin if rays.shared_origin else None)
@@ -354,7 +371,9 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats,
             shown = missed[~camera_view[missed]] if film == "transparent" else missed
             if len(shown) and setup.world_shines:
                 towards = take(batch.directions, shown)
-                seen = world_radiance(ctx, towards)
+                seen = world_radiance(ctx, towards, _ray_coordinates(
+                    shown, ray_type, bounce, diffuse_bounce, glossy_bounce,
+                    transmission_bounce, transparent_bounce))
                 world = setup.world_light
                 if world is not None:
                     # Weighted against the world's light samples, which could have found it.
@@ -369,6 +388,7 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats,
         keep = hits.rays
         path, throughput, seed, sample = path[keep], throughput[:, keep], seed[keep], sample[keep]
         bounce, last_pdf, camera_view = bounce[keep], last_pdf[keep], camera_view[keep]
+        ray_type = ray_type[keep]
         emission_only, by_diffuse, min_pdf = emission_only[keep], by_diffuse[keep], min_pdf[keep]
         diffuse_bounce, glossy_bounce = diffuse_bounce[keep], glossy_bounce[keep]
         transmission_bounce, transparent_bounce = (transmission_bounce[keep],
@@ -380,7 +400,11 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats,
         geometric = facing(hits.normals, front)
         to_view = -directions
         travelled = travelled[keep] + hits.t
-        closures = closures_at(ctx, hits, normal, geometric, front, travelled)
+        closures = closures_at(ctx, hits, normal, geometric, front, travelled,
+                               _ray_coordinates(slice(None), ray_type, bounce, diffuse_bounce,
+                                                glossy_bounce, transmission_bounce,
+                                                transparent_bounce)
+                               if setup.programs else None)
         if closures.normal is not None:
             normal = closures.normal
         if depth == 0:
@@ -425,6 +449,7 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats,
             path, throughput, seed, sample = path[go], throughput[:, go], seed[go], sample[go]
             bounce, camera_view, min_pdf = bounce[go], camera_view[go], min_pdf[go]
             last_pdf, travelled, choices = last_pdf[go], travelled[go], choices[:, go]
+            ray_type = ray_type[go]
             by_diffuse = by_diffuse[go]
             diffuse_bounce, glossy_bounce = diffuse_bounce[go], glossy_bounce[go]
             transmission_bounce, transparent_bounce = (transmission_bounce[go],
@@ -463,6 +488,8 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats,
             break
         lobe = drawn.lobe[go]
         transparent = lobe == lobes.TRANSPARENT
+        ray_type = _next_ray_type(ray_type[go], lobe, drawn.through[go],
+                                  closures.alpha[go] > lobes.DELTA_ALPHA)
         path, throughput, seed, sample = path[go], throughput[:, go], seed[go], sample[go]
         bounce, camera_view, min_pdf = bounce[go], camera_view[go], min_pdf[go]
         diffuse_bounce, glossy_bounce = diffuse_bounce[go], glossy_bounce[go]
@@ -499,6 +526,26 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats,
         stats.reflection_rays += len(go)
     alpha = np.clip(1 - transparency, 0, 1)
     return PathResult(colour, alpha, albedo, first_normal, first if first_hits else None)
+
+
+def _ray_coordinates(rows, ray_type, bounce, diffuse, glossy, transmission, transparent):
+    """The Light Path node's coordinates of the rays ``rows``: their type flags and the
+    path's bounces so far, as Cycles' ray depths count them."""
+    return {"ray_type": ray_type[rows], "ray_depth": bounce[rows],
+            "diffuse_depth": diffuse[rows], "glossy_depth": glossy[rows],
+            "transmission_depth": transmission[rows], "transparent_depth": transparent[rows]}
+
+
+def _next_ray_type(ray_type, lobe, through, rough):
+    """The Light Path flags of the rays a vertex sends on (Cycles' ``path_state_next``): a
+    transparent bounce keeps the ray's flags; any other lobe makes them its own (diffuse,
+    glossy, or singular glossy for sharp mirrors and glass; reflect or transmit)."""
+    diffuse = (lobe == lobes.DIFFUSE) | (lobe == lobes.TRANSLUCENT)
+    glossy = (lobe == lobes.GLOSSY) | (lobe == lobes.TRANSMISSION)
+    kind = np.where(diffuse, RAY_DIFFUSE, 0) | np.where(
+        glossy, np.where(rough, RAY_GLOSSY, RAY_GLOSSY | RAY_SINGULAR), 0)
+    kind |= np.where(through, RAY_TRANSMIT, RAY_REFLECT)
+    return np.where(lobe == lobes.TRANSPARENT, ray_type | RAY_TRANSPARENT, kind)
 
 
 def _filter_closures(setup, closures: Closures, min_pdf, by_diffuse) -> None:
