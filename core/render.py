@@ -561,13 +561,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
         if isinstance(passes, PrimaryPasses) and passes.emission is not None:
             per_pixel += PrimaryPasses.EMISSION_BYTES_PER_PIXEL
         reserve_bytes += per_pixel * width * height
-    tile_size = settings.tile_size
-    if path_traced(scene, settings):
-        # A progressive pass waits for its last tile: a small frame is cut into at least two
-        # tiles a thread, so that every pass keeps every thread busy.
-        tile_size = min(tile_size, max(16, math.ceil(math.sqrt(width * height
-                                                             / (2 * threads)))))
-    tiles = _tiles(width, height, tile_size)
+    tiles = _tiles(width, height, settings.tile_size)
     # Passes are filled in this process, beside each tile (``work``) or, where the tiles go
     # to worker processes, as each lands (``land``): their trace stops at the first hits,
     # a small part of a tile's work.  The Emission pass follows whole camera paths, so it
