@@ -243,3 +243,37 @@ def test_bad_settings_give_one_line_naming_the_field(field, value):
         RenderSettings(**{field: value})
     message = str(error.value)
     assert f"settings.{field}" in message and "\n" not in message
+
+
+def test_nested_glass_at_any_depth_keeps_the_memory_of_a_shallow_render_and_cancels():
+    # A path follows one branch at glass, so its cost grows with the bounces it takes, never
+    # as 2^depth, and its memory is its tile's arrays at any depth.
+    import threading
+    import tracemalloc
+
+    from bench.nested_glass import nested_glass_scene, settings_at
+    scene = nested_glass_scene(48, 27, layers=5)
+    peaks, rays = {}, {}
+    for bounces in (4, 256):
+        core.render(scene, settings_at(bounces, 2))
+        tracemalloc.start()
+        try:
+            result = core.render(scene, settings_at(bounces, 2))
+            peaks[bounces] = tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+        rays[bounces] = result.stats.reflection_rays
+    assert peaks[256] < 1.5 * peaks[4]
+    assert rays[4] < rays[256] < 4 * rays[4]
+    # A cancel asked during a deep render ends it within seconds (a generous bound: the
+    # machine may be shared; bench.nested_glass reports the figure).
+    import time
+    asked_at = []
+    timer = threading.Timer(0.5, lambda: asked_at.append(time.perf_counter()))
+    timer.start()
+    try:
+        with pytest.raises(core.RenderCancelled):
+            core.render(scene, settings_at(256, 4096), should_cancel=lambda: bool(asked_at))
+        assert time.perf_counter() - asked_at[0] < 10.0
+    finally:
+        timer.cancel()
