@@ -813,7 +813,9 @@ def render_path_tile(ctx, camera, job, stop=None):
     sums[7] = count
     if passes is not None:
         sums = np.concatenate([sums, passes.T])
-    grid = np.zeros((h, w, len(sums)))
+    # float32, the sums worker processes hand over (``core.workers``' shared array): a
+    # frame's image is then the same bit for bit on threads and on processes.
+    grid = np.zeros((h, w, len(sums)), np.float32)
     grid[rows - y0, cols - x0] = sums.T
     stats.seconds_tiles += time.perf_counter() - start
     return grid, stats

@@ -94,6 +94,7 @@ def test_world_samples_reach_the_core_and_0_leaves_the_world_unoccluded():
     scene = simple_scene()
     add_world("grey", (0.5, 0.5, 0.5))
     scene.render.resolution_x, scene.render.resolution_y = 96, 64
+    scene.glint.integrator = 'WHITTED'       # (World Samples are the Whitted integrator's)
     scene.glint.anti_aliasing = 'OFF'
     assert scene.glint.world_samples == RenderSettings.world_samples
     occluded = prepare_job(depsgraph()).run().image

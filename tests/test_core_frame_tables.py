@@ -16,6 +16,7 @@ import pytest
 import core
 from core import aggregate, bins, bvh, workers
 from core.context import make_context
+from core.progressive import ProgressiveFrame, WorkQueue
 from core.render import _tiles, render_tile
 from core.shading import traces_from_points
 from core.trace import traces_bounces
@@ -70,15 +71,37 @@ def _counting(monkeypatch):
     return counts
 
 
+def _frame_on(ctx, camera, settings, shape, dtype):
+    """The frame's image from ``render_tile`` on ``ctx`` alone, tile by tile in this thread:
+    the Whitted integrator's tiles once each, the path integrator's in its progressive passes
+    (``core.progressive``), as the render's workers run them."""
+    image = np.zeros(shape, dtype)
+    tiles = _tiles(camera.width, camera.height, settings.tile_size)
+    if settings.integrator == "whitted":
+        for tile in tiles:
+            rgba, _ = render_tile(ctx, camera, tile)
+            y0, y1, x0, x1 = tile
+            image[y0:y1, x0:x1] = rgba
+        return image
+    queue = WorkQueue(ProgressiveFrame(settings, tiles, image, guides=False))
+    while queue:
+        job = queue.popleft()
+        sums, _ = render_tile(ctx, camera, job)
+        queue.frame.land(job, sums)
+        queue.refill()
+    return image
+
+
+@pytest.mark.parametrize("integrator", ["path", "whitted"])
 def test_workers_get_the_frames_tables_and_build_none(small_renders_in_processes,
-                                                       monkeypatch):
+                                                       monkeypatch, integrator):
     """The render's shared payload, loaded as a worker loads it (``_shared_loads`` over a
     private mapping of its file), holds the eye's depth-ordered bins, the trails' tables and
     the leaf-ordered spheres as out-of-band arrays; every tile traced on it builds no table
     (the counts stay empty), and its image is the one the workers and threads made."""
     scene = _cloud_scene(SUN)
     settings = core.RenderSettings(threads=2, parallelism="processes", tile_size=32,
-                                   precision="float64")
+                                   precision="float64", integrator=integrator, samples=4)
     loaded = []
     real_payload = workers._SharedPayload
 
@@ -106,11 +129,7 @@ def test_workers_get_the_frames_tables_and_build_none(small_renders_in_processes
     assert geometry._leaf_rows[0].nbytes in shipped
 
     counts = _counting(monkeypatch)
-    image = np.zeros_like(result.image)
-    for tile in _tiles(camera.width, camera.height, settings.tile_size):
-        rgba, stats = render_tile(ctx, camera, tile)
-        y0, y1, x0, x1 = tile
-        image[y0:y1, x0:x1] = rgba
+    image = _frame_on(ctx, camera, settings, result.image.shape, result.image.dtype)
     assert counts == {}
     assert np.array_equal(image, result.image)
     threads = core.render(scene, dataclasses.replace(settings, parallelism="threads"))

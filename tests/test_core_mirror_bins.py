@@ -127,7 +127,9 @@ def test_renders_through_mirror_bins_are_the_trees(monkeypatch, semantics, preci
                        spheres=(core.Sphere((0, -9001.2, 0), 9000.0, floor_material,
                                             name="floor"),),
                        lights=(core.PointLight((2, 5, 3)),))
-    settings = core.RenderSettings(semantics=semantics, precision=precision, threads=1)
+    # (The Whitted integrator's bounces carry the eye's position to the floor's rays.)
+    settings = core.RenderSettings(semantics=semantics, precision=precision, threads=1,
+                                   integrator="whitted")
     mirrored = core.render(scene, settings)
     monkeypatch.setattr(aggregate, "MIRROR_SLACK", 0.0)
     tree = core.render(scene, settings)

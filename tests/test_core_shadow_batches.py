@@ -86,8 +86,9 @@ def test_batched_shadow_rays_give_the_images_of_batch_by_batch(monkeypatch, ligh
     smooth meshes (lifted shadow rays), with analytic spheres beside them or not: the same
     image, bit for bit, with the shading call's batches joined as with each traced alone,
     in fewer traces of the aggregate."""
-    settings = core.RenderSettings(anti_aliasing="adaptive", samples=16, threads=1,
-                                   parallelism="threads")
+    # (Shading calls and adaptive AA are the Whitted integrator's.)
+    settings = core.RenderSettings(integrator="whitted", anti_aliasing="adaptive", samples=16,
+                                   threads=1, parallelism="threads")
     scene = _scene(light, spheres)
     calls = []
     occluded = aggregate.Aggregate.occluded
