@@ -138,7 +138,7 @@ def register_glint(glint) -> None:
     import addon_utils
     import bpy
 
-    from glint.addon.engine.final import GlintRenderEngine
+    from glint.addon.engine.base import GlintRenderEngine
 
     if GlintRenderEngine.is_registered:
         return

@@ -10,11 +10,11 @@ import bpy
 
 from ..core import workers
 from . import operators, properties, ui
-from .engine import final
+from .engine.base import GlintRenderEngine
 
 _classes = (
     *properties.classes,
-    final.GlintRenderEngine,
+    GlintRenderEngine,
     *operators.classes,
     *ui.classes,
 )
@@ -39,13 +39,13 @@ def register():
     for cls in _classes:
         bpy.utils.register_class(cls)
     properties.register_pointers()
-    final.register_panels()
+    ui.register_panels()
     if renders_one_frame(sys.argv):
         workers.expect_one_render()
 
 
 def unregister():
-    final.unregister_panels()
+    ui.unregister_panels()
     properties.unregister_pointers()
     for cls in reversed(_classes):
         bpy.utils.unregister_class(cls)

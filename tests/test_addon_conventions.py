@@ -13,7 +13,7 @@ import pytest
 
 from addon_support import (RENDER_SCRIPT, REPOSITORY, add_sphere, add_world, depsgraph, glint,
                            link, prepare_job, read_image, read_png, simple_scene, to_rgba8)
-from glint.addon.engine.final import compatible_panels
+from glint.addon.ui import compatible_panels
 
 
 def glint_panels():
