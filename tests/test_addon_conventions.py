@@ -173,10 +173,9 @@ def _partial(row):
 
 
 def test_each_choice_list_is_defined_once_in_the_core():
+    from glint.addon.cli.arguments import parse_args as script_parse_args
     from glint.core import choices
     from glint.core.__main__ import parse_args as core_parse_args
-
-    import render as render_script
 
     settings = bpy.context.scene.glint
     for prop, choice_list in (("semantics", choices.SEMANTICS_CHOICES),
@@ -186,17 +185,14 @@ def test_each_choice_list_is_defined_once_in_the_core():
         items = settings.bl_rna.properties[prop].enum_items
         assert [(i.identifier, i.name, i.description) for i in items] == [
             (value.upper(), label, text) for value, label, text in choice_list]
-    script = render_script.load_choices()
-    assert (script.SEMANTICS, script.PRECISIONS, script.PARALLELISM) == (
-        choices.SEMANTICS, choices.PRECISIONS, choices.PARALLELISM)
     # The command lines accept exactly the core's values.
     for value in choices.PRECISIONS:
         assert core_parse_args(["--output", "x.png", "--precision", value]).precision == value
     for value in choices.PARALLELISM:
         assert core_parse_args(["--output", "x.png", "--parallelism", value]).parallelism \
             == value
-        assert render_script.parse_args(["--output", "x.png", "--parallelism", value]
-                                        ).parallelism == value
+        assert script_parse_args(["--output", "x.png", "--parallelism", value]
+                                 ).parallelism == value
     from glint.core.scene import RenderSettings, SceneError
     # One default everywhere: the core's.
     assert core_parse_args(["--output", "x.png"]).parallelism == RenderSettings.parallelism

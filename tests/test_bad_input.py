@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from addon_support import (RENDER_SCRIPT, REPOSITORY, core, depsgraph, export_scene,
-                           prepare_job, read_image, render_script, simple_scene)
+                           prepare_job, read_image, simple_scene)
 
 NAN, INF = float("nan"), float("inf")
 
@@ -448,11 +448,11 @@ def test_the_settings_hard_maximums_are_the_cores_limits():
     settings = simple_scene().glint
     settings.samples = 100_000_000  # Blender clamps to the hard maximum
     assert settings.samples == limits.MAX_SAMPLES
-    # render.py checks its options before importing the package, with the same numbers.
-    assert (render_script.MAX_SAMPLES, render_script.MAX_DEPTH) == (limits.MAX_SAMPLES,
-                                                                    limits.MAX_DEPTH)
+    # render.py checks its options before loading Blender, with Blender's numbers.
+    from glint.addon.cli import arguments
+
     resolution = bpy.types.RenderSettings.bl_rna.properties["resolution_x"]
-    assert (render_script.MIN_RESOLUTION, render_script.MAX_RESOLUTION) == (
+    assert (arguments.MIN_RESOLUTION, arguments.MAX_RESOLUTION) == (
         resolution.hard_min, resolution.hard_max)
 
 

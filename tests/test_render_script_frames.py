@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from addon_support import (RENDER_SCRIPT, REPOSITORY, core_image, depsgraph, prepare_job,
-                           read_png, render_script, simple_scene)
+                           read_png, simple_scene)
 from exr import read_exr
 
-FrameClaim, frame_path = render_script.FrameClaim, render_script.frame_path
+from glint.addon.cli.frames import FrameClaim, frame_path  # noqa: E402
 
 
 def run_script(*arguments, **kwargs):
