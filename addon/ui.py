@@ -145,10 +145,11 @@ classes = (GLINT_PT_render, GLINT_PT_render_performance, GLINT_PT_sidebar,
 
 #: Panels marked for every engine that Glint does not show: Blender's type-only light panel
 #: and its node variant (Glint shows one Light panel, EEVEE's, which edits what Glint
-#: exports: type, colour, power, radius), the spot cone (Glint renders no spot lights) and
-#: light probes (Glint does not use them).
+#: exports: type, colour, temperature, power, exposure, radius, angle, shape and size; its
+#: Beam Shape sub-panel, DATA_PT_spot, edits the spot cone) and light probes (Glint does not
+#: use them).
 EXCLUDED_PANEL_PREFIXES = ('DATA_PT_lightprobe', 'DATA_PT_context_lightprobe')
-EXCLUDED_PANELS = {'DATA_PT_light', 'NODE_DATA_PT_light', 'DATA_PT_spot'}
+EXCLUDED_PANELS = {'DATA_PT_light', 'NODE_DATA_PT_light'}
 
 
 def _excluded(name: str) -> bool:
