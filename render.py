@@ -4,14 +4,17 @@
     python render.py [scene.blend] --output OUT.png [options]        (pip bpy)
     python render.py scene.blend --output "out/frame_####.png" --frames 1-250 \\
         --no-overwrite --placeholder                  (an animation several processes share)
+    python render.py scene.blend --frame 3            (as blender -b scene.blend -f 3)
 
 Both do the same job.  Without a .blend, the article's scene is built in Blender
 (``addon.utils.article_scene``).  Options override the scene's settings; everything else
 (camera, objects, materials, world, Film > Transparent, ...) comes from the .blend.  The
-frame is rendered by Glint's render engine, exactly as F12 would render it, and the PNG is
-what Blender's colour management (view transform, look, exposure) makes of it: the pixels F12
-saves and the Render button's Image shows.  With Film > Transparent, alpha is the coverage
-(less holdouts and what Transparent BSDFs let through) and the background is transparent.
+frame is rendered by Glint's render engine exactly as ``blender -b scene.blend -f N`` renders
+and saves it (compositor and sequencer included), and the PNG is what Blender's colour
+management (view transform, look, exposure) makes of it: the pixels F12 saves and the Render
+button's Image shows.  Without --output, the file goes to the .blend's own output path, in
+its format.  With Film > Transparent, alpha is the coverage (less holdouts and what
+Transparent BSDFs let through) and the background is transparent.
 
 This file only loads the add-on: the program is ``addon/cli/`` (``run.main``; the options in
 ``arguments``, animations and frame claiming in ``frames``, the files in ``output``, Ctrl-C

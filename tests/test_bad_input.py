@@ -370,6 +370,8 @@ def test_render_script_names_the_culprit_in_one_line(tmp_path, case):
     assert result.returncode == 1
     line = check_line(result.stderr, REFUSED[case][1])
     assert line.startswith("render.py: error:")
+    # Said once: Blender does not print it as well (as "Error: ..." on stdout).
+    assert line.removeprefix("render.py: error: ") not in result.stdout
     assert sorted(os.listdir(tmp_path)) == ["bad.blend"]
 @pytest.mark.parametrize("name", ["x" * 64, "é" * 32])  # 64 bytes each
 def test_an_image_name_longer_than_blenders_limit_is_refused_and_creates_nothing(name):

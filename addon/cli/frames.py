@@ -13,28 +13,33 @@ from .report import RenderScriptError
 def frame_path(template: str, frame: int, animation: bool = False) -> str:
     """Blender's frame numbering of output paths: the last run of '#' in the file name becomes
     the frame number, zero-padded to its length (``frame_####.png``, frame 7 ->
-    ``frame_0007.png``; negative frames keep their sign).  Without '#', an animation's frame
+    ``frame_0007.png``; frame -3 -> ``frame_-0003.png``).  Without '#', an animation's frame
     number goes before the extension in four digits (``out.png`` -> ``out0007.png``), a single
     frame's path is the template itself."""
     folder, name = os.path.split(template)
     runs = list(re.finditer(r"#+", name))
     if runs:
         run = runs[-1]
-        digits = f"{frame:0{len(run.group())}d}" if frame >= 0 else \
-            f"-{-frame:0{len(run.group()) - 1}d}"
+        digits = _digits(frame, len(run.group()))
         return os.path.join(folder, name[:run.start()] + digits + name[run.end():])
     if not animation:
         return template
     stem, extension = os.path.splitext(name)
-    return os.path.join(folder, f"{stem}{frame:04d}{extension}")
+    return os.path.join(folder, f"{stem}{_digits(frame, 4)}{extension}")
 
 
-def animation_frames(scene, args) -> list[int]:
-    """The frames --frames asks for: its START-END, or the scene's range and step."""
+def _digits(frame: int, width: int) -> str:
+    """Blender's frame number: zero-padded to ``width`` digits, the sign before them."""
+    return f"{'-' if frame < 0 else ''}{abs(frame):0{width}d}"
+
+
+def animation_frames(scene, args) -> range:
+    """The frames --frames asks for: its START-END, or the scene's range and step; made one
+    at a time (a range: two million frames cost no more than two)."""
     if args.frame_range is not None:
         start, end = args.frame_range
-        return list(range(start, end + 1))
-    return list(range(scene.frame_start, scene.frame_end + 1, scene.frame_step))
+        return range(start, end + 1)
+    return range(scene.frame_start, scene.frame_end + 1, scene.frame_step)
 
 
 class FrameClaim:

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import signal
 
+from .report import RenderScriptError
+
 #: Exit status after a signal cancelled the run: the shell's convention, 128 + its number.
 EXIT_SIGNAL_BASE = 128
 
@@ -39,18 +41,13 @@ class Interruption:
             raise Interrupted(self.signal_number)
 
 
-class Interrupted(Exception):
-    """The run was cancelled by a signal; nothing was written."""
+class Interrupted(RenderScriptError):
+    """The run was cancelled by a signal; ``outcome`` says what was written (a frame: nothing;
+    an animation: the frames finished before it)."""
 
-    def __init__(self, signal_number: int):
-        super().__init__(signal_number)
+    def __init__(self, signal_number: int, outcome: str = "nothing written"):
+        name = signal.Signals(signal_number).name
+        how = " (Ctrl-C)" if signal_number == signal.SIGINT else ""
+        super().__init__(f"cancelled by {name}{how}; {outcome}",
+                         EXIT_SIGNAL_BASE + signal_number)
         self.signal_number = signal_number
-
-    @property
-    def exit_code(self) -> int:
-        return EXIT_SIGNAL_BASE + self.signal_number
-
-    def __str__(self) -> str:
-        name = signal.Signals(self.signal_number).name
-        how = " (Ctrl-C)" if self.signal_number == signal.SIGINT else ""
-        return f"cancelled by {name}{how}; nothing written"

@@ -14,7 +14,12 @@ EXIT_FAILURE = 1  # the render could not be made
 
 
 class RenderScriptError(Exception):
-    """A problem reported to the user as one line."""
+    """A problem reported to the user as one line, and the exit status it ends the program
+    with."""
+
+    def __init__(self, message: str, exit_code: int = EXIT_FAILURE):
+        super().__init__(message)
+        self.exit_code = exit_code
 
 
 def fail(message: str, code: int = EXIT_FAILURE) -> int:

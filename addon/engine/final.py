@@ -23,8 +23,9 @@ Render results have row 0 at the bottom.  Tiles are handed over as they land
 (``TileHandOver``), so a frame costs the job's float32 image and Blender's own buffer, plus a
 tile.
 
-Scripts that want the core's numbers rather than Blender's colour-managed result (render.py)
-ask for them explicitly with ``FrameRequest`` (below).
+Scripts that render through the engine (render.py) make a ``FrameRequest`` (below): it gives
+them the core's numbers as well as (or instead of) Blender's render result, their own
+cancel, and the failure to report themselves.
 """
 
 from __future__ import annotations
@@ -58,12 +59,17 @@ class FrameRequest:
     fill_render_result: False when the script writes the frame itself: the engine then
         leaves Blender's render result empty, which spares a frame-sized copy.
     progress: called as (RenderJob, fraction done) as tiles land (render.py's progress line).
+    failure: the one line about the failure that ended the render, for the script to report
+        once: with a request the engine makes no ERROR report (which Blender prints besides
+        raising it), and renders no view layer after a failed one (the frame is lost;
+        Blender would go on rendering the others).
     """
 
     should_cancel: Callable[[], bool] = lambda: False
     fill_render_result: bool = True
     frames: list = field(default_factory=list)
     progress: Optional[Callable] = None
+    failure: Optional[str] = None
 
 
 _active_request: Optional[FrameRequest] = None
@@ -87,7 +93,9 @@ def render_final(engine, depsgraph) -> None:
     the tiles and passes to Blender's render result; any failure ends in one line
     (``failures_reported``)."""
     request = _active_request
-    with failures_reported(engine):
+    if request is not None and request.failure is not None:
+        return  # an earlier view layer failed: the frame is lost already
+    with failures_reported(engine, request):
         job = prepare_job(depsgraph, camera_override=engine.camera_override)
         view_layer = depsgraph.view_layer
         missing_passes = pass_warning(view_layer)
@@ -158,17 +166,20 @@ def render_job(engine, depsgraph, job, passes=(),
 
 
 @contextmanager
-def failures_reported(engine):
+def failures_reported(engine, request: Optional[FrameRequest] = None):
     """Whatever goes wrong inside ends in one ERROR report naming it (``failure_message``,
-    module docstring); a cancel ends quietly: the tiles that finished stay in the render
-    result, as with Blender's own engines, and Blender writes no file for a cancelled
-    frame."""
+    module docstring), or with a ``request`` in its ``failure``; a cancel ends quietly: the
+    tiles that finished stay in the render result, as with Blender's own engines, and Blender
+    writes no file for a cancelled frame."""
     try:
         yield
     except RenderCancelled:
         return
     except BaseException as error:  # noqa: B036 - every failure must reach the user
         message = failure_message(error)
+        if request is not None:
+            request.failure = message
+            return
         engine.report({'ERROR'}, message)
         if not bpy.app.background:
             engine.error_set(message)
