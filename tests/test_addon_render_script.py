@@ -227,6 +227,18 @@ def test_bad_arguments_fail_with_one_line_and_write_nothing(tmp_path, case):
     assert os.listdir(tmp_path) == ["folder.png"]
 
 
+def test_the_arguments_are_checked_before_blender_is_loaded():
+    """Importing the add-on and render.py's arguments loads no Blender module, so a mistake
+    costs no Blender start-up."""
+    code = ("import sys; sys.path.insert(0, sys.argv[1]); import render; render.import_glint(); "
+            "import glint.addon.cli.arguments; "
+            "print(sorted(m for m in ('bpy', 'addon_utils', 'bmesh') if m in sys.modules))")
+    result = subprocess.run([sys.executable, "-c", code, REPOSITORY], capture_output=True,
+                            text=True, timeout=120, cwd=REPOSITORY)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "[]"
+
+
 def test_a_write_protected_output_is_refused_with_one_line(tmp_path):
     output = tmp_path / "kept.png"
     output.write_bytes(b"previous render")
