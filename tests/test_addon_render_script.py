@@ -387,6 +387,9 @@ def test_only_the_view_layers_the_file_shows_are_rendered(tmp_path):
     assert plan("--output", png).view_layers == ("All",)
     scene.view_layers["ViewLayer"].use = True
     invert_compositor(scene, "Fourth")
+    scene.view_layers["Fourth"].use = False   # it reads no layer that renders: all render
+    assert plan("--output", png).view_layers is None
+    scene.view_layers["Fourth"].use = True
     composited = plan("--output", png)
     assert composited.view_layers == ("Fourth",) and composited.from_render_result
 

@@ -124,9 +124,10 @@ def uses_sequencer(scene) -> bool:
 
 
 def compositor_layers(scene, tree) -> Optional[tuple]:
-    """The names of ``scene``'s view layers the compositor reads (its Render Layers nodes,
-    inside node groups too), or None when that cannot be told (a Cryptomatte node reading the
-    render, or no layer of this scene at all): then every layer is rendered, as F12 does."""
+    """The names of ``scene``'s enabled view layers the compositor reads (its Render Layers
+    nodes, inside node groups too), or None when that cannot be told (a Cryptomatte node
+    reading the render) or it reads none of them: then every layer is rendered, as F12
+    does."""
     layers, seen = set(), set()
 
     def visit(nodes) -> bool:
@@ -143,9 +144,10 @@ def compositor_layers(scene, tree) -> Optional[tuple]:
                     return False
         return True
 
-    if not visit(tree.nodes) or not layers:
+    if not visit(tree.nodes):
         return None
-    return tuple(sorted(layers))
+    layers &= {layer.name for layer in scene.view_layers if layer.use}
+    return tuple(sorted(layers)) or None
 
 
 def scene_output_path(scene, frame: int) -> str:
