@@ -12,7 +12,7 @@ import bpy
 import numpy as np
 import pytest
 
-from addon_support import (RENDER_SCRIPT, REPOSITORY, add_point_light, core_image, depsgraph,
+from addon_support import (RENDER_SCRIPT, REPOSITORY, add_camera, core_image, depsgraph,
                            prepare_job, read_png, simple_scene)
 from exr import read_exr
 
@@ -302,15 +302,17 @@ def test_sigterm_during_an_animation_says_how_many_frames_were_written(tmp_path)
 
 def test_a_failed_frame_ends_the_animation_with_one_line_and_keeps_the_frames_before(
         tmp_path):
-    """From frame 3 on, a light of infinite power shows: frames 1 and 2 are written, then one
-    line names the frame, the reason and how many frames were written; nothing of frame 3
-    or 4 is left (their placeholders are removed), and the reason is said once, not again in
-    a report from Blender."""
+    """From frame 3 on, a timeline marker makes a panoramic camera the scene's (which Glint
+    refuses): frames 1 and 2 are written, then one line names the frame, the reason and how
+    many frames were written; nothing of frame 3 or 4 is left (their placeholders are
+    removed), and the reason is said once, not again in a report from Blender."""
     animated_blend(tmp_path)
-    faulty = add_point_light("faulty", energy=float("inf"))
-    for frame, hidden in ((1, True), (3, False)):   # a boolean's keys hold until the next
-        faulty.hide_render = hidden
-        faulty.keyframe_insert("hide_render", frame=frame)
+    scene = bpy.context.scene
+    panoramic = add_camera("panoramic")
+    panoramic.data.type = 'PANO'
+    scene.camera = bpy.data.objects["camera"]
+    scene.timeline_markers.new("plain", frame=1).camera = scene.camera
+    scene.timeline_markers.new("panoramic", frame=3).camera = panoramic
     blend = tmp_path / "faulty.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
 
@@ -319,8 +321,8 @@ def test_a_failed_frame_ends_the_animation_with_one_line_and_keeps_the_frames_be
 
     assert result.returncode == 1, result.stderr
     (line,) = result.stderr.strip().splitlines()
-    assert line == ("render.py: error: frame 3: light 'faulty'.energy must be finite, got "
-                    "inf; wrote 2 of 4 frames, skipped 0")
-    assert "must be finite" not in result.stdout
+    assert line == ("render.py: error: frame 3: camera 'panoramic' is panoramic: Glint renders "
+                    "perspective and orthographic cameras only; wrote 2 of 4 frames, skipped 0")
+    assert "is panoramic" not in result.stdout
     assert sorted(name for name in os.listdir(tmp_path) if name.startswith("f_")) == [
         "f_1.png", "f_2.png"]
