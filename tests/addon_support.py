@@ -146,6 +146,21 @@ def animate_small_sphere(last_frame):
     return small
 
 
+def invert_compositor(scene, layer="ViewLayer"):
+    """Compositing that shows ``layer`` inverted (Blender 5.0's compositing node group)."""
+    tree = bpy.data.node_groups.new("Invert", "CompositorNodeTree")
+    tree.interface.new_socket("Image", in_out='OUTPUT', socket_type='NodeSocketColor')
+    render_layers = tree.nodes.new("CompositorNodeRLayers")
+    render_layers.layer = layer
+    invert = tree.nodes.new("CompositorNodeInvert")
+    output = tree.nodes.new("NodeGroupOutput")
+    tree.links.new(render_layers.outputs["Image"], invert.inputs["Color"])
+    tree.links.new(invert.outputs["Color"], output.inputs["Image"])
+    scene.compositing_node_group = tree
+    scene.render.use_compositing = True
+    return tree
+
+
 def camera_and_light_file():
     """An empty file holding only the default ``add_camera`` and ``add_point_light``."""
     scene = empty_file()

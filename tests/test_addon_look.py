@@ -13,7 +13,7 @@ import pytest
 from addon_support import (add_camera, add_sphere, add_world, camera_and_light_file, core,
                            depsgraph, empty_file, export_scene, link)
 from cycles_support import node_material
-from glint.addon.engine.final import GlintRenderEngine
+from glint.addon.engine.base import GlintRenderEngine
 
 
 @pytest.fixture

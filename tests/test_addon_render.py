@@ -12,7 +12,8 @@ import pytest
 from addon_support import (add_camera, add_point_light, add_sphere, add_world, animate_small_sphere,
                            core, core_image, cube_mesh, depsgraph, empty_file, glint, link,
                            prepare_job, read_png, simple_scene, to_rgba8)
-from glint.addon.engine.final import GlintRenderEngine, compatible_panels
+from glint.addon.engine.base import GlintRenderEngine
+from glint.addon.ui import compatible_panels
 from glint.addon.engine.job import ThreadedRender
 from glint.addon.utils.image import COLOUR_SPACE, read_image
 
@@ -188,7 +189,7 @@ def test_a_cancelled_render_stops_and_produces_no_image():
             self.cancel()
 
     job.settings = core.RenderSettings(tile_size=8, threads=1, anti_aliasing="off")
-    worker = CancelAfterFirstTile(job)
+    worker = CancelAfterFirstTile.of_job(job)
     assert worker.wait(timeout=60)
 
     assert worker.cancelled and worker.result is None and worker.error is None
@@ -197,7 +198,7 @@ def test_a_cancelled_render_stops_and_produces_no_image():
 
 def test_the_threaded_render_gives_the_same_image_as_a_direct_one():
     simple_scene()
-    worker = ThreadedRender(prepare_job(depsgraph()))
+    worker = ThreadedRender.of_job(prepare_job(depsgraph()))
     assert worker.wait(timeout=60)
     assert worker.error is None and not worker.cancelled and worker.fraction == 1.0
     np.testing.assert_array_equal(worker.result.image, core_image())
@@ -540,7 +541,7 @@ def test_modal_render_reports_progress_and_writes_the_image_when_done():
     before = glint_image()
     bpy.data.objects["small"].location.x -= 0.5
     job = prepare_job(depsgraph())
-    driver = ModalDriver(job, ThreadedRender(job))
+    driver = ModalDriver(job, ThreadedRender.of_job(job))
     context = type("Context", (), {"window_manager": RecordingWindowManager()})()
     driver._worker.wait(timeout=60)
 
@@ -563,7 +564,7 @@ def test_modal_render_cancelled_with_esc_keeps_the_previous_image():
     job = prepare_job(depsgraph())
     job.settings = core.RenderSettings(tile_size=8, threads=1, anti_aliasing="fixed",
                                        samples=64)
-    driver = ModalDriver(job, ThreadedRender(job))
+    driver = ModalDriver(job, ThreadedRender.of_job(job))
     context = type("Context", (), {"window_manager": RecordingWindowManager()})()
 
     assert driver.modal(context, driver.event('ESC')) == {'RUNNING_MODAL'}

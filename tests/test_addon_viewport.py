@@ -24,12 +24,12 @@ from mathutils import Matrix
 from addon_support import add_camera, core, depsgraph, empty_file, simple_scene
 from glint.addon.draw.viewport import texture_pixels
 from glint.addon.engine import viewport
-from glint.addon.engine.final import GlintRenderEngine
+from glint.addon.engine.base import GlintRenderEngine
 from glint.addon.engine.job import prepare_job
 from glint.addon.engine.viewport import (COARSE_PIXELS, ProgressiveRender, ViewportSession,
-                                         ViewportView, border_rect, camera_frame_rect,
                                          coarse_divisor, export_viewport_scene,
-                                         refinement_schedule, view_camera)
+                                         refinement_schedule)
+from glint.addon.export.view import ViewportView, border_rect, camera_frame_rect, view_camera
 from glint.addon.utils.colour import srgb_to_linear
 from glint.core.camera import camera_rays
 

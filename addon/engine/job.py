@@ -24,6 +24,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import threading
+import time
 import traceback
 from dataclasses import dataclass, field
 from typing import Callable, Optional
@@ -216,41 +217,82 @@ def prepare_job(depsgraph, camera_override=None) -> RenderJob:
 
 
 class ThreadedRender:
-    """A RenderJob running on a worker thread, for the Render button's modal operator.
+    """Renders on a worker thread, pass after pass, while the main thread stays free: the
+    Render button's job (``of_job``: one pass) and the viewport's refinement
+    (``viewport.ProgressiveRender``: coarse to final).
 
-    The thread runs only ``RenderJob.run`` (NumPy, no Blender data); the operator polls
-    ``fraction`` and ``done`` from timer events on the main thread and asks for a stop with
-    ``cancel``, which the core honours between tiles.
+    The thread runs only the passes (NumPy, no Blender data).  The main thread polls
+    ``fraction`` (of the pass running), ``result`` (the latest finished pass's, None before
+    the first) and ``done``, and asks for a stop with ``cancel``, which the core honours
+    between tiles; after it no later pass replaces ``result``.  ``cancelled``: a stop was
+    asked for; ``error``: what ended the passes otherwise (reported by the caller);
+    ``result_times``: seconds from the start to each finished pass.
+
+    passes: callables ``(progress, should_cancel) -> result``.  on_result (called on the
+    worker thread, so it must not touch Blender data) is told of each finished pass's result.
     """
 
-    def __init__(self, job: RenderJob):
-        self.job = job
+    def __init__(self, passes, on_result: Optional[Callable] = None,
+                 name: str = "glint-render"):
+        self.passes = list(passes)
         self.fraction = 0.0
-        self.result: Optional[JobResult] = None
+        self.result = None
         self.error: Optional[BaseException] = None
-        self.cancelled = False
+        self.started = time.perf_counter()
+        self.result_times: list[float] = []
+        self._on_result = on_result
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="glint-render", daemon=True)
+        self._lock = threading.Lock()
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self._thread.start()
+
+    @classmethod
+    def of_job(cls, job: RenderJob) -> "ThreadedRender":
+        """The Render button's render: the job in one pass, with room kept for the Image it
+        is stored in."""
+        def run(progress, should_cancel) -> JobResult:
+            return job.run(progress=progress, should_cancel=should_cancel,
+                           reserve_bytes=job.frame_bytes)
+        return cls([run])
 
     def _progress(self, fraction: float) -> None:
         self.fraction = fraction
 
     def _run(self) -> None:
-        try:
-            self.result = self.job.run(progress=self._progress, should_cancel=self._stop.is_set,
-                                       reserve_bytes=self.job.frame_bytes)  # the Image
-        except RenderCancelled:
-            self.cancelled = True
-        except BaseException as error:  # reported to the user by the operator
-            self.error = error
+        for run_pass in self.passes:
+            try:
+                result = run_pass(self._progress, self._stop.is_set)
+            except RenderCancelled:
+                return
+            except BaseException as error:  # reported to the user by the caller
+                self.error = error
+                return
+            if not self._publish(result):
+                return
+
+    def _publish(self, result) -> bool:
+        """Make ``result`` the latest (a pass's, or a picture a pass shows on its way) and
+        tell on_result; False, and nothing shown, once a stop was asked for."""
+        with self._lock:
+            if self._stop.is_set():
+                return False
+            self.result = result
+            self.result_times.append(time.perf_counter() - self.started)
+        if self._on_result is not None:
+            self._on_result(result)
+        return True
 
     @property
     def done(self) -> bool:
         return not self._thread.is_alive()
 
+    @property
+    def cancelled(self) -> bool:
+        return self._stop.is_set()
+
     def cancel(self) -> None:
-        self._stop.set()
+        with self._lock:
+            self._stop.set()
 
     def wait(self, timeout: Optional[float] = None) -> bool:
         self._thread.join(timeout)
