@@ -144,7 +144,7 @@ def test_both_kernels_shear_as_the_papers_matrix_rows_do_bit_for_bit(dtype, shar
     sheared corner as p[kx] - Sx p[kz]; the paper's per-ray 3 x 3 shear, a dot product with
     each row (entries 1, 0 and -S), rounds alike, as its products by 1 and 0 are exact: the
     same t, barycentrics and verdicts from all three, for every axis permutation."""
-    from core.triangles import Shear, _hit, watertight_axes, watertight_pairs
+    from core.geometry.triangles import Shear, _hit, watertight_axes, watertight_pairs
 
     rng = np.random.default_rng(4)
     k, n = 9, 600

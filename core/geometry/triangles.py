@@ -1,5 +1,6 @@
-"""Watertight ray/triangle intersection (Woop, Benthin and Wald, "Watertight Ray/Triangle
-Intersection", JCGT 2(1), 2013), shape-generic like ``core.intersect``.
+"""Triangles: watertight ray/triangle intersection (Woop, Benthin and Wald, "Watertight
+Ray/Triangle Intersection", JCGT 2(1), 2013), shape-generic like ``spheres``' kernels, and
+the scene's triangles as a shape that answers its own batch tests (``Triangles``).
 
 Each ray gets a shear that maps it to the +z axis from the origin: with kz the axis of its
 direction's largest component and kx, ky the next two (swapped when d[kz] < 0, which keeps
@@ -17,9 +18,7 @@ and a sheared corner is computed as the formula reads, ``p[kx] + (-Sx) p[kz]`` a
 for rays that share their axes, a block of (triangle, ray) pairs at once
 (``watertight_axes``; a batch is cut into at most six such groups), or for explicit pairs,
 gathering each pair's axes (``watertight_pairs``).  Both round alike, so a ray's hits do not
-depend on which kernel found them.  (Until stop 24 the shear was three rows of a 3 x 3
-matrix, each corner's coordinate a dot product with a row: the same values, as the products
-by 1 and 0 are exact, at twice the cost.)
+depend on which kernel found them.
 """
 
 from __future__ import annotations
@@ -28,7 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .vectors import take
+from ..arrays import TriangleArrays
+from ..vectors import take
 
 
 @dataclass(frozen=True)
@@ -119,3 +119,67 @@ def _hit(ax, ay, az, bx, by, bz, cx, cy, cz, t_min, t_max):
         t = depth * inverse
         valid = inside & (det != 0) & (t > t_min) & (t < t_max)
         return t, u * inverse, v * inverse, w * inverse, valid
+
+
+class Triangles:
+    """The scene's triangles as a shape: their arrays (``core.arrays.TriangleArrays``,
+    float64), their corners as rows (9, T) in the render precision ``dtype`` (corner j's
+    axis k in row 3 j + k; ``v`` their (3, T) views), geometric and corner normals in that
+    precision, bounding spheres (for the flat culling's cones), and the smooth triangles'
+    terminator offsets where the hit rules lift them (None otherwise)."""
+
+    def __init__(self, arrays: TriangleArrays, dtype, lifts_terminator: bool):
+        self.arrays = arrays
+        self.dtype = np.dtype(dtype)
+        self.count = len(arrays)
+        self.material = arrays.material
+        self.corners = self.v = self.normals = self.corner_normals = self.terminator = None
+        if self.count == 0:
+            return
+        t = arrays
+        cast = lambda a: np.ascontiguousarray(a, self.dtype)  # noqa: E731
+        self.corners = cast(np.concatenate([t.v0, t.v1, t.v2]))
+        self.v = (self.corners[0:3], self.corners[3:6], self.corners[6:9])
+        self.normals = cast(t.normals)
+        self.corner_normals = None if t.corner_normals is None else cast(t.corner_normals)
+        # Geometry offsets of the smooth triangles' shadow rays (None: no such triangle).
+        self.terminator = (None if t.terminator_offset is None or not lifts_terminator
+                           else cast(t.terminator_offset))
+        centre = (t.v0 + t.v1 + t.v2) / 3
+        reach = np.sqrt(np.maximum.reduce([((v - centre) ** 2).sum(axis=0)
+                                           for v in (t.v0, t.v1, t.v2)]))
+        self.centers = centre
+        self.radii = reach * (1 + 1e-9) + 1e-12 * (1 + np.abs(centre).max(axis=0))
+
+    def boxes(self, ids=None):
+        """(low, high) (3, k) float64 bounding boxes of triangles ``ids`` (k,) (None: all)."""
+        t = self.arrays
+        v0, v1, v2 = (t.v0, t.v1, t.v2) if ids is None else (take(v, ids) for v in (
+            t.v0, t.v1, t.v2))
+        return np.minimum(np.minimum(v0, v1), v2), np.maximum(np.maximum(v0, v1), v2)
+
+    def pairs_hit(self, rays, shear, r, triangle, t_min, t_max):
+        """(t, b0, b1, b2, valid) (E,) of pairs (ray r, triangle) of a batch (local triangle
+        indices), the rays' ``Shear`` given (``watertight_pairs``)."""
+        return watertight_pairs(self.corners, triangle,
+                                rays.origins.astype(self.dtype, copy=False), shear, r, t_min,
+                                t_max)
+
+    def saved_tests(self, up_to: int) -> float:
+        """The triangle tests (of T) a tree saves a ray over testing every triangle, for at
+        most ``up_to`` triangles (0 past that: their count decides): T less the tests a ray
+        crossing their bounds would make in a tree, estimated as the SAH does, by the sum of
+        the triangles' boxes' surface areas over their bounds'.  A floor or a wall spans the
+        bounds, so every ray meets it either way; a cube's faces are small boxes."""
+        if self.count == 0 or self.count > up_to:
+            return 0.0
+
+        def area(low, high):
+            size = np.maximum(high - low, 0)
+            return 2 * (size[0] * size[1] + size[1] * size[2] + size[2] * size[0])
+
+        low, high = self.boxes()
+        bounds = area(low.min(axis=1), high.max(axis=1))
+        if not bounds > 0:
+            return 0.0
+        return float(self.count - area(low, high).sum() / bounds)
