@@ -490,12 +490,13 @@ class OriginBins:
         to back: round k meets the next rounds[k] entries of every ray still walking, and a
         ray stops at the end of its cell, or once its next entry's ``near`` is beyond its
         nearest hit so far (a hit there could at best tie: walked on while equal, for the
-        lower id) or beyond its t_max.  plan, t_max (lowered in place), accept, exclude: as ``traverse``'s;
-        ``visit(rays, prims, reach)`` as ``traverse``'s visit with each pair's reach (E,)
-        float64: hits nearer than it count (inf where a ray has a hit already: its ties are
-        settled here, by id).  Returns (found (n,) bool, rest (k,) ascending): the rays
-        still walking after the last round, cleared in found; their t_max and what accept
-        recorded for them are the caller's to reset: the tree answers them afresh."""
+        lower id) or beyond its t_max.  plan, t_max (lowered in place), accept, exclude: as
+        ``traverse``'s; ``visit(rays, prims, reach)`` as ``traverse``'s visit with each
+        pair's reach (E,) float64: hits nearer than it count (inf where a ray has a hit
+        already: its ties are settled here, by id).  Returns (found (n,) bool, rest (k,)
+        ascending): the rays still walking after the last round, cleared in found; their
+        t_max and what accept recorded for them are the caller's to reset: the tree answers
+        them afresh."""
         start, count = plan
         n = len(count)
         found = np.zeros(n, bool)

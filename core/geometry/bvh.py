@@ -6,16 +6,16 @@ Traversal (``BVH.traverse``) is wavefront-style over (ray, node) pairs.  From th
 every live pair is expanded to its children at once and kept where the ray's segment meets
 the child's box.  That top phase stops at depth 1 (or a few levels down in deep trees;
 ``_levels``): from there the (ray, node) pairs are sorted by entry distance and visited
-front to back in rounds (the first node of each ray, then the next one, then two, four, ...): a round descends its nodes
-TREELET_STEP levels, where the nodes reached are sorted and visited front to back in
-rounds of their own, and so on down to the treelets, which a round descends to their
-leaves, pruning by each ray's nearest hit so far; it intersects the leaves' primitives, and
-a ray whose next node starts beyond its nearest hit is finished, so a ray stops at its
-nearest hit; for occlusion a ray is finished at its first blocker.  (Sorting at the
-upper levels too keeps a ray of a dense field from testing every node above the treelets
-along its whole length.)  The *treelets* are the nodes of about
-WIDTH ** TREELET_DEPTH leaves (``_treelet_depth``).  Pairs are grouped by ray before each
-visit, so per-ray reductions are ``reduceat``.
+front to back in rounds (the first node of each ray, then the next one, then two, four,
+...): a round descends its nodes TREELET_STEP levels, where the nodes reached are sorted
+and visited front to back in rounds of their own, and so on down to the treelets, which a
+round descends to their leaves, pruning by each ray's nearest hit so far; it intersects the
+leaves' primitives, and a ray whose next node starts beyond its nearest hit is finished, so
+a ray stops at its nearest hit; for occlusion a ray is finished at its first blocker.
+(Sorting at the upper levels too keeps a ray of a dense field from testing every node above
+the treelets along its whole length.)  The *treelets* are the nodes of about WIDTH **
+TREELET_DEPTH leaves (``_treelet_depth``).  Pairs are grouped by ray before each visit, so
+per-ray reductions are ``reduceat``.
 
 Occlusion rays that leave a primitive of the tree (``traverse(sources=)``) take a trail
 instead (``_trail``): from the node holding their primitive's leaf up to the root, each step
@@ -404,8 +404,8 @@ class BVH(WideTree):
         """Descends pairs (ray, child reference) (E,), grouped by ray, level by level,
         visiting the leaves each level reaches: for any hit (a blocked ray goes no deeper),
         only their primitives whose own boxes the rays reach (``_visit_boxed_leaves``) when
-        the tree has them; or (not any_hit) for nearest hits, told to ``accept`` (the hits found lower
-        t_max, which prunes the levels below)."""
+        the tree has them; or (not any_hit) for nearest hits, told to ``accept`` (the hits
+        found lower t_max, which prunes the levels below)."""
         while len(rays):
             leaf = refs < 0
             at = np.flatnonzero(leaf)
