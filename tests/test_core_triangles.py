@@ -177,8 +177,8 @@ def test_both_kernels_shear_as_the_papers_matrix_rows_do_bit_for_bit(dtype, shar
         for store, part in zip(blocks, found):
             store[:, group] = part
     triangle, ray = (a.ravel() for a in np.meshgrid(np.arange(k), columns, indexing="ij"))
-    pairs = watertight_pairs(np.concatenate(corners), triangle, origins, shear, ray, 0.0,
-                             np.inf)
+    pairs = watertight_pairs(np.concatenate(corners), triangle, shear.for_pairs(origins, k),
+                             ray, 0.0, np.inf)
     valid = reference[4]
     for made in (blocks, [a.reshape(k, n) for a in pairs]):
         assert np.array_equal(made[4], valid)

@@ -617,8 +617,29 @@ def _collapsed(tree, ids, slots, planes, pool) -> WideTree:
     ids; -1: padding), with their primitives' planes (``planes``: a Future of the (6, P)
     planes of every primitive), made on ``pool`` beside the collapse."""
     leaf_boxes = run_on(pool, lambda: _leaf_planes(planes.result(), slots))
-    wide = collapse(tree, _leaf_ids(ids, slots))
-    return dataclasses.replace(wide, leaf_boxes=leaf_boxes.result())
+    leaves = _leaf_ids(ids, slots)
+    wide = collapse(tree, leaves)
+    boxes = leaf_boxes.result()
+    _merge_repeats(leaves, boxes)
+    return dataclasses.replace(wide, leaf_boxes=boxes)
+
+
+def _merge_repeats(leaves, leaf_boxes) -> None:
+    """A primitive held twice in one leaf (two fragments of a split triangle,
+    ``Triangles.fragments``) keeps its first slot, whose box then covers both; the other
+    slot becomes padding, so that a leaf's visit meets each of its primitives once."""
+    for later in range(1, MAX_LEAF):
+        for first in range(later):
+            rows = np.flatnonzero((leaves[:, later] == leaves[:, first])
+                                  & (leaves[:, later] >= 0))
+            if len(rows) == 0:
+                continue
+            leaf_boxes[:3, rows, first] = np.minimum(leaf_boxes[:3, rows, first],
+                                                     leaf_boxes[:3, rows, later])
+            leaf_boxes[3:, rows, first] = np.maximum(leaf_boxes[3:, rows, first],
+                                                     leaf_boxes[3:, rows, later])
+            leaves[rows, later] = -1
+            leaf_boxes[:, rows, later] = np.nan
 
 
 def collapse(tree: BinaryTree, leaves: np.ndarray, leaf_boxes=None) -> WideTree:

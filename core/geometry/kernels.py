@@ -11,7 +11,6 @@ import numpy as np
 
 from ..rays import RayBatch
 from .pairs import per_ray, size_of
-from .triangles import Shear
 
 
 class _Pairs:
@@ -27,7 +26,7 @@ class _Pairs:
         self.kinds = kinds
         self.stats = stats
         self.exclude = rays.exclude
-        self.shear = Shear.of(rays.directions) if triangles.count else None
+        self.shear = triangles.pair_shear(rays) if triangles.count else None
 
     def _by_kind(self, prims):
         """(sphere pairs, triangle pairs): indices into a visit's pairs' primitives prims
@@ -77,8 +76,7 @@ class NearestPairs(_Pairs):
         if size_of(tris):
             pr = r[tris]
             tt, b0, b1, b2, valid = self.triangles.pairs_hit(
-                self.rays, self.shear, pr, prims[tris] - self.spheres.count, self.t_min[pr],
-                limit[tris])
+                self.shear, pr, prims[tris] - self.spheres.count, self.t_min[pr], limit[tris])
             t[tris] = np.where(valid, tt, np.inf)
             bary = (tris, b0, b1, b2)
         if self.exclude is not None:
@@ -174,7 +172,7 @@ class OcclusionPairs(_Pairs):
         if size_of(tris):
             pr = r[tris]
             blocked[tris] = self.triangles.pairs_hit(
-                self.rays, self.shear, pr, prims[tris] - self.spheres.count, self.low[pr],
+                self.shear, pr, prims[tris] - self.spheres.count, self.low[pr],
                 self.high[pr])[4]
         if self.exclude is not None:
             blocked &= prims != self.exclude[r]

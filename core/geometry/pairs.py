@@ -11,12 +11,13 @@ from ..vectors import take
 
 
 def keep_nearest(rays, prims, t, t_max, found, accept=None, any_hit=False, best=None):
-    """Settles a visit's pairs (ray, primitive) (E,), grouped by ray, each primitive at most
-    once per ray, with hit distances t (E,) (inf: none): ``found`` (n,) set for each ray with
+    """Settles a visit's pairs (ray, primitive) (E,), grouped by ray, with hit distances t
+    (E,) (inf: none): ``found`` (n,) set for each ray with
     a hit (any_hit: any t < inf; else nearer than its t_max (n,) float64, which is lowered to
     it), and ``accept(rays, pairs)`` told which pair (index into t) is each improved ray's new
     nearest hit, ties to the lower primitive id (the visit/accept contract of ``BVH.traverse``
-    and ``OriginBins``).
+    and ``OriginBins``).  A ray may meet a primitive twice in a visit (two fragments of a
+    split triangle in the leaves visited, which give the same distance).
 
     best: (n,) each ray's nearest primitive so far, or None.  Given, a pair at exactly a
     found ray's t_max also improves on it where its primitive id is lower (rounds that may
@@ -45,6 +46,10 @@ def keep_nearest(rays, prims, t, t_max, found, accept=None, any_hit=False, best=
     else:
         lowest = np.minimum.reduceat(tied, first)
         winner = at_min[tied == np.repeat(lowest, np.diff(first, append=len(at_min)))]
+        if len(winner) > len(first):
+            # (A primitive met twice by a ray in one visit, in two leaves that hold
+            # fragments of it, ``Triangles.fragments``: its first pair.)
+            winner = winner.take(value_run_starts(rays.take(winner)))
     owner, nearest = owner[hit], nearest[hit]
     if best is not None:
         better = (nearest < before[hit]) | (lowest < best.take(owner))

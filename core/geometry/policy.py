@@ -86,6 +86,15 @@ class GeometryPolicy:
     parallel_max_entries_per_primitive: int = 16
 
     # ---- the tree's build ---------------------------------------------------------------
+    #: A triangle whose box's half area exceeds ``split_ratio`` times its area and the
+    #: median triangle's (a long thin one: a box far larger than the triangle, which most
+    #: rays through it miss) goes into the tree as fragments with tighter boxes, at most
+    #: ``split_levels`` cuts deep and ``split_budget`` x the tree's triangles in extra
+    #: fragments (``Triangles.fragments``; ``python -m bench.rays`` on clevr_Rubber's
+    #: backdrop of slivers).
+    split_ratio: float = 8.0
+    split_levels: int = 6
+    split_budget: float = 1.0
     #: Trees of this many primitives or more are built over Morton clusters
     #: (``bench --only scale-points``: the build's time).
     cluster_from: int = 50_000

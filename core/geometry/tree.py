@@ -41,7 +41,19 @@ class TreeAccelerator:
         low = (lows[0] if len(lows) == 1 else np.concatenate(lows, axis=1)).T
         high = (highs[0] if len(highs) == 1 else np.concatenate(highs, axis=1)).T
         del lows, highs
-        self.bvh = BVH.build(ids, low, high, threads, policy)
+        # The tree holds long thin triangles as fragments (``Triangles.fragments``); the
+        # bins list each primitive's own box.
+        held = ids, low, high
+        if len(triangle_ids):
+            k = len(sphere_ids)
+            fragments, f_low, f_high = triangles.fragments(
+                triangle_ids, low[k:].T, high[k:].T, policy.split_ratio, policy.split_levels,
+                policy.split_budget)
+            if len(fragments) > len(triangle_ids):
+                held = (np.concatenate([sphere_ids, fragments + spheres.count]),
+                        np.concatenate([low[:k], f_low.T]), np.concatenate([high[:k], f_high.T]))
+        self.bvh = BVH.build(*held, threads, policy)
+        del held
         self.boxes = (ids, low, high) if len(ids) <= policy.bins_max_primitives else None
         self.kinds = (bool(self.sphere_count), bool(self.triangle_count))
         # A tree of spheres alone: rays that exclude a sphere (the default rules' rays

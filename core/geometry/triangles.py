@@ -54,6 +54,26 @@ class Shear:
                             -(directions[ky, columns] / along), 1 / along])
         return cls(np.stack([kx, ky, kz]), factors)
 
+    def for_pairs(self, origins, count: int) -> "PairShear":
+        """What the pair kernel reads of each ray (``watertight_pairs``), against triangles
+        whose corners are rows (9, ``count``), from origins (3, 1) or (3, n)."""
+        if origins.shape[1] == 1:
+            along = origins[:, 0].take(self.axes)
+        else:
+            along = np.take_along_axis(origins, self.axes, axis=0)
+        return PairShear(self.axes * count, along, self.factors)
+
+
+@dataclass(frozen=True)
+class PairShear:
+    """Each ray's shear as the pair kernel reads it, made once for a batch: bases (3, n)
+    the offsets kx T, ky T, kz T of its axes' rows among a corner's (3, T) rows, origins
+    (3, n) its origin's coordinates along kx, ky, kz, factors (3, n) -Sx, -Sy, Sz."""
+
+    bases: np.ndarray
+    origins: np.ndarray
+    factors: np.ndarray
+
 
 def watertight_axes(v0, v1, v2, origins, axes, factors, t_min, t_max):
     """(t, b0, b1, b2, valid) (k, r) each, of k triangles against r rays that share their
@@ -73,25 +93,22 @@ def watertight_axes(v0, v1, v2, origins, axes, factors, t_min, t_max):
     return _hit(*sheared, t_min, t_max)
 
 
-def watertight_pairs(corners, triangle, origins, shear: Shear, rays, t_min, t_max):
+def watertight_pairs(corners, triangle, shear: PairShear, rays, t_min, t_max):
     """``watertight_axes`` for E explicit (ray, triangle) pairs, with the same rounding, by
     gathering each pair's sheared axes.
 
     corners (9, T): corner j's axis k of every triangle in row 3 j + k; triangle, rays (E,);
-    origins (3, 1) or (3, n); shear: the rays' ``Shear``; t_min, t_max scalars or (E,).
-    Returns (t, b0, b1, b2, valid) (E,) each."""
+    shear: the rays' ``Shear.for_pairs`` (made once for the batch, it saves every pair the
+    arithmetic of its indices); t_min, t_max scalars or (E,).  Returns (t, b0, b1, b2,
+    valid) (E,) each."""
     count = corners.shape[1]
-    flat = corners.ravel()
-    k = take(shear.axes, rays)                                            # (3, E)
+    base = take(shear.bases, rays)                                        # (3, E)
+    base += triangle
+    o = take(shear.origins, rays)
     fx, fy, fz = take(shear.factors, rays)
-    if origins.shape[1] == 1:
-        o = origins[:, 0].take(k)
-    else:
-        o = origins.ravel().take(k * origins.shape[1] + rays)
-    base = k * count + triangle
     sheared = []
     for corner in range(3):
-        p = flat.take(base + 3 * corner * count)
+        p = corners[3 * corner:3 * corner + 3].ravel().take(base)
         p -= o
         sheared += [p[0] + fx * p[2], p[1] + fy * p[2], fz * p[2]]
     return _hit(*sheared, t_min, t_max)
@@ -158,12 +175,15 @@ class Triangles:
             t.v0, t.v1, t.v2))
         return np.minimum(np.minimum(v0, v1), v2), np.maximum(np.maximum(v0, v1), v2)
 
-    def pairs_hit(self, rays, shear, r, triangle, t_min, t_max):
+    def pair_shear(self, rays):
+        """The batch's ``PairShear`` (``watertight_pairs``)."""
+        return Shear.of(rays.directions).for_pairs(rays.origins.astype(self.dtype, copy=False),
+                                                   self.count)
+
+    def pairs_hit(self, shear, r, triangle, t_min, t_max):
         """(t, b0, b1, b2, valid) (E,) of pairs (ray r, triangle) of a batch (local triangle
-        indices), the rays' ``Shear`` given (``watertight_pairs``)."""
-        return watertight_pairs(self.corners, triangle,
-                                rays.origins.astype(self.dtype, copy=False), shear, r, t_min,
-                                t_max)
+        indices), the rays' ``pair_shear`` given (``watertight_pairs``)."""
+        return watertight_pairs(self.corners, triangle, shear, r, t_min, t_max)
 
     def saved_tests(self, up_to: int) -> float:
         """The triangle tests (of T) a tree saves a ray over testing every triangle, for at
@@ -183,3 +203,107 @@ class Triangles:
         if not bounds > 0:
             return 0.0
         return float(self.count - area(low, high).sum() / bounds)
+
+    def fragments(self, ids, low, high, ratio: float, levels: int, budget: float):
+        """(ids (F,), low, high (3, F)): the bounding boxes low, high (3, k) of triangles
+        ``ids`` (k,), a long thin one's replaced by the boxes of its fragments (Ernst and
+        Greiner's early split clipping).  A fragment whose box's half area exceeds both
+        ``ratio`` times its share of its triangle's area (halved at each cut) and the
+        median triangle's box (a small sliver among small triangles costs no more than
+        they do) is cut at the middle of its box's longest side, each half's box being the
+        bounds of the triangle's part within it (``_clipped_bounds``), at most ``levels``
+        cuts deep and ``budget`` x k fragments more than triangles (the worst first).  A
+        triangle's fragments' boxes cover it, so a tree over them finds every hit a tree
+        over the triangles finds, and far fewer rays test a sliver whose box they cross
+        far from it.  (Returns the arguments themselves where nothing is cut.)"""
+        share = self._areas(ids)
+        size = high - low
+        half = size[0] * size[1] + size[1] * size[2] + size[2] * size[0]
+        typical = np.median(half) if len(half) else 0.0
+        allowed = int(budget * len(ids))
+        cut = np.flatnonzero((half > ratio * share) & (half > typical))
+        if len(cut) == 0 or levels == 0 or allowed == 0:
+            return ids, low, high
+        whole = np.ones(len(ids), bool)
+        whole[cut] = False
+        kept_ids, kept_low, kept_high = [ids[whole]], [low[:, whole]], [high[:, whole]]
+        t = self.arrays
+        corners = [take(v, ids.take(cut)) for v in (t.v0, t.v1, t.v2)]
+        owner = np.arange(len(cut))     # (into cut)
+        low, high, share, half = low[:, cut], high[:, cut], share[cut], half[cut]
+        for level in range(levels + 1):
+            excess = half / np.maximum(share, 1e-300)
+            split = (excess > ratio) & (half > typical) if level < levels \
+                else np.zeros(len(owner), bool)
+            if split.sum() > allowed:
+                split = np.zeros(len(owner), bool)
+                split[np.argsort(-excess)[:allowed]] = True
+            kept = np.flatnonzero(~split)
+            kept_ids.append(ids.take(cut.take(owner.take(kept))))
+            kept_low.append(low[:, kept])
+            kept_high.append(high[:, kept])
+            parts = np.flatnonzero(split)
+            if len(parts) == 0:
+                break
+            allowed -= len(parts)
+            owner, low, high = owner[parts], low[:, parts], high[:, parts]
+            share = share[parts] / 2
+            axis = np.argmax(high - low, axis=0)
+            column = np.arange(len(parts))
+            middle = (low[axis, column] + high[axis, column]) / 2
+            own = [take(v, owner) for v in corners]
+            halves = []
+            for first, last in ((low[axis, column], middle), (middle, high[axis, column])):
+                part_low, part_high = _clipped_bounds(own, axis, first, last)
+                np.maximum(part_low, low, out=part_low)
+                np.minimum(part_high, high, out=part_high)
+                part_low[axis, column] = np.maximum(part_low[axis, column], first)
+                part_high[axis, column] = np.minimum(part_high[axis, column], last)
+                halves.append((part_low, part_high))
+            low = np.concatenate([halves[0][0], halves[1][0]], axis=1)
+            high = np.concatenate([halves[0][1], halves[1][1]], axis=1)
+            owner, share = np.concatenate([owner, owner]), np.concatenate([share, share])
+            # (A half the triangle does not reach has no fragment.)
+            real = np.flatnonzero((low <= high).all(axis=0))
+            owner, low, high, share = owner[real], low[:, real], high[:, real], share[real]
+            size = high - low
+            half = size[0] * size[1] + size[1] * size[2] + size[2] * size[0]
+        return (np.concatenate(kept_ids), np.concatenate(kept_low, axis=1),
+                np.concatenate(kept_high, axis=1))
+
+    def _areas(self, ids, chunk: int = 1 << 16):
+        """(k,) the areas of triangles ``ids`` (k,), made ``chunk`` at a time (bounded
+        temporaries for meshes of millions)."""
+        t = self.arrays
+        areas = np.empty(len(ids))
+        for first in range(0, len(ids), chunk):
+            part = ids[first:first + chunk]
+            v0 = take(t.v0, part)
+            cross = np.cross(take(t.v1, part) - v0, take(t.v2, part) - v0, axis=0)
+            areas[first:first + chunk] = np.sqrt((cross * cross).sum(axis=0)) / 2
+        return areas
+
+
+def _clipped_bounds(corners, axis, first, last):
+    """(low, high) (3, k): the bounds of the parts of k triangles (``corners``: three (3, k))
+    whose coordinate ``axis`` (k,) lies within [first, last] (k,) each: of the corners
+    there and of the edges' crossings of the two planes; empty (low > high) where a
+    triangle does not reach its slab."""
+    count = len(axis)
+    column = np.arange(count)
+    along = [c[axis, column] for c in corners]
+    points = list(corners)
+    inside = [(a >= first) & (a <= last) for a in along]
+    for i, j in ((0, 1), (1, 2), (2, 0)):
+        step = along[j] - along[i]
+        for plane in (first, last):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                s = (plane - along[i]) / step
+            crosses = (step != 0) & (s >= 0) & (s <= 1)
+            points.append(corners[i] + np.where(crosses, s, 0) * (corners[j] - corners[i]))
+            inside.append(crosses)
+    low, high = np.full((3, count), np.inf), np.full((3, count), -np.inf)
+    for point, within in zip(points, inside):
+        np.minimum(low, np.where(within, point, np.inf), out=low)
+        np.maximum(high, np.where(within, point, -np.inf), out=high)
+    return low, high
