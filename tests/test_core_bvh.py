@@ -604,7 +604,7 @@ def test_leaf_ordered_spheres_hold_each_leafs_spheres_in_its_slots():
 def test_leaf_boxes_hold_each_slots_primitive_within_its_leafs_box(count):
     """Each leaf slot's box (``BVH.leaf_boxes``) holds its primitive's box (float32, padded),
     lies within the leaf's own box in its node, and is NaN in a padding slot: with and
-    without the Morton clusters (CLUSTER_FROM)."""
+    without the Morton clusters (``GeometryPolicy.cluster_from``)."""
     from core.geometry.bvh import BVH
     rng = np.random.default_rng(9)
     low = rng.uniform(-5, 5, (count, 3))

@@ -447,7 +447,7 @@ class OriginBins:
         exclude: (n,) the primitive each ray ignores (-1: none), or None; a ray's pair with
         it is not visited at all (``visit`` would find no hit there).  reach_shift: (n,)
         how much further than its t_max each ray may be from the bins' origin at its t_max
-        (rays that do not leave the origin itself: ``Aggregate._mirror_groups``), or None.
+        (rays that do not leave the origin itself: ``DirectionBins._mirror_groups``), or None.
         Returns (n,) bool: whether a hit (any_hit: a blocker) was found for each ray."""
         start, count = plan
         n = len(count)
