@@ -1,5 +1,5 @@
 """Everything a render precomputes once and every tile reads, in three layouts: the scene's
-geometry (``core.aggregate.Aggregate``), its lights (``Lights``: positions, intensities,
+geometry (``core.geometry.Aggregate``), its lights (``Lights``: positions, intensities,
 sample points of soft lights and the geometry's terms at each) and its material table
 (``Materials``), plus the settings and the bound that lets paths stop early.
 """
@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .aggregate import Aggregate
+from .geometry import DEFAULT_POLICY, Aggregate, GeometryPolicy
 from .arrays import scene_arrays
 from .bsdf import SurfaceArrays, surface_arrays, translucent_view
 from .camera import eye_position
@@ -134,13 +134,16 @@ class TraceContext:
 
 def make_context(scene: Scene, settings: RenderSettings, dtype, *,
                  root_formula: str | None = None, threads: int = 1,
-                 frame=None) -> TraceContext:
+                 frame=None,
+                 geometry_policy: GeometryPolicy = DEFAULT_POLICY) -> TraceContext:
     """The context of a render of ``scene`` in precision ``dtype``.  root_formula:
-    'textbook' or 'stable' ray/sphere roots (``core.aggregate.ROOT_FORMULAS``); None picks
+    'textbook' or 'stable' ray/sphere roots (``core.geometry.ROOT_FORMULAS``); None picks
     the article's textbook formula in article semantics and the stable one otherwise.
     threads: how many threads the geometry's tree may be built on (the same tree for any).
     frame: the ``core.frame.Frame`` that took the scene to ``scene`` (its canonical frame),
-    so that shader programs see positions in the scene's own units; None: the same."""
+    so that shader programs see positions in the scene's own units; None: the same.
+    geometry_policy: the thresholds by which the geometry picks its strategies
+    (``GeometryPolicy``)."""
     arrays = scene_arrays(scene)
     lights, table = arrays.lights, arrays.materials
     article = settings.semantics == "article"
@@ -150,7 +153,8 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
     # for the eye and each light sample.)
     geometry = Aggregate(arrays.spheres, arrays.triangles, dtype, article=article,
                          root_formula=root_formula, threads=threads,
-                         rays_per_origin=scene.camera.width * scene.camera.height)
+                         rays_per_origin=scene.camera.width * scene.camera.height,
+                         policy=geometry_policy)
     eye = eye_position(scene.camera)
     perspective = not (isinstance(scene.camera, BlenderCamera) and scene.camera.projection == "ORTHO")
     samples = []

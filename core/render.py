@@ -26,14 +26,14 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .aggregate import builds_tree
 from .camera import camera_rays, has_aperture
 from .colour import linear_to_srgb
 from .context import RayStats, TraceContext, make_context, path_traced
 from .passes import PASS_CHANNELS, PrimaryPasses, fill_tile_passes, store_first_hits
 from .path import render_path_tile
 from .progressive import ProgressiveFrame, WorkQueue
-from .cull import PACKET_SIZE
+from .geometry import DEFAULT_POLICY, GeometryPolicy
+from .geometry.cull import PACKET_SIZE
 from . import memory
 from .memory import GUIDE_CHANNELS
 from .frame import canonical_scene, scene_frame
@@ -214,7 +214,7 @@ def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None, shares
 
 def _pixel_grid(y0, y1, x0, x1):
     """(cols, rows) (n,) of the pixels of a region, in BLOCK x BLOCK block order, so that the
-    tracer's packets of consecutive rays cover square blocks (``core.cull``)."""
+    tracer's packets of consecutive rays cover square blocks (``core.geometry.cull``)."""
     cols, rows, _ = _block_order(y1 - y0, x1 - x0)
     return cols + x0, rows + y0
 
@@ -521,7 +521,8 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
            image_dtype=None, reserve_bytes: int = 0,
            on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None,
            passes: "bool | PrimaryPasses" = False,
-           on_pass: Optional[Callable[[int, np.ndarray], None]] = None) -> RenderResult:
+           on_pass: Optional[Callable[[int, np.ndarray], None]] = None,
+           geometry_policy: GeometryPolicy = DEFAULT_POLICY) -> RenderResult:
     """Render ``scene``; see ``core`` for the result's layout.  image_dtype: the image's
     dtype (default: the render's precision); float32 halves a float64 render's largest array
     for callers that keep no more than float32 anyway (Blender's render results).
@@ -537,6 +538,9 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     primitive and material of each pixel centre's first hit, in world units); a
     PrimaryPasses of the image's size is filled in place, so ``on_tile`` can read each tile's
     passes as the tile lands.
+    geometry_policy: the thresholds by which the geometry picks its strategies
+    (``core.geometry.GeometryPolicy``: tests and benchmarks try others; the image is the
+    same for any).
 
     Before anything is allocated, the render's memory is planned (``core.memory``) and a
     render that cannot fit raises memory.NotEnoughMemory, a SceneError."""
@@ -567,7 +571,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     # a small part of a tile's work.  The Emission pass follows whole camera paths, so it
     # keeps the tiles here.
     emission_pass = isinstance(passes, PrimaryPasses) and passes.emission is not None
-    tree = builds_tree(scene.sphere_count, scene.triangle_count)
+    tree = geometry_policy.builds_tree(scene.sphere_count, scene.triangle_count)
     in_processes = not emission_pass and _in_processes(settings, width * height, len(tiles),
                                                        threads, tree,
                                                        path_traced(scene, settings))
@@ -580,7 +584,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
         workers.prestart(threads)  # they start while the context is built
         tiles = _even_tail(tiles, threads)
     ctx = make_context(scene, settings, dtype, threads=threads,   # (the tree: on threads)
-                       frame=world)
+                       frame=world, geometry_policy=geometry_policy)
     # What the frame's tiles would each build on first use (in every worker process), built
     # once here on the render's threads: the eye's bins, the occlusion trails' tables.
     shared_eye = ctx.camera_origin is not None and not has_aperture(scene.camera)

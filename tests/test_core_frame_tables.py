@@ -14,9 +14,12 @@ import numpy as np
 import pytest
 
 import core
-from core import aggregate, bins, bvh, workers
+from core import workers
 from core.context import make_context
 from core.progressive import ProgressiveFrame, WorkQueue
+from core.geometry import DEFAULT_POLICY, bins, bvh
+from core.geometry.spheres import Spheres
+from core.geometry.threads import thread_pool
 from core.render import _tiles, render_tile
 from core.shading import traces_from_points
 from core.trace import traces_bounces
@@ -66,8 +69,7 @@ def _counting(monkeypatch):
         cached = functools.cached_property(table)
         cached.__set_name__(bvh.BVH, name)
         monkeypatch.setattr(bvh.BVH, name, cached)
-    monkeypatch.setattr(aggregate.Aggregate, "_leaf_ordered_spheres",
-                        counted("leaf spheres", aggregate.Aggregate._leaf_ordered_spheres))
+    monkeypatch.setattr(Spheres, "by_slot", counted("leaf spheres", Spheres.by_slot))
     return counts
 
 
@@ -117,16 +119,16 @@ def test_workers_get_the_frames_tables_and_build_none(small_renders_in_processes
     result = core.render(scene, settings)
     assert result.parallelism == "processes"
     (ctx, camera), layout = loaded[0]
-    geometry, tree = ctx.geometry, ctx.geometry._tree
-    eye = [b for b in geometry._bins.values() if b is not None]
+    geometry, tree = ctx.geometry, ctx.geometry.tree.bvh
+    eye = [b for b in geometry.bins.held.values() if b is not None]
     assert [b.by_depth for b in eye] == [True]
     assert {"_trail_tables", "_sibling_tables", "_leaf_fill", "_nearest_levels"} \
         <= set(vars(tree))
-    assert geometry._leaf_rows is not None
+    assert geometry.tree.holds_leaf_spheres
     # The tables' large arrays travelled out of band, in the shared file.
     shipped = {size for _, size, _ in layout}
     assert eye[0].primitives.nbytes in shipped and tree._sibling_tables[0].nbytes in shipped
-    assert geometry._leaf_rows[0].nbytes in shipped
+    assert geometry.tree.leaf_spheres()[0].nbytes in shipped
 
     counts = _counting(monkeypatch)
     image = _frame_on(ctx, camera, settings, result.image.shape, result.image.dtype)
@@ -165,31 +167,31 @@ def test_a_frame_builds_only_the_tables_its_rays_use(case):
     assert traces_bounces(ctx) == (case not in ("mirrors off", "matte"))
     geometry.build_frame_tables(ctx.camera_origin.position, bounces=traces_bounces(ctx),
                                 trails=traces_from_points(ctx), threads=2)
-    tree = vars(geometry._tree)
+    tree = vars(geometry.tree.bvh)
     assert ("_trail_tables" in tree) == ("_sibling_tables" in tree) == (case == "sun")
-    assert bool(geometry._bins) == (case != "few pixels")
-    assert (geometry._leaf_rows is not None) == (case not in ("mirrors off", "matte"))
+    assert bool(geometry.bins.held) == (case != "few pixels")
+    assert geometry.tree.holds_leaf_spheres == (case not in ("mirrors off", "matte"))
 
 
 def test_the_article_scene_builds_no_table():
     ctx = make_context(core.article_scene(64, 48), core.RenderSettings(semantics="article"),
                        np.float64)
     ctx.geometry.build_frame_tables(ctx.camera_origin.position, threads=2)
-    assert ctx.geometry._tree is None and ctx.geometry._bins == {}
+    assert ctx.geometry.tree is None and ctx.geometry.bins is None
 
 
 @pytest.mark.parametrize("count", [3000, 20_000])
-def test_depth_bins_built_on_threads_are_one_threads(monkeypatch, count):
+def test_depth_bins_built_on_threads_are_one_threads(count):
     """The eye's depth-ordered bins made on a pool of threads (faces and chunks of boxes a
-    job, ``DEPTH_CHUNK`` forced small) are one thread's, array for array."""
-    monkeypatch.setattr(bins, "DEPTH_CHUNK", 1000)
+    job, ``bins_chunk`` made small) are one thread's, array for array."""
     scene = _cloud_scene(POINT, count=count)
     geometry = make_context(scene, core.RenderSettings(), np.float64).geometry
-    ids, low, high = geometry._bins_boxes()
-    options = dict(by_depth=True, bounds=geometry._bounding_spheres(ids), rounding=2e-16)
+    ids, low, high = geometry.bins.boxes()
+    options = dict(by_depth=True, bounds=geometry.bins.bounding_spheres(ids), rounding=2e-16,
+                   policy=dataclasses.replace(DEFAULT_POLICY, bins_chunk=1000))
     made = []
     for threads in (1, 2):
-        with bvh.thread_pool(threads) as pool:
+        with thread_pool(threads) as pool:
             made.append(bins.OriginBins.build(np.array([0.0, 0.0, 2.0]), ids, low, high,
                                               pool=pool, **options))
     one, two = made
@@ -218,4 +220,4 @@ def test_blenders_look_bounces_only_off_mirrors_and_through_surfaces(surface, bo
     assert traces_bounces(ctx) == bounces
     ctx.geometry.build_frame_tables(ctx.camera_origin.position, bounces=traces_bounces(ctx),
                                     trails=False, threads=1)
-    assert (ctx.geometry._leaf_rows is not None) == bounces
+    assert ctx.geometry.tree.holds_leaf_spheres == bounces
