@@ -47,7 +47,7 @@ from .colour_models import XYZ_TO_REC709, apply_matrix
 from .hosek_wilkie import hosek_wilkie_state
 from .images import ImageData, image_from_pixels, lookup
 from .registry import COLOR, VECTOR, node
-from .textures import _blockwise, _mapped, _vector, texture_mapping_transform
+from .textures import blockwise, float32_vector, mapped, texture_mapping_transform
 
 SKY_TYPES = ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "PREETHAM", "HOSEK_WILKIE")
 #: The size of Cycles' table of the physical skies (``SkyLoader::load_metadata``).
@@ -786,8 +786,8 @@ def sky_texture(points, vector, *, sky_type="MULTIPLE_SCATTERING", sun_disc=True
                earth_angle(numbers["altitude"]))
         kernel = functools.partial(_physical_sky, table=table, sun=sun,
                                    xyz_to_scene=xyz_to_scene)
-    direction = _mapped(_vector(vector), texture_mapping)
-    return _blockwise(lambda d: (kernel(d),), [direction], (COLOR,), cost=16)
+    direction = mapped(float32_vector(vector), texture_mapping)
+    return blockwise(lambda d: (kernel(d),), [direction], (COLOR,), cost=16)
 
 
 # --------------------------------------------------------------------------------------------
