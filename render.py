@@ -138,6 +138,7 @@ def register_glint(glint) -> None:
     import addon_utils
     import bpy
 
+    from glint.addon.compat import unregister_at_exit
     from glint.addon.engine.final import GlintRenderEngine
 
     if GlintRenderEngine.is_registered:
@@ -146,6 +147,7 @@ def register_glint(glint) -> None:
         if name.rsplit(".", 1)[-1] == PACKAGE_NAME:
             addon_utils.disable(name, default_set=False)
     glint.register()
+    unregister_at_exit(lambda: GlintRenderEngine.is_registered and glint.unregister())
 
 
 # --------------------------------------------------------------------------------------------
@@ -615,10 +617,9 @@ def output_format(scene, args) -> str:
         return args.format
     if args.output.lower().endswith(".png"):
         return "png"
-    settings = scene.render.image_settings
-    multilayer = getattr(settings, "media_type", None) == 'MULTI_LAYER_IMAGE' or \
-        settings.file_format == 'OPEN_EXR_MULTILAYER'
-    return "multilayer-exr" if multilayer else "exr"
+    from glint.addon.compat import writes_multilayer
+
+    return "multilayer-exr" if writes_multilayer(scene.render.image_settings) else "exr"
 
 
 def write_exr(scene, path: str, multilayer: bool) -> None:
@@ -628,11 +629,11 @@ def write_exr(scene, path: str, multilayer: bool) -> None:
     leaves no partial file.  The .blend's EXR codec is kept."""
     import bpy
 
+    from glint.addon.compat import set_file_format
+
     settings = scene.render.image_settings
-    if hasattr(settings, "media_type"):  # Blender 5.0
-        settings.media_type = 'MULTI_LAYER_IMAGE' if multilayer else 'IMAGE'
+    set_file_format(settings, 'OPEN_EXR_MULTILAYER' if multilayer else 'OPEN_EXR')
     if not multilayer:
-        settings.file_format = 'OPEN_EXR'
         settings.color_mode = 'RGBA'
     settings.color_depth = '32'
     target = os.path.realpath(path)

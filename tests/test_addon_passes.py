@@ -8,6 +8,7 @@ import bpy
 import numpy as np
 
 from addon_support import add_camera, add_point_light, add_sphere, empty_file
+from glint.addon.compat import new_material, set_file_format  # noqa: E402
 from exr import read_exr
 from glint.addon.engine.passes import pass_warning
 from glint.core.passes import MISSED_DEPTH
@@ -22,7 +23,7 @@ def passes_scene(layers=("ViewLayer",)):
     scene = empty_file()
     scene.render.resolution_x, scene.render.resolution_y = 96, 72
     for name, (centre, radius), index in (("big", BIG, 3), ("small", SMALL, 7)):
-        material = bpy.data.materials.new(f"{name} material")
+        material = new_material(f"{name} material")
         material.pass_index = index + 10
         material.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (
             0.1 * index, 0.5, 0.2, 1.0)
@@ -36,7 +37,7 @@ def passes_scene(layers=("ViewLayer",)):
         for flag in PASSES:
             setattr(layer, flag, True)
     settings = scene.render.image_settings
-    settings.media_type = 'MULTI_LAYER_IMAGE'
+    set_file_format(settings, 'OPEN_EXR_MULTILAYER')
     settings.exr_codec = 'NONE'
     settings.color_depth = '32'
     return scene

@@ -19,13 +19,14 @@ import pytest
 
 from addon_support import (RENDER_SCRIPT, REPOSITORY, core, depsgraph, export_scene,
                            prepare_job, read_image, render_script, simple_scene)
+from glint.addon.compat import new_material, new_world  # noqa: E402
 
 NAN, INF = float("nan"), float("inf")
 
 
 def principled(input_name, value):
     def setup(scene):
-        material = bpy.data.materials.new("Paint")
+        material = new_material("Paint")
         node = material.node_tree.nodes["Principled BSDF"]
         if input_name == "Base Color":
             value4 = (value, 0.5, 0.5, 1.0)
@@ -38,7 +39,7 @@ def principled(input_name, value):
 
 def custom(field, value):
     def setup(scene):
-        material = bpy.data.materials.new("Custom")
+        material = new_material("Custom")
         material.glint.use_custom = True
         if field in ("ambient", "diffuse", "specular"):
             setattr(material.glint, field, (value, 0.0, 0.0))
@@ -50,7 +51,7 @@ def custom(field, value):
 
 def world(input_name, value):
     def setup(scene):
-        sky = bpy.data.worlds.new("Sky")
+        sky = new_world("Sky")
         node = sky.node_tree.nodes["Background"]
         node.inputs[input_name].default_value = ((value, 0.1, 0.1, 1.0) if input_name == "Color"
                                                  else value)

@@ -34,6 +34,7 @@ import pytest
 from cycles_support import (add_ball, add_light, add_plane, cycles_scene, diffuse,
                             node_material, pixel_errors, render_both, set_world, sphere_mask,
                             surface_ratios)
+from glint.addon.compat import new_material  # noqa: E402
 
 ALPHA_TOLERANCE = 1e-3
 LIGHT_TOLERANCE = 0.02
@@ -42,7 +43,7 @@ PIXEL_TOLERANCE = 0.05
 
 def holdout_mix(name: str, factor: float, colour):
     """Mix Shader: (1 - factor) Diffuse(colour) + factor Holdout."""
-    material = bpy.data.materials.new(name)
+    material = new_material(name)
     tree = material.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
     mix = tree.nodes.new("ShaderNodeMixShader")
@@ -212,7 +213,7 @@ def test_a_holdout_object_keeps_its_transparency():
     scene.cycles.min_transparent_bounces = 8    # no Russian roulette bias (see above)
     scene.glint.max_depth = 4
     set_world((0.3, 0.5, 0.9), 0.02)   # dim: the ball behind is lit by the light alone
-    half = bpy.data.materials.new("half")
+    half = new_material("half")
     principled = half.node_tree.nodes["Principled BSDF"]
     principled.inputs["Alpha"].default_value = 0.5
     principled.inputs["Base Color"].default_value = (0.2, 0.8, 0.2, 1.0)

@@ -12,6 +12,7 @@ import pytest
 
 from node_support import NodeScene, by_identifier, check_outputs, evaluate, node_options
 
+from glint.addon.compat import new_material  # noqa: E402
 from glint.core.shader.colour_nodes import BLEND_MODES, RAMP_TABLE_SIZE, ramp_table  # noqa: E402
 
 BLEND_TYPES = [item.identifier for item in
@@ -38,7 +39,7 @@ def test_every_blend_mode_is_registered():
 def test_ramp_table_is_blenders_ramp_at_cycles_positions():
     """The table Cycles bakes is Blender's ramp at i / 256; ours is made from the stops for
     every interpolation, colour mode and hue direction, and ramps of 1 to 5 random stops."""
-    material = bpy.data.materials.new("ramps")
+    material = new_material("ramps")
     ramp_node = material.node_tree.nodes.new("ShaderNodeValToRGB")
     ramp = ramp_node.color_ramp
     rng = np.random.default_rng(7)

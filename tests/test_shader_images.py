@@ -32,6 +32,7 @@ import pytest
 from mathutils import Euler, Vector
 
 from addon_support import empty_file, glint, ico_sphere_mesh, link
+from glint.addon.compat import new_material, new_world  # noqa: E402
 from exr import read_exr, write_exr
 
 from glint.addon.export.camera import export_camera
@@ -70,7 +71,7 @@ def cycles_file(resolution: int = RES):
     cycles.max_bounces = 0
     cycles.filter_width = 0.01
     cycles.seed = 1
-    world = bpy.data.worlds.new("black")
+    world = new_world("black")
     world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
     scene.world = world
     return scene
@@ -122,7 +123,7 @@ def emission_material(image, *, interpolation="Linear", extension="REPEAT",
     """A material: Image Texture -> Emission (strength 1, or the texture's Alpha with
     ``alpha_strength``) -> output; ``vector``: a Texture Coordinate output feeding the
     texture's Vector.  Returns (material, image node)."""
-    material = bpy.data.materials.new("textured")
+    material = new_material("textured")
     tree = material.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
     texture = tree.nodes.new("ShaderNodeTexImage")
@@ -813,7 +814,7 @@ def test_image_nodes_are_registered_with_blenders_sockets():
     """The registry's specs name Blender 5.0's sockets and options, and the unlinked Vector:
     the UV map for Image Texture, the position (the world's direction) for Environment."""
     empty_file()
-    material = bpy.data.materials.new("sockets")
+    material = new_material("sockets")
     for kind, implicit in (("ShaderNodeTexImage", "uv"), ("ShaderNodeTexEnvironment",
                                                           "position")):
         node = material.node_tree.nodes.new(kind)

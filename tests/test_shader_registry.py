@@ -13,6 +13,7 @@ import pytest
 
 from node_support import by_identifier, evaluate
 
+from glint.addon.compat import new_material  # noqa: E402
 from glint.addon.export.node_options import OPTION_READERS  # noqa: E402
 from glint.core.shader.points import ShadingPoints  # noqa: E402
 from glint.core.shader.registry import CLOSURE, COLOR, FLOAT, NODES, VECTOR  # noqa: E402
@@ -22,7 +23,7 @@ BLENDER_TYPES = {FLOAT: "VALUE", VECTOR: "VECTOR", COLOR: "RGBA", CLOSURE: "SHAD
 
 @pytest.fixture(scope="module")
 def tree():
-    material = bpy.data.materials.new("registry check")
+    material = new_material("registry check")
     yield material.node_tree
     bpy.data.materials.remove(material)
 

@@ -35,6 +35,7 @@ import pytest
 
 from texture_support import Case, Result, render_cases
 
+from glint.addon.compat import new_material  # noqa: E402
 from glint.core.shader import hash as hashes
 from glint.core.shader import noise, textures, voronoi
 from glint.core.shader.registry import COLOR, FLOAT, NODES, VECTOR
@@ -394,7 +395,7 @@ _SOCKET_TYPES = {"VALUE": FLOAT, "VECTOR": VECTOR, "RGBA": COLOR}
 
 @pytest.mark.parametrize("kind", [NOISE, VORONOI, WAVE, MAGIC, GRADIENT, CHECKER, BRICK, WHITE])
 def test_registered_sockets_and_options_are_blenders(kind):
-    material = bpy.data.materials.new("sockets")
+    material = new_material("sockets")
     try:
         node = material.node_tree.nodes.new(kind)
         spec = NODES[kind]
@@ -408,7 +409,7 @@ def test_registered_sockets_and_options_are_blenders(kind):
 
 
 def test_enum_options_are_blenders():
-    material = bpy.data.materials.new("enums")
+    material = new_material("enums")
     try:
         nodes = material.node_tree.nodes
         items = lambda kind, name: {item.identifier for item in  # noqa: E731
