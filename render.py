@@ -617,9 +617,8 @@ def output_format(scene, args) -> str:
         return args.format
     if args.output.lower().endswith(".png"):
         return "png"
-    from glint.addon.compat import writes_multilayer
-
-    return "multilayer-exr" if writes_multilayer(scene.render.image_settings) else "exr"
+    multilayer = scene.render.image_settings.file_format == 'OPEN_EXR_MULTILAYER'
+    return "multilayer-exr" if multilayer else "exr"
 
 
 def write_exr(scene, path: str, multilayer: bool) -> None:

@@ -26,7 +26,7 @@ def matrix_bytes(matrix) -> bytes:
     return np.asarray(matrix, np.float32).tobytes()
 
 
-#: Blender 4.2 has no light Exposure (4.5 has it): a light's power is its energy alone.
+#: Blender 4.2 has no light Exposure (4.5 has it): there a light's power is its energy alone.
 LIGHT_EXPOSURE = "exposure" in bpy.types.Light.bl_rna.properties
 
 
@@ -42,27 +42,19 @@ def light_exposure(light) -> float:
 EVALUATED_GEOMETRY = hasattr(bpy.types.Object, "evaluated_geometry")
 
 
-#: Blender 5.0: an output's kind is ``ImageFormatSettings.media_type`` and a multilayer EXR is
-#: file format 'OPEN_EXR' of media type 'MULTI_LAYER_IMAGE'; before, its own file format
-#: 'OPEN_EXR_MULTILAYER'.
+#: Blender 5.0: an output's kind is ``ImageFormatSettings.media_type``, which decides the file
+#: formats it offers ('OPEN_EXR_MULTILAYER' only under 'MULTI_LAYER_IMAGE'); before, every
+#: format is a file format of its own.
 MEDIA_TYPE = "media_type" in bpy.types.ImageFormatSettings.bl_rna.properties
 
 
 def set_file_format(settings, file_format: str) -> None:
-    """Make ``settings`` (ImageFormatSettings) write ``file_format``, named as before 5.0:
-    'PNG', 'OPEN_EXR' or 'OPEN_EXR_MULTILAYER'."""
-    multilayer = file_format == 'OPEN_EXR_MULTILAYER'
+    """Make ``settings`` (ImageFormatSettings) write ``file_format``: 'PNG', 'OPEN_EXR' or
+    'OPEN_EXR_MULTILAYER'."""
     if MEDIA_TYPE:
+        multilayer = file_format == 'OPEN_EXR_MULTILAYER'
         settings.media_type = 'MULTI_LAYER_IMAGE' if multilayer else 'IMAGE'
-        file_format = 'OPEN_EXR' if multilayer else file_format
     settings.file_format = file_format
-
-
-def writes_multilayer(settings) -> bool:
-    """Whether ``settings`` (ImageFormatSettings) write a multilayer EXR."""
-    if MEDIA_TYPE:
-        return settings.media_type == 'MULTI_LAYER_IMAGE'
-    return settings.file_format == 'OPEN_EXR_MULTILAYER'
 
 
 #: Blender 5.0: every material and world renders its node tree (``use_nodes`` is deprecated
