@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import bpy
 import numpy as np
+import pytest
 
 from addon_support import add_camera, add_point_light, add_sphere, empty_file
 from glint.addon.compat import new_material, set_file_format  # noqa: E402
@@ -59,6 +60,7 @@ def layer_passes(channels, layer):
                 material=channels[f"{layer}.Material Index.X"], alpha=channels[f"{layer}.Combined.A"])
 
 
+@pytest.mark.slow
 def test_f12_writes_the_passes_of_every_view_layer_with_the_geometrys_values(tmp_path):
     scene = passes_scene(layers=("ViewLayer", "Second"))
     scene.render.film_transparent = True
@@ -87,6 +89,8 @@ def test_f12_writes_the_passes_of_every_view_layer_with_the_geometrys_values(tmp
         assert (p["alpha"][missed] < 1).all() and (p["alpha"][p["object"] > 0] > 0).all()
 
 
+@pytest.mark.slow
+@pytest.mark.cycles
 def test_the_passes_agree_with_cycles(tmp_path):
     scene = passes_scene()
     glint = layer_passes(render_exr(scene, tmp_path, 'GLINT', "glint.exr"), "ViewLayer")
@@ -175,6 +179,8 @@ def test_enabling_passes_leaves_the_combined_image_as_it_is(tmp_path, monkeypatc
     assert without["ViewLayer.Combined.R"].max() > 0.05   # a lit picture, not a black one
 
 
+@pytest.mark.slow
+@pytest.mark.cycles
 def test_the_emission_pass_holds_what_the_camera_path_meets_as_in_cycles(tmp_path,
                                                                         monkeypatch):
     """Cycles' Emission pass: emission seen by the camera, and through a Transparent BSDF
@@ -224,6 +230,7 @@ def test_the_emission_pass_holds_what_the_camera_path_meets_as_in_cycles(tmp_pat
     np.testing.assert_array_equal(glint[0:3, 0:3], 0.0)
 
 
+@pytest.mark.slow
 def test_a_render_region_holds_that_part_of_the_full_frames_passes(tmp_path):
     """The passes go to Blender tile by tile, each cut to the render region as Combined is:
     a cropped region's multilayer EXR holds the full frame's pixels there, in every pass."""
@@ -246,6 +253,7 @@ def test_a_render_region_holds_that_part_of_the_full_frames_passes(tmp_path):
     assert (region["ViewLayer.Object Index.X"] > 0).sum() > 1000
 
 
+@pytest.mark.cycles
 def test_denoising_data_gives_the_albedo_and_normal_passes_cycles_gives(tmp_path):
     """View Layer > Passes > Data > Denoising Data (Cycles' own setting) makes F12 write
     Denoising Albedo and Denoising Normal, as Cycles does, so the compositor's Denoise node

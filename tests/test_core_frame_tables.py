@@ -70,6 +70,7 @@ def _counting(monkeypatch):
     return counts
 
 
+@pytest.mark.slow
 def test_workers_get_the_frames_tables_and_build_none(small_renders_in_processes,
                                                        monkeypatch):
     """The render's shared payload, loaded as a worker loads it (``_shared_loads`` over a
@@ -118,6 +119,7 @@ def test_workers_get_the_frames_tables_and_build_none(small_renders_in_processes
     assert result.stats.camera_rays == threads.stats.camera_rays
 
 
+@pytest.mark.slow
 def test_a_render_on_threads_builds_each_table_once(monkeypatch):
     """On threads too the frame's tables are built before the tiles, once each (the eye's
     id-ordered bins tried and refused first: a dense field)."""

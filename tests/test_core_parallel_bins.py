@@ -82,6 +82,7 @@ def _grazing(rays, geometry, rng, n):
     return RayBatch(origins, towards, 0.0, np.inf, None, never, never)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_sun_rays_through_parallel_bins_block_exactly_the_rays_every_sphere_does(
         monkeypatch, dtype):
@@ -153,6 +154,7 @@ def test_parallel_bins_serve_only_unbounded_rays_of_one_direction(monkeypatch):
     assert geometry._parallel_spheres(rays) is None
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("precision", ["float64", "float32"])
 def test_a_render_through_parallel_bins_is_the_trees_image(monkeypatch, precision):
     """The field under a sun and a grey world (its occlusion rays go to the tree): the same

@@ -74,6 +74,8 @@ def assert_colours(glint, cycles, ball, floor=0.05, beside=None):
     assert np.percentile(pixel_errors(glint, cycles, mask, floor), 90) < PIXEL_TOLERANCE
 
 
+@pytest.mark.slow
+@pytest.mark.cycles
 @pytest.mark.parametrize("transparent", [False, True], ids=["opaque film", "transparent film"])
 def test_holdout_shader_cuts_camera_holes_and_is_black_in_mirrors_and_through_glass(
         transparent):
@@ -120,6 +122,8 @@ def test_holdout_shader_cuts_camera_holes_and_is_black_in_mirrors_and_through_gl
     np.testing.assert_allclose(glint[sky], cycles[sky], atol=1e-5)
 
 
+@pytest.mark.slow
+@pytest.mark.cycles
 @pytest.mark.parametrize("transparent", [False, True], ids=["opaque film", "transparent film"])
 @pytest.mark.parametrize("how", ["object", "collection"])
 def test_holdout_objects_cut_holes_yet_cast_shadows_and_show_in_mirrors(how, transparent):
@@ -157,6 +161,8 @@ def test_holdout_objects_cut_holes_yet_cast_shadows_and_show_in_mirrors(how, tra
     np.testing.assert_allclose(glint[reflection, 3], 1.0)
 
 
+@pytest.mark.slow
+@pytest.mark.cycles
 @pytest.mark.parametrize("transparent", [False, True], ids=["opaque film", "transparent film"])
 def test_holdouts_and_the_world_through_a_transparent_bsdf(transparent):
     scene = cycles_scene(bounces=2)
@@ -185,6 +191,7 @@ def test_holdouts_and_the_world_through_a_transparent_bsdf(transparent):
     np.testing.assert_allclose(glint[world, :3], cycles[world, :3], atol=1e-4)
 
 
+@pytest.mark.slow
 def test_f12_saves_the_holdout_hole_with_an_opaque_film(tmp_path):
     """What the engine hands Blender (and Blender saves) keeps the hole: alpha 0 on the held
     ball in the PNG, 1 on the world around it, Film > Transparent off."""
@@ -204,6 +211,8 @@ def test_f12_saves_the_holdout_hole_with_an_opaque_film(tmp_path):
     assert (alpha[~sphere_mask(held, erode=-2)] == 255).all()
 
 
+@pytest.mark.slow
+@pytest.mark.cycles
 def test_a_holdout_object_keeps_its_transparency():
     """Cycles holds out all of a holdout object but its transparency: a Principled BSDF of
     Alpha 0.5 passes half at each of its two sides, so a quarter of the ball behind shows

@@ -15,6 +15,8 @@ import time
 
 import pytest
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (child processes)
+
 REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 #: Enough for the child to import bpy and be rendering (bpy's import takes ~1-2 s here).
 SETTLE_SECONDS = 4.0

@@ -29,6 +29,8 @@ from cycles_support import (HEIGHT, WIDTH, add_ball, add_light, add_plane, aim, 
                             sphere_mask, surface_ratios)
 from glint.addon.compat import new_material  # noqa: E402
 
+pytestmark = pytest.mark.cycles  # every test here renders with Cycles
+
 LIGHT_TOLERANCE = 0.02
 PIXEL_TOLERANCE = 0.05
 GLOSSY_TOLERANCE = 0.03

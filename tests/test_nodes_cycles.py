@@ -26,6 +26,8 @@ import cycles_support as cs
 from glint.addon.compat import new_material  # noqa: E402
 from addon_support import core_image, link
 
+pytestmark = pytest.mark.cycles  # every test here renders with Cycles
+
 PIXEL_TOLERANCE = 0.02
 MEAN_TOLERANCE = 0.02
 

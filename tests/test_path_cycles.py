@@ -23,6 +23,8 @@ import cycles_support as cs
 from glint.addon.compat import new_material  # noqa: E402
 from addon_support import core_image, link
 
+pytestmark = pytest.mark.cycles  # every test here renders with Cycles
+
 WALL_TOLERANCE = 0.015
 
 

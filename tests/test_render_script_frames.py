@@ -16,6 +16,8 @@ from addon_support import (RENDER_SCRIPT, REPOSITORY, core_image, depsgraph, pre
                            read_png, render_script, simple_scene)
 from exr import read_exr
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (child processes)
+
 FrameClaim, frame_path = render_script.FrameClaim, render_script.frame_path
 
 
