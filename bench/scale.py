@@ -127,12 +127,18 @@ def _node_tree(name: str):
     return tree, tree.nodes, tree.links
 
 
+def _shown(sockets, name):
+    """The socket called ``name`` that the node shows for its data type: Blender 4 keeps one
+    socket per type and hides the others, Blender 5.3 keeps only the shown ones."""
+    return next(socket for socket in sockets if socket.name == name and socket.enabled)
+
+
 def _random(nodes, data_type, low, high, seed):
     node = nodes.new("FunctionNodeRandomValue")
     node.data_type = data_type
-    node.inputs["Min" if data_type == 'FLOAT_VECTOR' else 2].default_value = low
-    node.inputs["Max" if data_type == 'FLOAT_VECTOR' else 3].default_value = high
-    node.inputs["Seed"].default_value = seed
+    _shown(node.inputs, "Min").default_value = low
+    _shown(node.inputs, "Max").default_value = high
+    _shown(node.inputs, "Seed").default_value = seed
     return node
 
 
@@ -189,7 +195,8 @@ def _slab_points(nodes, links, count: int):
 def build_points(count: int) -> None:
     tree, nodes, links = _node_tree("points")
     points = _slab_points(nodes, links, count)
-    links.new(_random(nodes, 'FLOAT', *POINT_RADII, 2).outputs[1], points.inputs["Radius"])
+    radii = _random(nodes, 'FLOAT', *POINT_RADII, 2)
+    links.new(_shown(radii.outputs, "Value"), points.inputs["Radius"])
     links.new(points.outputs[0], nodes.new("NodeGroupOutput").inputs[0])
     _host("points", tree, _material("points", (0.8, 0.35, 0.1)))
 

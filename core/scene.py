@@ -999,9 +999,9 @@ class RenderSettings:
         _set(self, "filter_width", _positive("settings.filter_width", self.filter_width))
         if self.filter_width > MAX_FILTER_WIDTH:
             raise SceneError(f"settings.filter_width must be at most {MAX_FILTER_WIDTH:g} "
-                             f"pixels, got {self.filter_width!r}")
+                             f"pixels, got {value_text(self.filter_width)}")
         for name in ("caustics_reflective", "caustics_refractive", "guides"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise SceneError(f"settings.{name} must be True or False, got "
-                                 f"{getattr(self, name)!r}")
+                                 f"{value_text(getattr(self, name))}")
             _set(self, name, bool(getattr(self, name)))

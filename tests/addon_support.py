@@ -30,6 +30,7 @@ glint = render_script.import_glint()
 render_script.register_glint(glint)
 
 from glint import core  # noqa: E402
+from glint.addon.compat import new_material, new_world  # noqa: E402
 from glint.addon.engine.job import prepare_job  # noqa: E402
 from glint.addon.export import ExportError, export_scene  # noqa: E402
 from glint.addon.utils.image import read_image  # noqa: E402
@@ -127,7 +128,7 @@ def add_camera(name="camera", location=(0.0, -6.0, 0.0), rotation=(math.pi / 2, 
 def add_world(name, colour, strength=None):
     """A world whose Background node has ``colour`` (RGB) and, if given, ``strength``, made
     the scene's world."""
-    world = bpy.data.worlds.new(name)
+    world = new_world(name)
     background = world.node_tree.nodes["Background"]
     background.inputs["Color"].default_value = (*colour, 1.0)
     if strength is not None:

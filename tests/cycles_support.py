@@ -22,6 +22,7 @@ import bpy
 import numpy as np
 
 from addon_support import add_camera, core_image, empty_file, link, uv_sphere_mesh
+from glint.addon.compat import new_material, new_world  # noqa: E402
 
 WIDTH, HEIGHT = 48, 36
 
@@ -47,7 +48,7 @@ def cycles_scene(bounces: int = 0, samples: int = 32):
     scene.glint.samples = 64
     scene.glint.use_adaptive_sampling = False
     scene.glint.use_denoising = False
-    world = bpy.data.worlds.new("black")
+    world = new_world("black")
     world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
     scene.world = world
     add_camera(location=(0.0, -8.0, 0.0), lens=50.0)
@@ -62,7 +63,7 @@ def set_world(colour, strength: float):
 
 def node_material(name: str, kind: str, **inputs):
     """A material whose output's Surface is one shader node of ``kind`` with ``inputs``."""
-    material = bpy.data.materials.new(name)
+    material = new_material(name)
     tree = material.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
     node = tree.nodes.new(kind)

@@ -82,6 +82,9 @@ def main():
         "module": module_name,
         "steps": steps,
     }))
+    # The bpy module before 5.0 cannot exit with the add-on's classes registered
+    # (addon/compat.py): leave it disabled.
+    bpy.ops.preferences.addon_disable(module=module_name)
 
 
 if __name__ == "__main__":

@@ -34,6 +34,7 @@ import numpy as np
 from mathutils import Matrix, Vector
 
 from addon_support import link
+from glint.addon.compat import new_material, set_file_format  # noqa: E402
 from cycles_support import cycles_scene
 from exr import read_exr
 
@@ -106,7 +107,7 @@ class NodeScene:
         centre = Matrix.Rotation(turn, 3, 'Z') @ Vector((sx * (x0 + x1) / 2, sy * (y0 + y1) / 2,
                                                           0.0))
         self.plane.location = -centre
-        self.material = bpy.data.materials.new("under test")
+        self.material = new_material("under test")
         mesh.materials.append(self.material)
         self.tree = self.material.node_tree
         self.tree.nodes.remove(self.tree.nodes["Principled BSDF"])
@@ -169,7 +170,7 @@ class NodeScene:
         scene = self.scene
         scene.render.engine = 'CYCLES'
         settings = scene.render.image_settings
-        settings.media_type = 'MULTI_LAYER_IMAGE'
+        set_file_format(settings, 'OPEN_EXR_MULTILAYER')
         settings.exr_codec, settings.color_depth = 'NONE', '32'
         layer = scene.view_layers[0].name
         with tempfile.TemporaryDirectory() as folder:

@@ -15,6 +15,7 @@ from mathutils import Matrix, Vector
 from addon_support import (ExportError, add_camera, add_point_light, add_sphere, add_world,
                            camera_and_light_file, core, cube_mesh, depsgraph, empty_file,
                            export_scene, ico_sphere_mesh, link, uv_sphere_mesh)
+from glint.addon.compat import LIGHT_EXPOSURE, new_material  # noqa: E402
 from glint.addon.export.geometry import (ANALYTIC_SPHERE_PROPERTY, FLOAT32_SLACK,
                                          MAX_FACE_SAGITTA, MAX_RADIUS_SCATTER, fit_sphere,
                                          uniform_scales)
@@ -306,7 +307,10 @@ def test_point_light_power_colour_exposure_and_radius_map_linearly():
     lamp = add_point_light("lamp", (1.0, 2.0, 3.0), energy=250.0, radius=0.4,
                            colour=(1.0, 0.5, 0.25))
     lamp.parent = parent
-    lamp.data.exposure = 1.0  # twice the power
+    if LIGHT_EXPOSURE:
+        lamp.data.exposure = 1.0  # twice the power
+    else:
+        lamp.data.energy *= 2.0   # Blender 4.2 has no light Exposure
 
     (light,) = export()[0].lights
 
@@ -348,7 +352,7 @@ def test_a_scene_without_light_or_objects_exports_with_warnings():
 def test_blenders_default_surface_maps_close_to_the_article_look(scene):
     article_semantics()
     add_sphere("plain")  # no material: Blender's default surface
-    add_sphere("default", (3, 0, 0), material=bpy.data.materials.new("fresh"))
+    add_sphere("default", (3, 0, 0), material=new_material("fresh"))
 
     exported, _ = export()
 
@@ -364,7 +368,7 @@ def test_blenders_default_surface_maps_close_to_the_article_look(scene):
 
 def test_principled_values_map_as_documented(scene):
     article_semantics()
-    metal = bpy.data.materials.new("metal")
+    metal = new_material("metal")
     principled = metal.node_tree.nodes["Principled BSDF"]
     base = (0.5, 0.2, 0.05)
     principled.inputs["Base Color"].default_value = (*base, 1.0)
@@ -403,7 +407,7 @@ def test_rougher_materials_get_wider_dimmer_highlights():
 
 def test_custom_glint_values_are_used_as_typed(scene):
     article_semantics()
-    material = bpy.data.materials.new("typed")
+    material = new_material("typed")
     custom = material.glint
     custom.use_custom = True
     custom.ambient, custom.diffuse, custom.specular = (0.1, 0, 0), (0.7, 0, 0), (0.5, 0.5, 0.5)
@@ -421,7 +425,7 @@ def test_custom_glint_values_are_used_as_typed(scene):
 
 def test_a_non_principled_surface_falls_back_to_viewport_display_with_a_note(scene):
     article_semantics()
-    material = bpy.data.materials.new("diffuse only")
+    material = new_material("diffuse only")
     tree = material.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
     diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
@@ -600,7 +604,7 @@ def test_article_semantics_leaves_out_a_negative_or_nan_light_with_one_warning(s
 
 def test_article_semantics_counts_a_nan_input_as_0_with_one_warning(scene):
     article_semantics()
-    paint = bpy.data.materials.new("Paint")
+    paint = new_material("Paint")
     paint.node_tree.nodes["Principled BSDF"].inputs["Metallic"].default_value = float("nan")
     add_sphere("ball", material=paint)
     exported, warnings = export()

@@ -19,6 +19,7 @@ from mathutils import Matrix
 from addon_support import (add_camera, add_sphere, camera_and_light_file, core, cube_mesh,
                            depsgraph, empty_file, export_scene, ico_sphere_mesh, link,
                            uv_sphere_mesh)
+from glint.addon.compat import new_material  # noqa: E402
 from glint.addon.export import instances as instances_module
 from glint.addon.export.context import CameraFootprint
 from glint.addon.export.geometry import MAX_DEVIATION_PIXELS, mesh_sphere
@@ -41,7 +42,7 @@ def add_mesh(name, mesh, location=(0.0, 0.0, 0.0)):
 
 
 def coloured(name, rgb):
-    material = bpy.data.materials.new(name)
+    material = new_material(name)
     material.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (*rgb, 1)
     return material
 

@@ -12,6 +12,7 @@ import pytest
 
 from addon_support import (add_camera, add_sphere, add_world, camera_and_light_file, core,
                            depsgraph, empty_file, export_scene, link)
+from glint.addon.compat import new_material  # noqa: E402
 from cycles_support import node_material
 from glint.addon.engine.base import GlintRenderEngine
 
@@ -56,7 +57,7 @@ def test_blenders_default_material_is_a_default_principled_bsdf(scene):
 
 
 def test_principled_inputs_map_to_lobes(scene):
-    material = bpy.data.materials.new("glassy metal")
+    material = new_material("glassy metal")
     node = material.node_tree.nodes["Principled BSDF"]
     node.inputs["Base Color"].default_value = (0.5, 0.2, 0.1, 1.0)
     node.inputs["Metallic"].default_value = 0.25
@@ -102,7 +103,7 @@ def test_glass_refraction_and_glossy_nodes(scene):
 
 
 def test_mix_shader_factor_from_fresnel_is_evaluated_per_hit(scene):
-    material = bpy.data.materials.new("coated")
+    material = new_material("coated")
     tree = material.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
     red = tree.nodes.new("ShaderNodeBsdfDiffuse")
@@ -124,7 +125,7 @@ def test_mix_shader_factor_from_fresnel_is_evaluated_per_hit(scene):
 
 
 def test_emission_holdout_transparent_and_add_shader(scene):
-    material = bpy.data.materials.new("sum")
+    material = new_material("sum")
     tree = material.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
     emission = tree.nodes.new("ShaderNodeEmission")
@@ -174,7 +175,7 @@ def test_approximated_shaders_are_a_diffuse_of_their_colour_with_one_note(scene,
 
 
 def test_without_a_linked_surface_the_material_is_black_as_in_cycles(scene):
-    material = bpy.data.materials.new("unplugged")
+    material = new_material("unplugged")
     tree = material.node_tree
     tree.links.remove(tree.nodes["Material Output"].inputs["Surface"].links[0])
     material.diffuse_color = (0.1, 0.6, 0.2, 1.0)
@@ -248,7 +249,7 @@ def test_group_inputs_take_the_group_nodes_values_and_simple_math_is_evaluated(s
     group.links.new(diffuse.outputs[0], add.inputs[0])
     group.links.new(glossy.outputs[0], add.inputs[1])
     group.links.new(add.outputs[0], outputs.inputs["Shader"])
-    material = bpy.data.materials.new("rubber")
+    material = new_material("rubber")
     tree = material.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
     node = tree.nodes.new("ShaderNodeGroup")

@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import bpy
 import numpy as np
+import pytest
 
 from addon_support import add_camera, add_point_light, add_sphere, empty_file
+from glint.addon.compat import new_material, set_file_format  # noqa: E402
 from exr import read_exr
 from glint.addon.engine.passes import pass_warning
 from glint.core.passes import MISSED_DEPTH
@@ -22,7 +24,7 @@ def passes_scene(layers=("ViewLayer",)):
     scene = empty_file()
     scene.render.resolution_x, scene.render.resolution_y = 96, 72
     for name, (centre, radius), index in (("big", BIG, 3), ("small", SMALL, 7)):
-        material = bpy.data.materials.new(f"{name} material")
+        material = new_material(f"{name} material")
         material.pass_index = index + 10
         material.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (
             0.1 * index, 0.5, 0.2, 1.0)
@@ -36,7 +38,7 @@ def passes_scene(layers=("ViewLayer",)):
         for flag in PASSES:
             setattr(layer, flag, True)
     settings = scene.render.image_settings
-    settings.media_type = 'MULTI_LAYER_IMAGE'
+    set_file_format(settings, 'OPEN_EXR_MULTILAYER')
     settings.exr_codec = 'NONE'
     settings.color_depth = '32'
     return scene
@@ -58,6 +60,7 @@ def layer_passes(channels, layer):
                 material=channels[f"{layer}.Material Index.X"], alpha=channels[f"{layer}.Combined.A"])
 
 
+@pytest.mark.slow
 def test_f12_writes_the_passes_of_every_view_layer_with_the_geometrys_values(tmp_path):
     scene = passes_scene(layers=("ViewLayer", "Second"))
     scene.render.film_transparent = True
@@ -86,6 +89,8 @@ def test_f12_writes_the_passes_of_every_view_layer_with_the_geometrys_values(tmp
         assert (p["alpha"][missed] < 1).all() and (p["alpha"][p["object"] > 0] > 0).all()
 
 
+@pytest.mark.slow
+@pytest.mark.cycles
 def test_the_passes_agree_with_cycles(tmp_path):
     scene = passes_scene()
     # Both engines' passes hold what each pixel's first sample hit: a narrow box filter
@@ -175,6 +180,8 @@ def test_enabling_passes_leaves_the_combined_image_as_it_is(tmp_path, monkeypatc
     assert without["ViewLayer.Combined.R"].max() > 0.05   # a lit picture, not a black one
 
 
+@pytest.mark.slow
+@pytest.mark.cycles
 def test_the_emission_pass_holds_what_the_camera_path_meets_as_in_cycles(tmp_path,
                                                                         monkeypatch):
     """Cycles' Emission pass: emission seen by the camera, and through a Transparent BSDF
@@ -224,6 +231,7 @@ def test_the_emission_pass_holds_what_the_camera_path_meets_as_in_cycles(tmp_pat
     np.testing.assert_array_equal(glint[0:3, 0:3], 0.0)
 
 
+@pytest.mark.slow
 def test_a_render_region_holds_that_part_of_the_full_frames_passes(tmp_path):
     """The passes go to Blender tile by tile, each cut to the render region as Combined is:
     a cropped region's multilayer EXR holds the full frame's pixels there, in every pass."""
@@ -246,6 +254,7 @@ def test_a_render_region_holds_that_part_of_the_full_frames_passes(tmp_path):
     assert (region["ViewLayer.Object Index.X"] > 0).sum() > 1000
 
 
+@pytest.mark.cycles
 def test_denoising_data_gives_the_albedo_and_normal_passes_cycles_gives(tmp_path):
     """View Layer > Passes > Data > Denoising Data (Cycles' own setting) makes F12 write
     Denoising Albedo and Denoising Normal, as Cycles does, so the compositor's Denoise node

@@ -15,6 +15,7 @@ import numpy as np
 
 from addon_support import (add_camera, add_point_light, add_sphere, cube_mesh, depsgraph,
                            empty_file, link, prepare_job)
+from glint.addon.compat import new_material  # noqa: E402
 from glint.addon.engine.base import GlintRenderEngine
 from glint.addon.engine.preview import prepare_preview_job
 
@@ -39,7 +40,7 @@ def preview_like_scene(material=None):
 
 
 def red_material():
-    material = bpy.data.materials.new("red")
+    material = new_material("red")
     material.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (
         0.8, 0.05, 0.05, 1.0)
     return material

@@ -12,6 +12,7 @@ import pytest
 from addon_support import (add_camera, add_point_light, add_sphere, add_world, animate_small_sphere,
                            core, core_image, cube_mesh, depsgraph, empty_file, glint, link,
                            prepare_job, read_png, simple_scene, to_rgba8)
+from glint.addon.compat import new_material, set_file_format  # noqa: E402
 from glint.addon.engine.base import GlintRenderEngine
 from glint.addon.ui import compatible_panels
 from glint.addon.engine.job import ThreadedRender
@@ -611,7 +612,7 @@ def test_panels_draw_the_settings_and_the_render_button():
             "image_name"} <= set(layout.drawn)
     assert layout.operators == ["glint.render"]
 
-    material = bpy.data.materials.new("m")
+    material = new_material("m")
     panel = type("Panel", (), {"layout": RecordingLayout()})()
     context = type("Context", (), {"material": material})()
     bpy.types.GLINT_PT_material.draw_header(panel, context)
@@ -647,7 +648,7 @@ def test_each_view_layer_renders_its_own_visibility_into_its_own_layer(tmp_path)
     scene.render.use_single_layer = False
     scene.render.engine = 'GLINT'
     settings = scene.render.image_settings
-    settings.media_type = 'MULTI_LAYER_IMAGE'
+    set_file_format(settings, 'OPEN_EXR_MULTILAYER')
     settings.exr_codec, settings.color_depth = 'NONE', '32'
     scene.render.filepath = str(tmp_path / "layers.exr")
 

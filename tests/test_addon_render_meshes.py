@@ -13,6 +13,7 @@ import bpy
 import numpy as np
 
 from addon_support import core_image, depsgraph, export_scene, link
+from glint.addon.compat import new_material  # noqa: E402
 from blender_scenes import blender_mask, configure_renderers, glint_masks, silhouette_check
 
 WIDTH, HEIGHT = 96, 54
@@ -60,7 +61,7 @@ def test_a_multi_material_mesh_shades_each_face_with_its_slot(tmp_path):
     mesh.from_pydata([(-2, -1, 0), (0, -1, 0), (2, -1, 0), (2, 1, 0), (0, 1, 0), (-2, 1, 0)],
                      [], [(0, 1, 4, 5), (1, 2, 3, 4)])
     for name, rgb in (("red", (0.8, 0.02, 0.02)), ("blue", (0.02, 0.02, 0.8))):
-        material = bpy.data.materials.new(name)
+        material = new_material(name)
         material.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = \
             (*rgb, 1.0)
         mesh.materials.append(material)

@@ -49,6 +49,7 @@ def error_lines(result) -> list[str]:
     return [line for line in result.stderr.splitlines() if line.startswith("render.py: error:")]
 
 
+@pytest.mark.slow
 def test_without_a_blend_it_renders_the_articles_scene(tmp_path):
     output = tmp_path / "article.png"
 
@@ -68,6 +69,7 @@ def test_without_a_blend_it_renders_the_articles_scene(tmp_path):
     assert abs(black - 29019) < 0.005 * 29019
 
 
+@pytest.mark.slow
 def test_arguments_may_follow_a_double_dash_as_under_blender(tmp_path):
     output = tmp_path / "small.png"
     result = run_script("--", "--output", output, "--width", 30, "--height", 20)
@@ -75,6 +77,7 @@ def test_arguments_may_follow_a_double_dash_as_under_blender(tmp_path):
     assert read_script_png(output).shape == (20, 30, 4)
 
 
+@pytest.mark.slow
 def test_a_blend_with_options_renders_what_the_render_button_renders(tmp_path):
     scene = simple_scene()
     scene.glint.semantics = 'ARTICLE'
@@ -94,6 +97,7 @@ def test_a_blend_with_options_renders_what_the_render_button_renders(tmp_path):
     assert read_script_png(output).shape == (32, 40, 4)
 
 
+@pytest.mark.slow
 def test_frame_option_renders_that_frame(tmp_path):
     scene = simple_scene()
     animate_small_sphere(10)
@@ -111,6 +115,7 @@ def test_frame_option_renders_that_frame(tmp_path):
     assert not np.array_equal(rendered, at_frame_1)
 
 
+@pytest.mark.slow
 def test_transparent_film_gives_coverage_alpha_and_a_transparent_background(tmp_path):
     scene = simple_scene()
     add_world("sky", (0.3, 0.5, 0.9))
@@ -142,6 +147,7 @@ def _grown(mask, pixels: int):
     return grown
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("view_transform", ["Standard", "AgX"])
 def test_render_py_writes_the_pixels_f12_and_the_button_give(tmp_path, view_transform):
     scene = simple_scene()
@@ -163,6 +169,7 @@ def test_render_py_writes_the_pixels_f12_and_the_button_give(tmp_path, view_tran
     np.testing.assert_array_equal(script, button_render(tmp_path))
 
 
+@pytest.mark.slow
 def test_an_unreadable_blend_fails_with_one_line_and_leaves_the_output_alone(tmp_path):
     corrupt = tmp_path / "corrupt.blend"
     corrupt.write_bytes(b"BLENDER-v500 this is not a blend file")
@@ -179,6 +186,7 @@ def test_an_unreadable_blend_fails_with_one_line_and_leaves_the_output_alone(tmp
     assert sorted(os.listdir(tmp_path)) == ["corrupt.blend", "out.png"]
 
 
+@pytest.mark.slow
 def test_blenders_warnings_still_reach_stdout(tmp_path):
     scene = simple_scene()
     scene.render.use_motion_blur = True
@@ -191,6 +199,7 @@ def test_blenders_warnings_still_reach_stdout(tmp_path):
            "blur" in result.stdout
 
 
+@pytest.mark.slow
 def test_a_blend_without_camera_fails_with_one_line(tmp_path):
     empty_file()
     add_sphere()
@@ -268,6 +277,7 @@ def test_a_write_protected_output_is_refused_with_one_line(tmp_path):
     assert os.listdir(tmp_path) == ["kept.png"]
 
 
+@pytest.mark.slow
 def test_a_symlinked_output_is_written_through_and_stays_a_link(tmp_path):
     renders = tmp_path / "renders"
     renders.mkdir()
@@ -286,6 +296,7 @@ def test_a_symlinked_output_is_written_through_and_stays_a_link(tmp_path):
     assert sorted(os.listdir(renders)) == ["real.png"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("frame", [2_000_000, -2_000_000])
 def test_a_frame_outside_blenders_range_fails_with_one_line(tmp_path, frame):
     result = run_script("--output", tmp_path / "o.png", "--frame", frame)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import bpy
 import numpy as np
+import pytest
 
 from addon_support import read_png, simple_scene
 from glint.addon.engine.final import FrameRequest, requesting_frames
@@ -27,6 +28,7 @@ def rgba_f12(scene, tmp_path, name):
     return saved_render_result(tmp_path / name)
 
 
+@pytest.mark.slow
 def test_a_cancelled_f12_keeps_the_tiles_that_finished(tmp_path):
     scene = simple_scene()
     scene.render.engine = 'GLINT'

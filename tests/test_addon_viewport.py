@@ -259,6 +259,7 @@ def viewport_inputs(width=200, height=150):
     return scene, settings, size, view
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("integrator", ["path", "whitted"])
 def test_progressive_passes_end_with_the_image_f12_renders(integrator):
     scene, settings, _, view = viewport_inputs(400, 300)
@@ -313,6 +314,7 @@ def test_a_cancel_stops_the_worker_between_tiles_and_keeps_the_last_frame():
     assert progressive.frame is frames[-1] and not progressive.frame.final
 
 
+@pytest.mark.slow
 def test_the_session_re_renders_only_when_the_scene_or_the_view_changed():
     scene, settings, size, view = viewport_inputs()
     session = ViewportSession()
@@ -349,6 +351,7 @@ def test_the_session_re_renders_only_when_the_scene_or_the_view_changed():
     session.stop()
 
 
+@pytest.mark.slow
 def test_until_a_new_view_has_its_first_pass_the_last_picture_stays():
     scene, settings, size, view = viewport_inputs()
     session = ViewportSession()
@@ -451,6 +454,7 @@ def draw_until_final(viewport_engine, engine, context, graph, limit=2000):
     raise AssertionError("the refinement did not finish")
 
 
+@pytest.mark.slow
 def test_view_update_and_view_draw_draw_each_pass_and_warn_once():
     from addon_support import link
 
@@ -474,6 +478,7 @@ def test_view_update_and_view_draw_draw_each_pass_and_warn_once():
     viewport_engine.free()
 
 
+@pytest.mark.slow
 def test_a_camera_view_renders_only_its_render_border():
     scene = simple_scene()
     # Pixel centres, compared bit for bit: the Whitted integrator's.  (A path sample's

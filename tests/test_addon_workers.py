@@ -21,6 +21,8 @@ from glint.addon.engine.job import prepare_job
 from glint.core import workers
 from process_support import all_ended, sigint_disposition
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (child processes)
+
 TILE = 32
 COLUMNS, ROWS = 5, 4
 

@@ -19,13 +19,14 @@ import pytest
 
 from addon_support import (RENDER_SCRIPT, REPOSITORY, core, depsgraph, export_scene,
                            prepare_job, read_image, simple_scene)
+from glint.addon.compat import new_material, new_world  # noqa: E402
 
 NAN, INF = float("nan"), float("inf")
 
 
 def principled(input_name, value):
     def setup(scene):
-        material = bpy.data.materials.new("Paint")
+        material = new_material("Paint")
         node = material.node_tree.nodes["Principled BSDF"]
         if input_name == "Base Color":
             value4 = (value, 0.5, 0.5, 1.0)
@@ -38,7 +39,7 @@ def principled(input_name, value):
 
 def custom(field, value):
     def setup(scene):
-        material = bpy.data.materials.new("Custom")
+        material = new_material("Custom")
         material.glint.use_custom = True
         if field in ("ambient", "diffuse", "specular"):
             setattr(material.glint, field, (value, 0.0, 0.0))
@@ -50,7 +51,7 @@ def custom(field, value):
 
 def world(input_name, value):
     def setup(scene):
-        sky = bpy.data.worlds.new("Sky")
+        sky = new_world("Sky")
         node = sky.node_tree.nodes["Background"]
         node.inputs[input_name].default_value = ((value, 0.1, 0.1, 1.0) if input_name == "Color"
                                                  else value)
@@ -218,6 +219,7 @@ def test_values_cycles_renders_render_from_the_render_button(case):
     assert np.isfinite(read_image(bpy.data.images["Glint Render"])).all()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", ["NaN base colour", "NaN light power", "3e38 vertex in the "
                                   "small sphere", "camera scaled to 0"])
 def test_render_script_renders_them_with_one_warning_line(tmp_path, case):
@@ -267,6 +269,7 @@ def test_a_nan_vertex_drops_the_triangles_around_it():
 # Tolerances: as tests/test_look_cycles.py's LIGHT_TOLERANCE (2 %: Cycles' mesh spheres and
 # noise at 256 samples against Glint's analytic spheres; measured here within 0.3 %).
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("kind, amount", [("POINT", -300.0), ("SPOT", -300.0), ("SUN", -1.0),
                                           ("AREA", -100.0)])
 def test_a_negative_light_subtracts_its_light_as_in_cycles(kind, amount):
@@ -291,6 +294,7 @@ def test_a_negative_light_subtracts_its_light_as_in_cycles(kind, amount):
         np.testing.assert_allclose(ratios, 1.0, atol=LIGHT_TOLERANCE, err_msg=ball.name)
 
 
+@pytest.mark.cycles
 def test_a_180_degree_spot_lights_as_in_cycles():
     from cycles_support import add_light, aim, cycles_scene, render_both, sphere_mask, \
         surface_ratios
@@ -307,6 +311,7 @@ def test_a_180_degree_spot_lights_as_in_cycles():
         np.testing.assert_allclose(ratios, 1.0, atol=LIGHT_TOLERANCE, err_msg=ball.name)
 
 
+@pytest.mark.cycles
 def test_a_nan_vertex_leaves_the_same_hole_as_in_cycles():
     """A coarse ball (12 x 6) whose vertex nearest the camera is NaN: Cycles leaves the
     triangles around it out, which opens a hole of a third of the ball's face (the mean
@@ -359,6 +364,7 @@ def test_the_render_button_names_the_culprit_in_one_line_and_keeps_the_image(cas
     np.testing.assert_array_equal(read_image(bpy.data.images["Glint Render"]), before)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", REFUSED)
 def test_render_script_names_the_culprit_in_one_line(tmp_path, case):
     make(REFUSED, case)
@@ -490,6 +496,7 @@ def test_render_script_refuses_samples_past_the_limit_in_one_line(tmp_path):
     assert "--samples" in line and "at most 16384" in line
 
 
+@pytest.mark.slow
 def test_python_m_core_refuses_a_write_protected_output_and_writes_through_links(tmp_path):
     kept = tmp_path / "kept.png"
     kept.write_bytes(b"previous render")

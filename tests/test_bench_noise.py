@@ -9,6 +9,8 @@ import pytest
 
 from bench import noise, scale
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (child processes)
+
 
 def test_noise_is_the_rms_of_the_display_difference_in_8_bit_steps():
     rng = np.random.default_rng(1)

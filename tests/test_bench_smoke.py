@@ -4,9 +4,12 @@ the bench times them, tests never do)."""
 import os
 
 import numpy as np
+import pytest
 
 from bench import baseline, per_pixel
 from core import article_scene
+
+pytestmark = pytest.mark.slow  # every test here takes seconds (child processes)
 
 REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # The image the article's own program produces (a copy of shared/reference/article_300x200.npy).

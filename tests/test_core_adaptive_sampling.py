@@ -115,6 +115,7 @@ def test_a_penumbra_seen_by_half_the_light_gets_every_stratum():
     assert fixed.stats.shadow_rays == 16 * 16 * 16
 
 
+@pytest.mark.slow
 def test_flat_facets_of_one_colour_are_not_edges_but_shadows_and_silhouettes_are():
     ball = core.Sphere((0.3, 0.2, 0.6), 0.5, core.SurfaceMaterial(diffuse=(0.8, 0.2, 0.2)))
     scene = core.Scene(camera=top_camera(64, height=6.0, lens=35.0), spheres=(ball,),
@@ -139,6 +140,7 @@ def test_flat_facets_of_one_colour_are_not_edges_but_shadows_and_silhouettes_are
     assert rms(adaptive.image) < 0.5 * rms(plain)
 
 
+@pytest.mark.slow
 def test_soft_lights_with_adaptive_aa_do_not_depend_on_tiles_or_threads():
     ball = core.Sphere((0.3, 0.2, 0.6), 0.5, core.SurfaceMaterial(diffuse=(0.8, 0.2, 0.2)))
     scene = core.Scene(camera=top_camera(40, height=6.0, lens=35.0), spheres=(ball,),

@@ -10,6 +10,7 @@ import dataclasses
 import importlib
 
 import numpy as np
+import pytest
 
 import core
 from core.render import FIRST_SAMPLES, LINE_CONTRAST, SAMPLE_ERROR, _edges
@@ -107,6 +108,7 @@ def _field(size=(96, 54), count=1500, seed=7):
                       sphere_sets=(spheres,), lights=(core.PointLight((5, 5, 5)),))
 
 
+@pytest.mark.slow
 def test_on_a_dense_field_staged_samples_cost_fewer_rays_for_the_same_error(monkeypatch):
     scene = _field()
     reference = _fixed(scene, 64).image
@@ -126,6 +128,7 @@ def test_on_a_dense_field_staged_samples_cost_fewer_rays_for_the_same_error(monk
     assert rms(staged.image) < rms(fixed.image)
 
 
+@pytest.mark.slow
 def test_staged_samples_do_not_depend_on_tiles_or_threads():
     scene = _field(size=(40, 30), count=600)
     images = [_adaptive(scene, tile_size=tile, threads=threads).image
@@ -137,6 +140,7 @@ def test_staged_samples_do_not_depend_on_tiles_or_threads():
     assert np.array_equal(*default)
 
 
+@pytest.mark.slow
 def test_a_centre_is_sample_zero_where_the_light_shares_change_nothing(monkeypatch):
     # Default semantics with point lights only: a sample's share of the lights' samples
     # changes nothing, so the centres already traced are the edge pixels' sample 0 (as in

@@ -36,6 +36,7 @@ FAULTS = """
 """
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not GLIBC, reason="mallopt settings exist only with glibc on Linux")
 def test_tuned_malloc_stops_a_render_from_faulting():
     def faults(mode):

@@ -73,6 +73,7 @@ def test_stable_intersection_agrees_with_textbook_on_reference(reference):
         make_context(scene, settings, np.float64, root_formula="quadratic")
 
 
+@pytest.mark.slow
 def test_command_writes_npy_matching_reference(tmp_path, reference):
     out = tmp_path / "article.npy"
     done = subprocess.run([sys.executable, "-m", "core", "--scene", "article", "--width", "300",

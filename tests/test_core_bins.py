@@ -51,6 +51,7 @@ def _slab_hits(origin, directions, low, high):
     return (near <= far) & (far >= 0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_a_ray_finds_every_box_it_passes_through_in_its_cell(dtype):
     """Random boxes (tiny to large, straddling face planes, one around the origin) and rays:
@@ -192,6 +193,7 @@ def _mesh_spot_scene():
                       lights=lights)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("semantics,precision", [("default", "float32"),
                                                  ("default", "float64"),
                                                  ("article", "float64")])

@@ -52,6 +52,7 @@ def _rays(rng, n, dtype, shared_origin=None):
     return rng.uniform(-6, 6, (3, n)).astype(dtype), directions.astype(dtype)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sorts", ["treelets", "widest", "unsorted"])
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_tree_finds_exactly_the_flat_paths_hits(dtype, sorts):
@@ -244,6 +245,7 @@ def _check_tree(tree, ids, low, high):
     assert (tree.root_box[3:] >= high.max(axis=0)).all()
 
 
+@pytest.mark.slow
 def test_leaf_crossings_count_the_leaf_boxes_random_lines_cross():
     """``BVH.leaf_crossings`` (the leaves' areas over the root's) is the mean number of leaf
     boxes crossed by isotropic random lines through the root box (Cauchy-Crofton), counted
@@ -367,6 +369,7 @@ def test_rays_away_from_a_fine_mesh_do_not_pay_for_it():
     assert stats.triangle_tests <= 8 * MAX_LEAF * n and stats.node_tests <= bound_nodes
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cluster_from", [10 ** 9, 200])
 def test_tree_agrees_with_brute_force_on_mixed_sizes(cluster_from):
     """The ball on its backdrop, 600 small spheres around it and 3 large ones, against the
@@ -498,6 +501,7 @@ def _leaving_rays(ctx, rng, n):
     return ctx.geometry.spawn(hits.points, hits.normals, hits.primitive, out, front)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_occlusion_trails_block_exactly_the_rays_the_flat_paths_do(monkeypatch, dtype):
     """Rays leaving the hit surfaces of 3,000 spheres, a floor kept out of the tree and 200
@@ -528,6 +532,7 @@ def test_occlusion_trails_block_exactly_the_rays_the_flat_paths_do(monkeypatch, 
         assert trail_stats.node_tests != root_stats.node_tests     # the trail was taken
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_trails_by_leaf_block_exactly_the_rays_every_sphere_does(monkeypatch, dtype):
     """A tree of spheres alone (a floor kept out of it) visits its trails' leaves through the
@@ -682,6 +687,7 @@ def test_rays_leaving_a_dense_wall_are_blocked_near_their_leaf():
     assert trail_stats.node_tests < 0.8 * root_stats.node_tests
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("count", [1, 3, 40, 3000])
 def test_trails_find_every_blocker_a_brute_force_finds(count):
     """Boxes as the primitives themselves (a pair blocks where the ray's segment crosses the
@@ -799,6 +805,7 @@ def test_front_to_back_orders_pairs_by_ray_then_entry(dtype):
         assert np.array_equal(near[order], near[expected])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("semantics", ["default", "article"])
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_nearest_hits_by_leaf_slot_match_the_flat_paths(monkeypatch, dtype, semantics):

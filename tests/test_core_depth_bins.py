@@ -55,6 +55,7 @@ def _directions(rng, origin, centres, radii, count):
                           axis=1)
 
 
+@pytest.mark.slow
 def test_every_hit_lies_beyond_its_entrys_near_in_its_cell():
     """Rays from the origin into a dense slab: every sphere a ray enters at t is listed in
     the ray's cell with near <= t (the cone bound is a lower bound, the cone culling drops
@@ -95,6 +96,7 @@ def test_every_hit_lies_beyond_its_entrys_near_in_its_cell():
     assert grid.entries < boxes.entries
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rounds", [ROUNDS, (1,), (1, 2)])
 def test_the_walk_finds_the_nearest_hit_ties_to_the_lower_id(rounds):
     """A walk over the slab, with duplicated spheres (exact ties), in the default rounds and

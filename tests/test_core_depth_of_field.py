@@ -105,6 +105,7 @@ def disc_edge_band(radius_px, low=0.02, high=0.98):
     return float(np.interp(high, covered, x) - np.interp(low, covered, x))
 
 
+@pytest.mark.slow
 def test_an_edge_out_of_focus_spreads_over_the_circle_of_confusion():
     scene = Scene(camera=camera(), spheres=(Sphere((0.0, 0.0, -10.0), 1.0, Material()),),
                   lights=(PointLight((0.0, 5.0, 0.0)),))

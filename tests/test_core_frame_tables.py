@@ -94,6 +94,7 @@ def _frame_on(ctx, camera, settings, shape, dtype):
     return image
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("integrator", ["path", "whitted"])
 def test_workers_get_the_frames_tables_and_build_none(small_renders_in_processes,
                                                        monkeypatch, integrator):
@@ -139,6 +140,7 @@ def test_workers_get_the_frames_tables_and_build_none(small_renders_in_processes
     assert result.stats.camera_rays == threads.stats.camera_rays
 
 
+@pytest.mark.slow
 def test_a_render_on_threads_builds_each_table_once(monkeypatch):
     """On threads too the frame's tables are built before the tiles, once each (the eye's
     id-ordered bins tried and refused first: a dense field)."""

@@ -106,6 +106,7 @@ def test_mirror_bins_are_built_once_per_image():
     assert len({int(s) for s in rays.source}) == 2
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("semantics,precision", [("article", "float64"), ("default", "float32"),
                                                  ("default", "float64")])
 def test_renders_through_mirror_bins_are_the_trees(semantics, precision):

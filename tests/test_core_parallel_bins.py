@@ -84,6 +84,7 @@ def _grazing(rays, geometry, rng, n):
     return RayBatch(origins, towards, 0.0, np.inf, None, never, never)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_sun_rays_through_parallel_bins_block_exactly_the_rays_every_sphere_does(dtype):
     binned, tree, flat = _contexts(dtype)
@@ -154,6 +155,7 @@ def test_parallel_bins_serve_only_unbounded_rays_of_one_direction():
     assert geometry.bins.parallel_spheres(rays) is None
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("precision", ["float64", "float32"])
 def test_a_render_through_parallel_bins_is_the_trees_image(monkeypatch, precision):
     """The field under a sun and a grey world (its occlusion rays go to the tree): the same

@@ -66,6 +66,7 @@ def test_paths_stop_when_their_weight_cannot_show():
     assert reflection_rays(1e-4) == 1 * pixels
 
 
+@pytest.mark.slow
 def test_culling_skips_spheres_a_tile_cannot_see():
     scene = _scene(count=40, reflection=0.0, width=256, height=192)
     settings = core.RenderSettings(max_depth=1, tile_size=32)
@@ -149,6 +150,7 @@ def test_progress_reports_and_cancel_stops_between_tiles():
                     should_cancel=cancel_after_three)
 
 
+@pytest.mark.slow
 def test_8k_render_working_memory_stays_under_300_mb():
     """7680 x 4320, depth 3: peak traced allocations beyond the output image < 300 MB (on
     threads: tracemalloc sees this process only)."""

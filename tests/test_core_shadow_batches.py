@@ -80,6 +80,7 @@ def _batch_by_batch(ctx, terminator, points, batches, stats):
             for rows, rays in batches]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("light", sorted(LIGHTS))
 @pytest.mark.parametrize("spheres", [0, 600])
 def test_batched_shadow_rays_give_the_images_of_batch_by_batch(monkeypatch, light, spheres):

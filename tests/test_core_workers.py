@@ -18,6 +18,8 @@ from core.render import RenderCancelled, render_tile
 from core.scene import SceneError
 from process_support import all_ended, sigint_disposition
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (child processes)
+
 REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import importlib
 
 import numpy as np
+import pytest
 
 import core
 from core.lights import cosine_directions, pixel_shifts, shifted_cosine_direction
@@ -95,6 +96,7 @@ def _ball_on_a_floor(size=96):
                       **WHITE_WORLD)
 
 
+@pytest.mark.slow
 def test_a_ball_on_a_floor_darkens_it_with_noise_not_with_copies_of_its_shadow():
     """A white world, no light: the floor around the ball sees less of the sky.  Against 256
     world samples, 9 samples' error over 8 x 8 boxes of floor is 0.13 of its error per pixel
@@ -151,6 +153,7 @@ def _faceted_ball_on_a_floor(size=96):
                       ambient=(1, 1, 1))
 
 
+@pytest.mark.slow
 def test_adaptive_aa_allows_for_the_worlds_noise_and_still_finds_silhouettes(monkeypatch):
     """Per pixel, the world's occlusion is noise; with no allowance for it, most facet
     creases of the ball (and of the floor's two triangles) step past EDGE_CONTRAST

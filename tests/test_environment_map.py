@@ -41,6 +41,8 @@ def uniform_directions(rng, n):
     return np.stack([r * np.cos(phi), r * np.sin(phi), z])
 
 
+@pytest.mark.slow
+@pytest.mark.cycles
 def test_radiance_with_rotation_matches_cycles():
     """The map's radiance of a direction is the world's, rotated by the Mapping node in front
     of the Environment Texture, as Cycles shows it."""
@@ -62,6 +64,7 @@ def test_radiance_with_rotation_matches_cycles():
     assert np.abs(unrotated.T.reshape(48, 48, 3) - cycles).max() > 0.1   # rotation matters
 
 
+@pytest.mark.slow
 def test_map_cells_sit_on_the_texels():
     """At the image's own resolution (Cycles' Auto), each cell's centre is its texel's centre:
     the weights are the texels' mean |RGB| times sin(theta), as Cycles' background_cdf."""
@@ -88,6 +91,7 @@ def cell_directions(environment, rng=None):
     return equirectangular_directions(u, v), (high - low) * 2 * np.pi / res_x
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, rotation", [("sunrise.exr", None), ("forest.exr", ROTATION)])
 def test_pdf_integrates_to_one(name, rotation):
     """Monte Carlo over the sphere, stratified by the map's cells (one direction uniform in
@@ -105,6 +109,7 @@ def test_pdf_integrates_to_one(name, rotation):
     assert error < 1e-3
 
 
+@pytest.mark.slow
 def test_samples_follow_the_pdf():
     """200,000 directions drawn from the map: their pdf and radiance are the map's at those
     directions, and their counts over 32 x 16 blocks of cells match the cells' probabilities
@@ -172,6 +177,7 @@ def normals(sun):
             ("down", (0, 0, -1)))
 
 
+@pytest.mark.slow
 def test_importance_sampling_has_uniform_samplings_mean():
     """Irradiance on four normals under sunset.exr (a broad sun: uniform sampling converges),
     200,000 samples each way: the importance-sampled estimate has the uniform one's mean,
@@ -185,6 +191,7 @@ def test_importance_sampling_has_uniform_samplings_mean():
         assert abs(importance.mean() - uniform.mean()) < 4 * error, label
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["sunset.exr", "sunrise.exr"])
 def test_importance_sampling_cuts_the_variance(name):
     """Irradiance on four normals: the importance-sampled mean of 200,000 samples is the

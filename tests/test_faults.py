@@ -30,6 +30,8 @@ import glint.addon.engine.final as final  # noqa: E402
 import glint.addon.engine.job as job  # noqa: E402
 import glint.addon.operators as operators  # noqa: E402
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (child processes)
+
 # The module, not the function ``glint.core.render`` that the package exports under its name.
 core_render = sys.modules["glint.core.render"]
 FAULT_CHILD = os.path.join(REPOSITORY, "tests", "fault_child.py")

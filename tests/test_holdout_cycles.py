@@ -34,6 +34,7 @@ import pytest
 from cycles_support import (add_ball, add_light, add_plane, cycles_scene, diffuse,
                             node_material, pixel_errors, render_both, set_world, sphere_mask,
                             surface_ratios)
+from glint.addon.compat import new_material  # noqa: E402
 
 ALPHA_TOLERANCE = 1e-3
 LIGHT_TOLERANCE = 0.02
@@ -42,7 +43,7 @@ PIXEL_TOLERANCE = 0.05
 
 def holdout_mix(name: str, factor: float, colour):
     """Mix Shader: (1 - factor) Diffuse(colour) + factor Holdout."""
-    material = bpy.data.materials.new(name)
+    material = new_material(name)
     tree = material.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
     mix = tree.nodes.new("ShaderNodeMixShader")
@@ -73,6 +74,8 @@ def assert_colours(glint, cycles, ball, floor=0.05, beside=None):
     assert np.percentile(pixel_errors(glint, cycles, mask, floor), 90) < PIXEL_TOLERANCE
 
 
+@pytest.mark.slow
+@pytest.mark.cycles
 @pytest.mark.parametrize("transparent", [False, True], ids=["opaque film", "transparent film"])
 def test_holdout_shader_cuts_camera_holes_and_is_black_in_mirrors_and_through_glass(
         transparent):
@@ -119,6 +122,8 @@ def test_holdout_shader_cuts_camera_holes_and_is_black_in_mirrors_and_through_gl
     np.testing.assert_allclose(glint[sky], cycles[sky], atol=1e-5)
 
 
+@pytest.mark.slow
+@pytest.mark.cycles
 @pytest.mark.parametrize("transparent", [False, True], ids=["opaque film", "transparent film"])
 @pytest.mark.parametrize("how", ["object", "collection"])
 def test_holdout_objects_cut_holes_yet_cast_shadows_and_show_in_mirrors(how, transparent):
@@ -156,6 +161,8 @@ def test_holdout_objects_cut_holes_yet_cast_shadows_and_show_in_mirrors(how, tra
     np.testing.assert_allclose(glint[reflection, 3], 1.0)
 
 
+@pytest.mark.slow
+@pytest.mark.cycles
 @pytest.mark.parametrize("transparent", [False, True], ids=["opaque film", "transparent film"])
 def test_holdouts_and_the_world_through_a_transparent_bsdf(transparent):
     scene = cycles_scene(bounces=2)
@@ -184,6 +191,7 @@ def test_holdouts_and_the_world_through_a_transparent_bsdf(transparent):
     np.testing.assert_allclose(glint[world, :3], cycles[world, :3], atol=1e-4)
 
 
+@pytest.mark.slow
 def test_f12_saves_the_holdout_hole_with_an_opaque_film(tmp_path):
     """What the engine hands Blender (and Blender saves) keeps the hole: alpha 0 on the held
     ball in the PNG, 1 on the world around it, Film > Transparent off."""
@@ -203,6 +211,8 @@ def test_f12_saves_the_holdout_hole_with_an_opaque_film(tmp_path):
     assert (alpha[~sphere_mask(held, erode=-2)] == 255).all()
 
 
+@pytest.mark.slow
+@pytest.mark.cycles
 def test_a_holdout_object_keeps_its_transparency():
     """Cycles holds out all of a holdout object but its transparency: a Principled BSDF of
     Alpha 0.5 passes half at each of its two sides, so a quarter of the ball behind shows
@@ -212,7 +222,7 @@ def test_a_holdout_object_keeps_its_transparency():
     scene.cycles.min_transparent_bounces = 8    # no Russian roulette bias (see above)
     scene.glint.max_depth = 4
     set_world((0.3, 0.5, 0.9), 0.02)   # dim: the ball behind is lit by the light alone
-    half = bpy.data.materials.new("half")
+    half = new_material("half")
     principled = half.node_tree.nodes["Principled BSDF"]
     principled.inputs["Alpha"].default_value = 0.5
     principled.inputs["Base Color"].default_value = (0.2, 0.8, 0.2, 1.0)

@@ -17,6 +17,8 @@ import pytest
 
 from process_support import sigint_disposition
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (child processes)
+
 REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 #: Enough for the child to import bpy and be rendering (bpy's import takes ~1-2 s here).
 SETTLE_SECONDS = 4.0

@@ -27,6 +27,9 @@ from addon_support import link
 from cycles_support import (HEIGHT, WIDTH, add_ball, add_light, add_plane, aim, cycles_scene,
                             diffuse, node_material, pixel_errors, render_both, set_world,
                             sphere_mask, surface_ratios)
+from glint.addon.compat import new_material  # noqa: E402
+
+pytestmark = pytest.mark.cycles  # every test here renders with Cycles
 
 LIGHT_TOLERANCE = 0.02
 PIXEL_TOLERANCE = 0.05
@@ -210,7 +213,7 @@ def test_emission_matches_cycles():
 def mixed(kind: str, factor: float = 0.3):
     """A red Diffuse BSDF and a blue Emission through a Mix Shader (factor) or Add Shader,
     the Mix's factor from a Value node inside a node group, through a reroute."""
-    material = bpy.data.materials.new(kind)
+    material = new_material(kind)
     tree = material.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
     red = tree.nodes.new("ShaderNodeBsdfDiffuse")

@@ -20,6 +20,8 @@ import core
 from core import memory
 from core.png import decode_png, write_png
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (child processes)
+
 REPOSITORY = __file__.rsplit("/tests/", 1)[0]
 
 

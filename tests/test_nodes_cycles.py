@@ -23,7 +23,10 @@ import numpy as np
 import pytest
 
 import cycles_support as cs
+from glint.addon.compat import new_material  # noqa: E402
 from addon_support import core_image, link
+
+pytestmark = pytest.mark.cycles  # every test here renders with Cycles
 
 PIXEL_TOLERANCE = 0.02
 MEAN_TOLERANCE = 0.02
@@ -43,7 +46,7 @@ def _per_pixel(glint, cycles):
 
 
 def _material(name):
-    material = bpy.data.materials.new(name)
+    material = new_material(name)
     return material, material.node_tree, material.node_tree.nodes["Principled BSDF"]
 
 

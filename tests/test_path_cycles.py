@@ -20,7 +20,10 @@ import numpy as np
 import pytest
 
 import cycles_support as cs
+from glint.addon.compat import new_material  # noqa: E402
 from addon_support import core_image, link
+
+pytestmark = pytest.mark.cycles  # every test here renders with Cycles
 
 WALL_TOLERANCE = 0.015
 
@@ -167,7 +170,7 @@ def test_glass_in_front_of_a_coloured_backdrop_matches_cycles(roughness):
     glass = cs.node_material("glass", "ShaderNodeBsdfGlass", Color=(1.0, 1.0, 1.0),
                              Roughness=roughness, IOR=1.45)
     ball = cs.add_ball("ball", (0.0, 0.0, 0.0), 1.0, glass)
-    backdrop = bpy.data.materials.new("stripes")
+    backdrop = new_material("stripes")
     tree = backdrop.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
     emission = tree.nodes.new("ShaderNodeEmission")

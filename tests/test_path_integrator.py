@@ -58,6 +58,7 @@ def test_inside_an_emitting_diffuse_sphere_bounces_add_up_to_the_truncated_serie
     assert mean == pytest.approx(expected, rel=0.005)
 
 
+@pytest.mark.slow
 def test_inside_an_emitting_sphere_many_bounces_converge_to_the_geometric_sum():
     a = 0.5
     scene = Scene(camera=_camera((0, 0, 0)),
@@ -82,6 +83,7 @@ def _box_scene(width=24, height=18):
                  spheres=(Sphere((0.8, 0.5, -1.8), 1.2, white),))
 
 
+@pytest.mark.slow
 def test_the_image_is_the_same_for_any_tiles_threads_and_processes():
     scene = _box_scene(40, 30)
     base = RenderSettings(samples=4, threads=1, tile_size=64, parallelism="threads")
@@ -93,6 +95,7 @@ def test_the_image_is_the_same_for_any_tiles_threads_and_processes():
         np.testing.assert_array_equal(core.render(scene, settings).image, reference)
 
 
+@pytest.mark.slow
 def test_more_samples_bring_the_image_closer_to_a_converged_one():
     scene = _box_scene()
     reference = core.render(scene, RenderSettings(samples=1024, threads=2)).image[..., :3]
@@ -102,6 +105,7 @@ def test_more_samples_bring_the_image_closer_to_a_converged_one():
     assert errors[1] < 0.7 * errors[0] and errors[2] < 0.7 * errors[1], errors
 
 
+@pytest.mark.slow
 def test_bounces_add_light_to_a_room():
     scene = _box_scene()
     direct = core.render(scene, RenderSettings(samples=64, threads=2, max_bounces=0)).image
@@ -111,6 +115,7 @@ def test_bounces_add_light_to_a_room():
     assert bounced[0:2, :, :3].mean() > 2 * direct[0:2, :, :3].mean()
 
 
+@pytest.mark.slow
 def test_clamping_indirect_light_darkens_only_what_bounced():
     scene = _box_scene()
     settings = RenderSettings(samples=16, threads=2, max_bounces=0, clamp_indirect=0.01)

@@ -18,6 +18,8 @@ from exr import read_exr
 
 from glint.addon.cli.frames import FrameClaim, frame_path  # noqa: E402
 
+pytestmark = pytest.mark.slow  # every test here takes seconds (child processes)
+
 
 def run_script(*arguments, **kwargs):
     return subprocess.run([sys.executable, RENDER_SCRIPT, *map(str, arguments)],

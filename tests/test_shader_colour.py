@@ -12,6 +12,7 @@ import pytest
 
 from node_support import NodeScene, by_identifier, check_outputs, evaluate, node_options
 
+from glint.addon.compat import new_material  # noqa: E402
 from glint.core.shader.colour_nodes import BLEND_MODES, RAMP_TABLE_SIZE, ramp_table  # noqa: E402
 
 BLEND_TYPES = [item.identifier for item in
@@ -38,7 +39,7 @@ def test_every_blend_mode_is_registered():
 def test_ramp_table_is_blenders_ramp_at_cycles_positions():
     """The table Cycles bakes is Blender's ramp at i / 256; ours is made from the stops for
     every interpolation, colour mode and hue direction, and ramps of 1 to 5 random stops."""
-    material = bpy.data.materials.new("ramps")
+    material = new_material("ramps")
     ramp_node = material.node_tree.nodes.new("ShaderNodeValToRGB")
     ramp = ramp_node.color_ramp
     rng = np.random.default_rng(7)
@@ -62,6 +63,7 @@ def test_ramp_table_is_blenders_ramp_at_cycles_positions():
     bpy.data.materials.remove(material)
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("colour_mode", ["RGB", "HSV", "HSL"])
 def test_color_ramp_matches_cycles(colour_mode):
     """Every interpolation (RGB) or hue direction (HSV, HSL: Blender blends them linearly),
@@ -87,6 +89,7 @@ def test_color_ramp_matches_cycles(colour_mode):
     check_outputs(scene, cases)
 
 
+@pytest.mark.cycles
 def test_constant_ramp_steps_at_cycles_table_entries():
     """Factors from 0.49 to 0.51 across the image: a constant ramp's stop at 0.5 switches at
     0.5 in a table of 257 entries (1 / 256 apart), at 0.50196 with 256."""
@@ -108,6 +111,7 @@ def shape_curve(curve, points):
         curve.points.new(*point)
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("extend", ["EXTRAPOLATED", "HORIZONTAL"])
 def test_curves_match_cycles(extend):
     """RGB Curves (each channel through the combined curve), Vector Curves and Float Curve,
@@ -168,6 +172,7 @@ def colour_pair(scene):
     return sockets, values
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("clamp", [False, True], ids=["unclamped", "clamped"])
 def test_mix_colour_matches_cycles_for_every_blend_mode(clamp):
     """Mix (colour) with clamp factor and clamp result both off or both on, and the legacy
@@ -207,6 +212,7 @@ def test_mix_colour_matches_cycles_for_every_blend_mode(clamp):
     check_outputs(scene, cases)
 
 
+@pytest.mark.cycles
 def test_mix_float_and_vector_match_cycles():
     """Float and vector mixes, uniform and per-component factors, clamped or not."""
     scene = NodeScene((-0.5, 1.5), (-0.5, 1.5))
@@ -240,6 +246,7 @@ def test_mix_float_and_vector_match_cycles():
     check_outputs(scene, cases)
 
 
+@pytest.mark.cycles
 def test_colour_adjustments_match_cycles():
     """Invert, Hue/Saturation/Value, Brightness/Contrast, Gamma and RGB to BW over colours
     from -0.2 to 1.3, with their factors and parameters varying too."""
@@ -302,11 +309,13 @@ def light_colour_cases(scene):
     return cases
 
 
+@pytest.mark.cycles
 def test_blackbody_and_wavelength_match_cycles_in_rec709():
     scene = NodeScene((0.0, 1.0), (0.0, 1.0))
     check_outputs(scene, light_colour_cases(scene))
 
 
+@pytest.mark.cycles
 def test_working_space_moves_blackbody_wavelength_and_luminance():
     """In a Rec.2020 file Cycles gives Blackbody, Wavelength and RGB to BW in Rec.2020: the
     readers pass that space's matrices and weights (over these inputs the Rec.709 results

@@ -32,6 +32,7 @@ import pytest
 from mathutils import Euler, Vector
 
 from addon_support import empty_file, glint, ico_sphere_mesh, link
+from glint.addon.compat import new_material, new_world  # noqa: E402
 from exr import read_exr, write_exr
 
 from glint.addon.export.camera import export_camera
@@ -70,7 +71,7 @@ def cycles_file(resolution: int = RES):
     cycles.max_bounces = 0
     cycles.filter_width = 0.01
     cycles.seed = 1
-    world = bpy.data.worlds.new("black")
+    world = new_world("black")
     world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
     scene.world = world
     return scene
@@ -122,7 +123,7 @@ def emission_material(image, *, interpolation="Linear", extension="REPEAT",
     """A material: Image Texture -> Emission (strength 1, or the texture's Alpha with
     ``alpha_strength``) -> output; ``vector``: a Texture Coordinate output feeding the
     texture's Vector.  Returns (material, image node)."""
-    material = bpy.data.materials.new("textured")
+    material = new_material("textured")
     tree = material.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
     texture = tree.nodes.new("ShaderNodeTexImage")
@@ -268,6 +269,7 @@ def test_closest_lookup_at_texel_centres_reads_blenders_pixels(folder):
 WIDE_UV = ((-0.64, -0.6), (1.64, 1.53))
 
 
+@pytest.mark.cycles
 def test_wide_uvs_keep_clear_of_texel_edges():
     cycles_file()
     add_camera()
@@ -277,6 +279,7 @@ def test_wide_uvs_keep_clear_of_texel_edges():
         assert np.min(np.minimum(fraction, 1 - fraction)) > 0.1
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("interpolation", ["Closest", "Linear", "Cubic", "Smart"])
 @pytest.mark.parametrize("extension", ["REPEAT", "EXTEND", "CLIP", "MIRROR"])
 def test_interpolation_and_extension_match_cycles(folder, interpolation, extension):
@@ -294,6 +297,7 @@ def test_interpolation_and_extension_match_cycles(folder, interpolation, extensi
     close(glint_image, render_cycles())
 
 
+@pytest.mark.cycles
 def test_float_image_interpolates_linear_values(folder):
     """A float EXR interpolates its scene-linear values (no decoding) with Cubic and Mirror,
     against Cycles."""
@@ -357,6 +361,7 @@ def mesh_hits(obj, offsets=(0.0, 0.05, -0.05)):
     return points, normal, hit
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("projection, blend", [("FLAT", 0.0), ("SPHERE", 0.0),
                                                ("TUBE", 0.0), ("BOX", 0.0), ("BOX", 0.3)])
 def test_projections_match_cycles(folder, projection, blend):
@@ -398,6 +403,7 @@ def premultiplied_bytes(height, width, seed):
     return np.concatenate([colour, alpha[..., None]], axis=-1).astype(np.uint8)
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("mode", ["STRAIGHT", "PREMUL", "CHANNEL_PACKED", "NONE"])
 @pytest.mark.parametrize("packed", [False, True])
 @pytest.mark.parametrize("kind", ["png Closest", "png Linear", "exr Linear"])
@@ -451,6 +457,7 @@ def colour_space_check(colour_space):
     return ("Closest", 2e-3, 1e-4) if converted(colour_space) else ("Linear", 1e-4, 1e-4)
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("colour_space", BYTE_SPACES)
 @pytest.mark.parametrize("alpha", [False, True])
 def test_byte_image_colour_spaces_match_cycles(folder, colour_space, alpha):
@@ -468,6 +475,7 @@ def test_byte_image_colour_spaces_match_cycles(folder, colour_space, alpha):
     close(glint_image, render_cycles(), relative, absolute)
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("colour_space", FLOAT_SPACES)
 @pytest.mark.parametrize("packed", [False, True])
 def test_float_image_colour_spaces_match_cycles(folder, colour_space, packed):
@@ -490,6 +498,7 @@ def test_float_image_colour_spaces_match_cycles(folder, colour_space, packed):
     close(glint_image, render_cycles(), relative, absolute)
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("packed", [False, True])
 def test_16_bit_png_matches_cycles(folder, packed):
     """A 16-bit sRGB PNG with alpha is a float image in Blender (linearised on load) but
@@ -533,6 +542,7 @@ def test_colour_space_kinds_follow_cycles():
 # --------------------------------------------------------------------------------------------
 # What cannot be read, and what should not be.
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("fault", ["missing", "unreadable"])
 def test_missing_file_renders_magenta_with_one_warning(folder, fault):
     """An image whose file is gone (or holds no image) renders magenta (1, 0, 1) as in
@@ -564,6 +574,7 @@ def test_missing_file_renders_magenta_with_one_warning(folder, fault):
     assert len(notes) == 1 and "material 'Painted'" in notes[0] and "no image" in notes[0]
 
 
+@pytest.mark.cycles
 def test_non_finite_texels_are_zeroed_with_one_warning(folder):
     """A float image's NaN and infinite texels are zeroed, all four channels (Cycles'
     loader's intent; its loop reaches only every fourth pixel, 0, 4, ..., which is where
@@ -627,6 +638,7 @@ def udim_image(folder):
     return image
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("packed", [False, True])
 @pytest.mark.parametrize("interpolation", ["Closest", "Linear"])
 def test_udim_tiles_match_cycles(folder, packed, interpolation):
@@ -656,6 +668,7 @@ def test_udim_tiles_match_cycles(folder, packed, interpolation):
     assert magenta.sum() > 300          # the missing tiles show
 
 
+@pytest.mark.cycles
 def test_unreadable_udim_tile_is_magenta_with_one_warning(folder):
     """A tile whose file is gone renders magenta, the others as they are, as in Cycles."""
     cycles_file(48)
@@ -674,6 +687,7 @@ def test_unreadable_udim_tile_is_magenta_with_one_warning(folder):
     assert len(notes) == 1 and "[1002]" in notes[0] and "material 'Tiled'" in notes[0]
 
 
+@pytest.mark.cycles
 def test_image_sequence_frame_follows_the_image_user(folder):
     """A sequence's frame at the scene's frame, through the node's image user (start,
     offset, duration, cyclic), as Cycles reads it."""
@@ -739,6 +753,7 @@ def write_movie(folder, colours) -> str:
     return os.path.join(folder, name)
 
 
+@pytest.mark.cycles
 def test_movie_frame_follows_the_image_user(folder):
     """A movie's frame at the scene's frame through the image user, as Cycles reads it
     (through Blender's buffers)."""
@@ -784,6 +799,8 @@ def environment_world(path, projection="EQUIRECTANGULAR", rotation=None):
     return texture
 
 
+@pytest.mark.slow
+@pytest.mark.cycles
 @pytest.mark.parametrize("projection", ["EQUIRECTANGULAR", "MIRROR_BALL"])
 def test_environment_texture_matches_cycles(projection):
     """A camera looking at the world (a studio light's EXR as Environment Texture): each
@@ -813,7 +830,7 @@ def test_image_nodes_are_registered_with_blenders_sockets():
     """The registry's specs name Blender 5.0's sockets and options, and the unlinked Vector:
     the UV map for Image Texture, the position (the world's direction) for Environment."""
     empty_file()
-    material = bpy.data.materials.new("sockets")
+    material = new_material("sockets")
     for kind, implicit in (("ShaderNodeTexImage", "uv"), ("ShaderNodeTexEnvironment",
                                                           "position")):
         node = material.node_tree.nodes.new(kind)

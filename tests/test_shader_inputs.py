@@ -37,6 +37,7 @@ def no_inputs(X, Y):
     return {}
 
 
+@pytest.mark.cycles
 def test_value_and_rgb_match_cycles():
     scene = NodeScene()
     value = scene.node("ShaderNodeValue")
@@ -47,6 +48,7 @@ def test_value_and_rgb_match_cycles():
                                           (colour, "Color", no_inputs)]))
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("back", [False, True], ids=["front", "back"])
 def test_fresnel_and_layer_weight_match_cycles(back):
     """IOR from 0.5 to 3 and Blend from -0.2 to 1.2 across the image, with the surface's
@@ -82,6 +84,7 @@ def test_fresnel_and_layer_weight_match_cycles(back):
     check_outputs(scene, cases_of(scene, cases))
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("back", [False, True], ids=["front", "back"])
 def test_geometry_matches_cycles(back):
     """Position, Normal, True Normal, Incoming, Backfacing, and Pointiness (0.5: Cycles
@@ -110,6 +113,7 @@ def window_and_camera_sources(scene):
     return sources
 
 
+@pytest.mark.cycles
 def test_texture_coordinate_matches_cycles():
     """Generated (the mesh's texture space), UV (a UV map), Object, Camera and Window from
     the integrator; Object relative to another object, Normal and Reflection computed by the
@@ -158,6 +162,7 @@ def object_sources(scene, obj, material):
                          "material_index": repeat((material.pass_index,) * 3)}
 
 
+@pytest.mark.cycles
 def test_object_info_matches_cycles():
     """Location, Color, Alpha, Object Index and Material Index as the integrator gives them
     from the object and material; Random is Cycles' hash of the object, not compared."""
@@ -171,6 +176,7 @@ def test_object_info_matches_cycles():
                                   object_sources(scene, scene.plane, scene.material)))
 
 
+@pytest.mark.cycles
 def test_attribute_matches_cycles():
     """A colour attribute (positive: Blender clamps colour attributes at 0) and a float
     attribute on the plane's corners (linear in x and y, so Cycles' interpolation over
@@ -215,6 +221,7 @@ def test_attribute_matches_cycles():
     check_outputs(scene, cases_of(scene, cases, sources))
 
 
+@pytest.mark.cycles
 def test_light_path_matches_cycles_for_camera_rays():
     """What the Light Path node says of camera rays: a camera ray, at depth 0, of length the
     hit's distance from the camera's near clipping plane along the ray (Cycles starts camera

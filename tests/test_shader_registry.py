@@ -14,6 +14,7 @@ import pytest
 from node_support import by_identifier, evaluate
 
 from glint.addon.export.context import ExportContext  # noqa: E402
+from glint.addon.compat import new_material  # noqa: E402
 from glint.addon.export.node_options import OPTION_READERS  # noqa: E402
 from glint.addon.export.shader import node_options  # noqa: E402
 from glint.core.shader.points import ShadingPoints  # noqa: E402
@@ -24,7 +25,7 @@ BLENDER_TYPES = {FLOAT: "VALUE", VECTOR: "VECTOR", COLOR: "RGBA", CLOSURE: "SHAD
 
 @pytest.fixture(scope="module")
 def tree():
-    material = bpy.data.materials.new("registry check")
+    material = new_material("registry check")
     yield material.node_tree
     bpy.data.materials.remove(material)
 

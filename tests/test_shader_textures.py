@@ -35,6 +35,7 @@ import pytest
 
 from texture_support import Case, Result, render_cases
 
+from glint.addon.compat import new_material  # noqa: E402
 from glint.core.shader import hash as hashes
 from glint.core.shader import noise, textures, voronoi
 from glint.core.shader.registry import COLOR, FLOAT, NODES, VECTOR
@@ -255,22 +256,26 @@ def _ids(cases):
     return [f"{index}-{case.label()}" for index, case in enumerate(cases)]
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("index", range(len(FAMILIES["noise"])), ids=_ids(FAMILIES["noise"]))
 def test_noise_matches_cycles(rendered, index):
     assert_matches_cycles(rendered("noise")[index])
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("index", range(len(FAMILIES["voronoi"])),
                          ids=_ids(FAMILIES["voronoi"]))
 def test_voronoi_matches_cycles(rendered, index):
     assert_matches_cycles(rendered("voronoi")[index])
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("index", range(len(FAMILIES["others"])), ids=_ids(FAMILIES["others"]))
 def test_wave_magic_gradient_checker_and_brick_match_cycles(rendered, index):
     assert_matches_cycles(rendered("others")[index])
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("index", range(len(FAMILIES["white noise"])),
                          ids=_ids(FAMILIES["white noise"]))
 def test_white_noise_hashes_are_cycles_bit_for_bit(rendered, index):
@@ -286,6 +291,7 @@ def test_white_noise_hashes_are_cycles_bit_for_bit(rendered, index):
         assert distinct > result.w.size // 2
 
 
+@pytest.mark.cycles
 def test_the_aovs_hold_the_coordinates_of_each_pixels_centre(rendered):
     """The comparison evaluates Glint at the coordinates Cycles wrote: check that they are
     each pixel centre's, on the tilted plane z = 0.3 x - 0.2 y of every tile (object space
@@ -303,6 +309,7 @@ def test_the_aovs_hold_the_coordinates_of_each_pixels_centre(rendered):
     np.testing.assert_allclose(named["Gradient LINEAR, generated"].vector, generated, atol=5e-6)
 
 
+@pytest.mark.cycles
 def test_voronoi_colours_are_cycles_bit_for_bit_on_any_cpu(rendered):
     """A Voronoi F1 colour is a PCG hash of the winning cell: integer arithmetic, whatever
     kernel Cycles runs, once the same cell wins (it does away from cell borders)."""
@@ -394,7 +401,7 @@ _SOCKET_TYPES = {"VALUE": FLOAT, "VECTOR": VECTOR, "RGBA": COLOR}
 
 @pytest.mark.parametrize("kind", [NOISE, VORONOI, WAVE, MAGIC, GRADIENT, CHECKER, BRICK, WHITE])
 def test_registered_sockets_and_options_are_blenders(kind):
-    material = bpy.data.materials.new("sockets")
+    material = new_material("sockets")
     try:
         node = material.node_tree.nodes.new(kind)
         spec = NODES[kind]
@@ -408,7 +415,7 @@ def test_registered_sockets_and_options_are_blenders(kind):
 
 
 def test_enum_options_are_blenders():
-    material = bpy.data.materials.new("enums")
+    material = new_material("enums")
     try:
         nodes = material.node_tree.nodes
         items = lambda kind, name: {item.identifier for item in  # noqa: E731

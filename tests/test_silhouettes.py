@@ -108,6 +108,8 @@ def assert_within_band(glint, references, min_iou=None):
     assert not failures, "; ".join(failures)
 
 
+@pytest.mark.slow
+@pytest.mark.cycles
 @pytest.mark.parametrize("name", SCENES)
 def test_glint_silhouettes_match_workbench_and_cycles_within_the_mesh_band(name, tmp_path):
     glint, references = render_all(*SCENES[name], tmp_path)[1:]
@@ -119,12 +121,14 @@ def test_glint_silhouettes_match_workbench_and_cycles_within_the_mesh_band(name,
                             f"{np.argwhere(stray)[:8].tolist()}"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", FINE_SCENES)
 def test_finely_tessellated_spheres_match_blender_with_iou_above_0_995(name, tmp_path):
     glint, references = render_all(FINE_SCENES[name], fine_spheres, tmp_path)[1:]
     assert_within_band(glint, references, min_iou=MIN_FINE_IOU)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", MESH_SCENES)
 def test_triangle_mesh_silhouettes_match_workbench_and_cycles_but_at_edges(name, tmp_path):
     exported, glint, references = render_all(*MESH_SCENES[name], tmp_path)
@@ -136,6 +140,7 @@ def test_triangle_mesh_silhouettes_match_workbench_and_cycles_but_at_edges(name,
     assert sum(len(mesh.transforms) for mesh in exported.meshes) >= 2
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dx, dy", [(0.5, 0.0), (0.0, 0.5)], ids=["x", "y"])
 def test_a_camera_half_a_pixel_off_fails_the_edge_check_for_meshes(dx, dy, tmp_path):
     exported, glint, references = render_all(*MESH_SCENES["triangle meshes, landscape"],
@@ -146,6 +151,7 @@ def test_a_camera_half_a_pixel_off_fails_the_edge_check_for_meshes(dx, dy, tmp_p
         assert check.outside_band > 0, f"{engine}: a half-pixel shift went unnoticed"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dx, dy", [(0.5, 0.0), (0.0, 0.5)], ids=["x", "y"])
 def test_a_camera_half_a_pixel_off_fails_the_band_check(dx, dy, tmp_path):
     exported, glint, references = render_all(FINE_SCENES["landscape"], fine_spheres, tmp_path)

@@ -28,6 +28,7 @@ import bpy
 import numpy as np
 
 from addon_support import link
+from glint.addon.compat import new_material  # noqa: E402
 from cycles_support import cycles_scene
 from exr import read_exr
 
@@ -130,7 +131,7 @@ def _output(node, identifier):
 
 
 def _material(case: Case, index: int):
-    material = bpy.data.materials.new(f"case{index}")
+    material = new_material(f"case{index}")
     tree = material.node_tree
     nodes, links = tree.nodes, tree.links
     nodes.remove(nodes["Principled BSDF"])

@@ -26,7 +26,8 @@ def register_addon() -> None:
     import addon_utils
     import bpy
 
-    from ... import register
+    from ... import register, unregister
+    from ..compat import unregister_at_exit
     from ..engine.base import GlintRenderEngine
 
     if GlintRenderEngine.is_registered:
@@ -35,6 +36,7 @@ def register_addon() -> None:
         if name.rsplit(".", 1)[-1] == EXTENSION_ID:
             addon_utils.disable(name, default_set=False)
     register()
+    unregister_at_exit(lambda: GlintRenderEngine.is_registered and unregister())
 
 
 @contextlib.contextmanager

@@ -26,13 +26,17 @@ from typing import Optional
 
 import numpy as np
 
+from ..compat import EVALUATED_GEOMETRY
 from .geometry import STORED_INT, read_array
 from .meshes import EVALUATED_AS_MESH, terminator_offset
 
 
 def _makes_instances(obj) -> bool:
     """Whether a Geometry Nodes object's evaluated geometry yields anything but its own
-    component (instances, or another kind of geometry, which come as instances)."""
+    component (instances, or another kind of geometry, which come as instances); True where
+    Blender cannot tell (``compat.EVALUATED_GEOMETRY``): the walk finds out."""
+    if not EVALUATED_GEOMETRY:
+        return True
     geometry = obj.evaluated_geometry()
     points = geometry.instances_pointcloud()
     if points is not None and len(points.points):
@@ -77,7 +81,8 @@ class InstanceExporter:
 
     @staticmethod
     def _read_source(parent):
-        if parent.type not in ('MESH', 'POINTCLOUD') or parent.instance_type != 'NONE' or \
+        if not EVALUATED_GEOMETRY or \
+                parent.type not in ('MESH', 'POINTCLOUD') or parent.instance_type != 'NONE' or \
                 len(parent.particle_systems) or \
                 not any(m.type == 'NODES' for m in parent.modifiers):
             return None

@@ -30,6 +30,7 @@ import math
 
 from ...core import AreaLight, PointLight, SphereLight, SpotLight, SunLight
 from ...core.validation import MAX_COLOUR, value_text
+from ..compat import light_exposure
 from .values import as_stored
 
 #: The most power (W) or sun strength (W/m^2) a light is exported with (past it, clamped): as
@@ -76,7 +77,7 @@ def colour_note(light, name: str) -> str | None:
 
 def blender_power(light) -> float:
     """Power (W) or sun strength (W/m^2) as Blender holds it: energy x 2^exposure."""
-    return float(light.energy) * 2.0 ** float(getattr(light, "exposure", 0.0))
+    return float(light.energy) * 2.0 ** light_exposure(light)
 
 
 def light_power(light) -> float:

@@ -46,6 +46,7 @@ import numpy as np
 from ...core import Material, SceneError, SurfaceMaterial
 from ...core.reflectance import blinn_exponent
 from ...core.validation import MAX_COLOUR, value_text
+from ..compat import node_tree_in_use
 from ..utils.colour import colour_from_blender
 from .shader import ShaderCompiler, surface_material
 from .values import as_stored, counted
@@ -90,7 +91,7 @@ def material_from_surface(values: SurfaceValues) -> Material:
 
 def _surface_node(material):
     """The shader node plugged into the active material output's Surface, or None."""
-    tree = material.node_tree
+    tree = node_tree_in_use(material)
     if tree is None:
         return None
     output = tree.get_output_node('CYCLES') or tree.get_output_node('ALL')
@@ -232,10 +233,11 @@ def export_material(material, owner: str = "", context=None) -> tuple[
     custom, custom_note = usable_custom_material(material, where)
     if custom is not None:
         return custom, None
-    if material.node_tree is None:
+    tree = node_tree_in_use(material)
+    if tree is None:
         viewport, note = _viewport_display(material, where)
         return viewport, ("; ".join(filter(None, (custom_note, note))) or None)
-    surface = surface_socket(material.node_tree)
+    surface = surface_socket(tree)
     if surface is None or not surface.is_linked:
         return SurfaceMaterial(diffuse=(0.0, 0.0, 0.0)), "; ".join(filter(None, (
             custom_note, f"material '{material.name}': no shader reaches a Cycles Material "

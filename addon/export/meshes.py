@@ -40,6 +40,7 @@ from ...core import SceneError, Sphere, SphereSet, TriangleMesh
 from ...core.scene import row_blocks
 from ...core.validation import usable_triangles
 from ...core.terminator import DEFAULT_GEOMETRY_OFFSET
+from ..compat import matrix_bytes
 from .context import instance_name
 from .errors import ExportError
 from .geometry import (ANALYTIC_SPHERE_PROPERTY, STORED_FLOAT, STORED_INT, SphereFit,
@@ -207,7 +208,7 @@ class MeshPlacement:
 
     def add(self, matrix_world) -> None:
         use = self.use
-        use.matrices.append(bytes(matrix_world))
+        use.matrices.append(matrix_bytes(matrix_world))
         use.names.append(self.name)
         use.forced.append(self.forced)
 

@@ -13,12 +13,12 @@ Blender.  Values that are NaN, infinite or past the core's colour limit count as
 
 from __future__ import annotations
 
-import bpy
 import numpy as np
 
 from ...core.shader.program import ShaderProgram, constant_array, run
 from ...core.shader.world import world_points
 from ...core.validation import MAX_COLOUR, value_text
+from ..compat import node_tree_in_use
 from .values import as_stored, counted
 from .shader import ShaderCompiler
 
@@ -27,9 +27,8 @@ def export_world(world, context=None):
     """(scene-linear RGB at rest, the world's program or None, note or None)."""
     if world is None:
         return (0.0, 0.0, 0.0), None, None
-    tree = world.node_tree
-    uses_nodes = tree is not None and (bpy.app.version >= (5, 0, 0) or world.use_nodes)
-    if not uses_nodes:
+    tree = node_tree_in_use(world)
+    if tree is None:
         colour, fixed = tuple(world.color), counted(world.color)
         if fixed is None:
             return colour, None, None

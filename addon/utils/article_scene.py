@@ -21,6 +21,7 @@ import bmesh  # after bpy: the pip module makes bmesh importable
 
 from ...core.article import ARTICLE_EYE, ARTICLE_HEIGHT, ARTICLE_LIGHT, ARTICLE_WIDTH
 from ...core.article import ARTICLE_MAX_DEPTH, article_spheres
+from ..compat import new_material, new_world
 from ..export.geometry import ANALYTIC_SPHERE_PROPERTY
 from .colour import srgb_to_linear
 
@@ -42,7 +43,7 @@ def _uv_sphere_mesh(name: str, radius: float, segments: int, rings: int):
 
 
 def _article_material(name: str, material):
-    blender_material = bpy.data.materials.new(name)
+    blender_material = new_material(name)
     linear = tuple(float(c) for c in srgb_to_linear(material.diffuse))
     blender_material.diffuse_color = (*linear, 1.0)
     principled = blender_material.node_tree.nodes.get("Principled BSDF")
@@ -84,7 +85,7 @@ def build_article_scene(name: str = "Glint article", *, width: int = ARTICLE_WID
     scene.glint.anti_aliasing = 'OFF'
     scene.glint.precision = 'AUTO'
 
-    world = bpy.data.worlds.new(f"{name} world")
+    world = new_world(f"{name} world")
     world.color = (0.0, 0.0, 0.0)
     background = world.node_tree.nodes.get("Background")
     if background is not None:

@@ -228,6 +228,7 @@ VECTOR_OPERATIONS = {
     "SIGN": lambda a, b, c, s: np.sign(a),
     "MINIMUM": lambda a, b, c, s: np.fmin(a, b),
     "MAXIMUM": lambda a, b, c, s: np.fmax(a, b),
+    "ROUND": lambda a, b, c, s: np.floor(a + 0.5),   # Blender 5.3's, as Cycles rounds
     "FLOOR": lambda a, b, c, s: np.floor(a),
     "CEIL": lambda a, b, c, s: np.ceil(a),
     "FRACTION": lambda a, b, c, s: a - np.floor(a),

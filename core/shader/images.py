@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..colour import srgb_to_linear
+from ..validation import value_text
 from .registry import COLOR, FLOAT, VECTOR, node
 
 INTERPOLATIONS = ("Closest", "Linear", "Cubic", "Smart")
@@ -414,7 +415,7 @@ def _box_lookup(image, co, normal, blend, interpolation, extension, unassociate,
 
 def _check(name: str, value, allowed, owner: str):
     if value not in allowed:
-        raise ValueError(f"{owner}: {name} must be one of {allowed}, got {value!r}")
+        raise ValueError(f"{owner}: {name} must be one of {allowed}, got {value_text(value)}")
 
 
 @node("ShaderNodeTexImage", inputs=(("Vector", VECTOR),),
