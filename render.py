@@ -224,8 +224,15 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--parallelism", choices=choices.PARALLELISM,
                         help=choices.help_text(choices.PARALLELISM_CHOICES) +
                              " (default: the scene's Glint > Performance > Parallelism)")
+    parser.add_argument("--cluster", metavar="ADDRESS",
+                        help="render the tiles on the Dask scheduler at ADDRESS "
+                             "(tcp://HOST:8786 or tls://HOST:8786; default: the scene's "
+                             "Glint > Performance > Cluster, empty for this computer)")
     add_animation_arguments(parser)
     args = parser.parse_args(argv)
+    if args.cluster and importlib.util.find_spec("distributed") is None:
+        parser.error('--cluster needs Dask\'s distributed scheduler: pip install '
+                     '"dask[distributed]"')
 
     if not args.output.lower().endswith(OUTPUT_EXTENSIONS):
         parser.error(f"--output must name a .png or .exr file, got {args.output!r}")
@@ -319,6 +326,8 @@ def apply_options(scene, args) -> None:
         settings.precision = args.precision.upper()
     if args.parallelism is not None:
         settings.parallelism = args.parallelism.upper()
+    if args.cluster is not None:
+        settings.cluster_address = args.cluster
     if args.frame is not None:
         frame = type(scene).bl_rna.properties["frame_current"]
         if not frame.hard_min <= args.frame <= frame.hard_max:
