@@ -42,6 +42,7 @@ import pickle
 import queue
 import re
 import threading
+import time
 import traceback
 import uuid
 from collections import OrderedDict, deque
@@ -64,6 +65,10 @@ TIMEOUT_VARIABLE = "GLINT_CLUSTER_TIMEOUT"
 CANCEL_POLL_SECONDS = 0.1
 #: Arrays of at least this many bytes travel beside the frame's pickle, not inside it.
 OUT_OF_BAND_BYTES = 64 * 2 ** 10
+#: Tasks a pass's tiles are dealt into per worker (``task_groups``): enough for the
+#: scheduler to balance tiles of unequal cost, few enough that a task's cost is small
+#: beside its tiles'.
+TASKS_PER_WORKER = 4
 #: Frames a worker keeps unpickled (the current one, and the last, whose forgetting may
 #: arrive after the next frame's first tile).
 KEPT_FRAMES = 2
@@ -246,12 +251,15 @@ async def forget_frame(key: str) -> None:
         _frames.pop(key, None)
 
 
-def run_tile(frame, key: str, tile: tuple, dtype: str, sender_identity):
-    """One task: the tile ``tile`` of frame ``key`` rendered on this worker.  Returns
-    ('done', pixels in ``dtype``, RayStats values, whether every value is finite),
-    ('cancelled',), ('skew', this worker's identity and address), or ('error', exception type, message,
-    traceback text); never raises, so that nothing of this package must be unpickled by
-    the submitter."""
+def run_tiles(frame, key: str, tiles: bytes, dtype: str, sender_identity):
+    """One task: the tiles ``tiles`` (a pickled list of each tile's or TileJob's numbers) of
+    frame ``key``
+    rendered on this worker, one after the other.  Returns ('done', [pixels in ``dtype``],
+    [RayStats values], [whether every value is finite]), one of each per tile;
+    ('cancelled',); ('skew', this worker's identity, its address); or ('error', exception
+    type, message, traceback text).  Never raises, so that nothing of this package must be
+    unpickled by the submitter."""
+    from . import allocator
     from .progressive import TileJob
     from .render import RenderCancelled, render_tile
 
@@ -259,15 +267,21 @@ def run_tile(frame, key: str, tile: tuple, dtype: str, sender_identity):
         from distributed import get_worker
         return ("skew", identity(), get_worker().address)
     stop = _FrameStop(key)
-    if stop.is_set():
-        return ("cancelled",)
+    # A Dask worker is not Glint's own process: its malloc settings only where the user
+    # asks (GLINT_MALLOC_TUNING=1 in the worker's environment, core.allocator).
+    allocator.configure_if_opted_in()
+    answer = ("done", [], [], [])
     try:
-        ctx, camera = _worker_frame(key, frame)
-        job = TileJob(*tile) if len(tile) > 4 else tuple(tile)
-        pixels, stats = render_tile(ctx, camera, job, stop)
-        finite = bool(np.isfinite(pixels).all())
-        values = tuple(getattr(stats, name) for name in stats.__dataclass_fields__)
-        return ("done", np.ascontiguousarray(pixels, np.dtype(dtype)), values, finite)
+        with allocator.small_pages():
+            ctx, camera = _worker_frame(key, frame)
+            for tile in pickle.loads(tiles):
+                job = TileJob(*tile) if len(tile) > 4 else tuple(tile)
+                pixels, stats = render_tile(ctx, camera, job, stop)
+                answer[1].append(np.ascontiguousarray(pixels, np.dtype(dtype)))
+                answer[2].append(tuple(getattr(stats, name)
+                                       for name in stats.__dataclass_fields__))
+                answer[3].append(bool(np.isfinite(pixels).all()))
+        return answer
     except RenderCancelled:
         return ("cancelled",)
     except Exception as error:
@@ -330,8 +344,8 @@ def close_clients() -> None:
         _clients.clear()
 
 
-def _check_workers(connection, address: str) -> int:
-    """The number of workers, after waiting for at least one; every one must run this
+def _check_workers(connection, address: str) -> list[str]:
+    """The workers' addresses, after waiting for at least one; every one must run this
     Glint (ClusterError otherwise)."""
     timeout = timeout_seconds()
     try:
@@ -358,7 +372,7 @@ def _check_workers(connection, address: str) -> int:
         line = skew_line(worker, answer, ours)
         if line is not None:
             raise ClusterError(line)
-    return len(answers)
+    return sorted(answers)
 
 
 def frame_data(ctx, camera) -> tuple:
@@ -377,9 +391,22 @@ def frame_bytes(data) -> int:
     return len(data[1]) + sum(array.nbytes for array in data[2])
 
 
-#: What the last render on a cluster sent and received, for measurements (bench): bytes of
-#: the scattered frame (per worker), workers it went to, tiles, and bytes of the results.
-last_render = {"frame_bytes": 0, "workers": 0, "tiles": 0, "result_bytes": 0}
+#: What the last render on a cluster sent and received, for measurements (bench.cluster):
+#: bytes of the scattered frame (per worker), workers it went to, tiles, bytes of the
+#: results, seconds to pickle and scatter the frame, seconds from then to the last tile
+#: landed, and each tile's seconds on its worker.
+last_render = {"frame_bytes": 0, "workers": 0, "tiles": 0, "result_bytes": 0,
+               "send_seconds": 0.0, "tiles_wall_seconds": 0.0, "tile_seconds": []}
+
+
+def task_groups(jobs: list, workers: int) -> list[list]:
+    """``jobs`` dealt into at most TASKS_PER_WORKER groups per worker, a task each, every
+    group taking every n-th job so that the costly tiles of one region spread over the
+    tasks.  A tile of the article's 1080p frame takes 2-3 ms, far below what a task costs
+    the scheduler and the network (a few ms each, more on a loaded machine), so the tiles
+    travel in groups; a frame of few tiles still gives every worker one."""
+    count = min(len(jobs), TASKS_PER_WORKER * workers)
+    return [jobs[k::count] for k in range(count)]
 
 
 def render_tiles(address: str, ctx, camera, tiles, shape, dtype, finish, should_cancel=None):
@@ -398,31 +425,45 @@ def render_tiles(address: str, ctx, camera, tiles, shape, dtype, finish, should_
     dtype = np.dtype(dtype)
     image = np.zeros(shape, dtype)
     key = f"glint-frame-{uuid.uuid4().hex}"
+    began = time.perf_counter()
     data = frame_data(ctx, camera)
     pending = tiles if hasattr(tiles, "popleft") else deque(tiles)
     ours = identity()
-    run = _WorkerFunction("run_tile")
-    running: dict = {}
+    run = _WorkerFunction("run_tiles")
+    running: dict = {}         # future -> its jobs
     landed = queue.Queue()     # futures as they finish (their callbacks' thread puts them)
     counter = 0
     done = 0
     frame = None
-    sent = {"frame_bytes": frame_bytes(data), "workers": workers, "tiles": 0, "result_bytes": 0}
+    sent = {"frame_bytes": frame_bytes(data), "workers": len(workers), "tiles": 0,
+            "result_bytes": 0, "send_seconds": 0.0, "tiles_wall_seconds": 0.0,
+            "tile_seconds": []}
     try:
         try:
             [frame] = connection.scatter([data], broadcast=True, hash=False)
         except (OSError, TimeoutError) as error:
             raise ClusterError(f"cannot send the scene to the cluster at {address} "
                                f"({_reason(error)})") from None
+        sent["send_seconds"] = time.perf_counter() - began
 
         def submit_ready():
             nonlocal counter
-            while pending:
-                job = pending.popleft()
+            jobs = [pending.popleft() for _ in range(len(pending))]
+            for group in task_groups(jobs, len(workers)):
                 counter += 1
-                future = connection.submit(run, frame, key, tuple(job), dtype.str, ours,
-                                           key=f"glint-tile-{key[12:]}-{counter}", pure=False)
-                running[future] = job
+                # Loosely bound to the workers known now: the scheduler then hands every
+                # worker its share at once instead of one task per idle thread (its queuing
+                # of tasks without restrictions), so that no worker waits a round trip
+                # between tasks; any other worker may still take them (work stealing, a
+                # worker that died).
+                # (The tiles' numbers as one pickle of builtins: Dask reads lists and tuples
+                # in a task's arguments as parts of its graph.)
+                numbers = pickle.dumps([tuple(job) for job in group])
+                future = connection.submit(run, frame, key, numbers,
+                                           dtype.str, ours, pure=False,
+                                           key=f"glint-tiles-{key[12:]}-{counter}",
+                                           workers=workers, allow_other_workers=True)
+                running[future] = group
                 future.add_done_callback(landed.put)
 
         submit_ready()
@@ -430,33 +471,37 @@ def render_tiles(address: str, ctx, camera, tiles, shape, dtype, finish, should_
             if should_cancel is not None and should_cancel():
                 raise RenderCancelled("render cancelled")
             try:
-                future = landed.get(timeout=CANCEL_POLL_SECONDS)
+                batch = [landed.get(timeout=CANCEL_POLL_SECONDS)]
             except queue.Empty:
                 continue
-            job = running.pop(future, None)
-            if job is None:
-                continue
-            answer = _answer(future, job, address)
-            future.release()        # (the worker may drop its copy now)
-            if answer[0] == "skew":
-                raise ClusterError(skew_line(answer[2], answer[1], ours))
-            if answer[0] == "cancelled":
-                raise RenderCancelled("render cancelled")
-            if answer[0] == "error":
-                _, kind, message, text = answer
-                error = RenderError(f"a tile failed on the cluster ({kind}: {message})")
-                error.add_note("on a cluster worker:\n" + text.rstrip())
-                raise error
-            _, pixels, values, finite = answer
-            y0, y1, x0, x1 = job[:4]
-            view = image[y0:y1, x0:x1]
-            if finite:
-                view[...] = pixels
-            done += 1
-            sent["tiles"] += 1
-            sent["result_bytes"] += pixels.nbytes
-            finish(job, view, RayStats(*values), done, finite)
+            while not landed.empty():       # (one round trip for all that have finished)
+                batch.append(landed.get_nowait())
+            batch = [future for future in batch if future in running]
+            for future, answer in zip(batch, _answers(connection, batch, running, address)):
+                jobs = running.pop(future)
+                future.release()        # (the worker may drop its copy now)
+                if answer[0] == "skew":
+                    raise ClusterError(skew_line(answer[2], answer[1], ours))
+                if answer[0] == "cancelled":
+                    raise RenderCancelled("render cancelled")
+                if answer[0] == "error":
+                    _, kind, message, text = answer
+                    error = RenderError(f"a tile failed on the cluster ({kind}: {message})")
+                    error.add_note("on a cluster worker:\n" + text.rstrip())
+                    raise error
+                for job, pixels, values, finite in zip(jobs, *answer[1:]):
+                    y0, y1, x0, x1 = job[:4]
+                    view = image[y0:y1, x0:x1]
+                    if finite:
+                        view[...] = pixels
+                    done += 1
+                    stats = RayStats(*values)
+                    sent["tiles"] += 1
+                    sent["result_bytes"] += pixels.nbytes
+                    sent["tile_seconds"].append(stats.seconds_tiles)
+                    finish(job, view, stats, done, finite)
             submit_ready()       # (a landed tile may have begun a new pass)
+        sent["tiles_wall_seconds"] = time.perf_counter() - began - sent["send_seconds"]
     except BaseException:
         if running:
             _cancel(connection, list(running), key)
@@ -468,17 +513,25 @@ def render_tiles(address: str, ctx, camera, tiles, shape, dtype, finish, should_
     return image
 
 
-def _answer(future, job, address: str) -> tuple:
-    """A finished task's answer; the cluster's failures (a tile that killed every worker
-    it ran on, a lost scheduler) as one line."""
+def _answers(connection, futures, running, address: str) -> list:
+    """Finished tasks' answers, fetched together; the cluster's failures (a task that killed
+    every worker it ran on, a lost dependency, a lost scheduler) as one line."""
+    for future in futures:
+        try:
+            if future.status != "finished":
+                future.result()             # (raises the task's failure)
+        except (OSError, TimeoutError) as error:
+            raise ClusterError(f"lost the Dask scheduler at {address} "
+                               f"({_reason(error)})") from None
+        except Exception as error:      # KilledWorker, a lost dependency, ...
+            y0, y1, x0, x1 = running[future][0][:4]
+            raise ClusterError(f"the cluster could not render {len(running[future])} tiles "
+                               f"from pixels {x0}-{x1 - 1} x {y0}-{y1 - 1} "
+                               f"({type(error).__name__}: {_reason(error)})") from None
     try:
-        return future.result()
+        return connection.gather(futures)
     except (OSError, TimeoutError) as error:
         raise ClusterError(f"lost the Dask scheduler at {address} ({_reason(error)})") from None
-    except Exception as error:      # KilledWorker, a lost dependency, ...
-        y0, y1, x0, x1 = job[:4]
-        raise ClusterError(f"the cluster could not render pixels {x0}-{x1 - 1} x {y0}-{y1 - 1} "
-                           f"({type(error).__name__}: {_reason(error)})") from None
 
 
 def _cancel(connection, futures, key: str) -> None:

@@ -55,7 +55,7 @@ def worker_site(tmp_path_factory):
 
 def _local_cluster(**options):
     return distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                    dashboard_address=None, silence_logs=logging.ERROR,
+                                    dashboard_address=":0", silence_logs=logging.ERROR,
                                     **options)
 
 
@@ -222,7 +222,7 @@ def test_an_unreachable_scheduler_is_one_line_and_render_py_writes_nothing(tmp_p
 
 def test_a_scheduler_without_workers_is_one_line(worker_site, monkeypatch):
     monkeypatch.setenv(cluster.TIMEOUT_VARIABLE, "1")
-    with distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=None,
+    with distributed.LocalCluster(n_workers=0, protocol="tcp://", dashboard_address=":0",
                                   silence_logs=logging.ERROR) as empty:
         address = empty.scheduler_address
         try:
