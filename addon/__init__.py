@@ -8,7 +8,7 @@ import sys
 
 import bpy
 
-from ..core import workers
+from ..core import cluster, workers
 from . import operators, properties, ui
 from .engine import final
 
@@ -53,4 +53,5 @@ def unregister():
     # disabled or reloaded extension leaves no process behind (the next render starts new
     # ones).
     workers.shutdown()
+    cluster.close_clients()    # (a Dask cluster's connections likewise; its workers stay)
 

@@ -5,10 +5,12 @@ scale-out from what was measured.
 
 Needs ``dask[distributed]`` (requirements-dev.txt) and ``wheel`` (to build the core for the
 workers without a download).  It installs the core as a worker does (``install_worker_core``:
-pip, from pyproject.toml, into a temporary folder), starts a ``distributed.LocalCluster`` of
-2 worker processes with one thread each, and renders each frame in turn with 2 local worker
-processes (``parallelism='processes'``) and through the cluster, alternating, after a
-warm-up of each (the workers' imports and first frame are not timed); time = median.
+pip, from pyproject.toml, into a temporary folder), starts a scheduler and 2 worker
+processes of one thread each as the user guide says (``dask scheduler``, ``dask worker
+ADDRESS --nthreads 1 --nworkers 2``, with GLINT_MALLOC_TUNING=1), and renders each frame in
+turn with 2 local worker processes (``parallelism='processes'``) and through the cluster,
+alternating, after a warm-up of each (the workers' imports and first frame are not timed);
+time = median.
 
 Frames: the article's scene at 1920x1080; a million spheres (``random_sphere_set_scene``) at
 640x360; a 20-frame animation of the article's scene at 960x540 whose camera moves every
@@ -21,15 +23,15 @@ The model (``scale_out``): a frame on N workers takes its serial part (the conte
 here, the scene pickled), plus the scene sent to each of N workers over one link of
 ``bandwidth`` (Dask's broadcast sends a copy per worker), plus the longer of the tiles'
 seconds over N, the longest tile, and the pixels coming back over the submitter's link,
-plus the cluster's cost per tile measured here (its overhead over local processes on the
-same cores, divided by the tiles).  Speed-up is against the 2 local processes' time.
+plus the cluster's cost per tile measured here (the tiles' phase on 2 workers less their
+work, divided by the tiles).  Speed-up is against the 2 local processes' time.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
-import logging
 import os
 import shutil
 import statistics
@@ -62,6 +64,35 @@ def install_worker_core(folder: str) -> str:
                     "--no-index", "--no-build-isolation", "--target", site, source],
                    check=True, capture_output=True)
     return site
+
+
+@contextlib.contextmanager
+def dask_cluster(site: str, folder: str, workers: int = 2):
+    """The address of a scheduler and ``workers`` worker processes started with Dask's
+    command line, the core importable from ``site`` (ended on leaving)."""
+    import distributed
+
+    environment = {**os.environ, "PYTHONPATH": site, "GLINT_MALLOC_TUNING": "1"}
+    scheduler_file = os.path.join(folder, "scheduler.json")
+    quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=environment)
+    started = [subprocess.Popen([sys.executable, "-m", "dask", "scheduler", "--port", "0",
+                                 "--dashboard-address", ":0", "--scheduler-file",
+                                 scheduler_file], **quiet)]
+    try:
+        deadline = time.monotonic() + 60
+        while not os.path.exists(scheduler_file) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        started.append(subprocess.Popen(
+            [sys.executable, "-m", "dask", "worker", "--scheduler-file", scheduler_file,
+             "--nthreads", "1", "--nworkers", str(workers), "--no-dashboard"], **quiet))
+        with distributed.Client(scheduler_file=scheduler_file) as client:
+            client.wait_for_workers(workers, timeout=120)
+            address = client.scheduler.address
+        yield address
+    finally:
+        for process in reversed(started):
+            process.terminate()
+            process.wait(30)
 
 
 def _article_animation(frames: int, width: int, height: int):
@@ -189,35 +220,28 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int, default=None)
     parser.add_argument("--bandwidth", type=float, default=DEFAULT_BANDWIDTH / 1e6,
                         metavar="MB_PER_S", help="the model's link (default 117: 1 Gbit/s)")
-    parser.add_argument("--no-malloc-tuning", action="store_true",
-                        help="leave glibc's malloc settings alone here and in the cluster's "
-                             "workers (GLINT_MALLOC_TUNING, core.allocator)")
     args = parser.parse_args(argv)
     repeats = args.repeats or (1 if args.quick else 3)
     bandwidth = args.bandwidth * 1e6
 
-    import distributed
-
+    from bench.measure import load_average, machine_lines
     from core import allocator, cluster
 
-    if not args.no_malloc_tuning:
-        allocator.configure()          # (this process is Glint's, as in python -m bench)
-        os.environ[allocator.OPT_IN_VARIABLE] = "1"    # (the workers take this environment)
+    allocator.configure()          # (this process is Glint's, as in python -m bench)
+    header = [line.replace("python -m bench", "python -m bench.cluster")
+              for line in machine_lines()]
 
     with tempfile.TemporaryDirectory(prefix="glint-bench-cluster-") as folder:
-        sys.path.append(install_worker_core(folder))   # (the workers take this sys.path)
-        with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                      dashboard_address=":0",
-                                      silence_logs=logging.ERROR) as local_cluster:
+        with dask_cluster(install_worker_core(folder), folder) as address:
             results, models = [], {}
             for name, (scenes, settings) in workloads(args.quick).items():
                 print(f"bench.cluster: {name} ...", file=sys.stderr, flush=True)
-                result = measure(name, scenes, settings, local_cluster.scheduler_address,
-                                 repeats)
+                result = measure(name, scenes, settings, address, repeats)
                 models[name] = scale_out(result, bandwidth)
                 results.append(result)
             cluster.close_clients()
-    print("\n".join(report(results, models, bandwidth)))
+    print("\n".join(header + [f"Load average at end: {load_average()}", ""] +
+                    report(results, models, bandwidth)))
     return 0
 
 

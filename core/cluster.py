@@ -5,16 +5,19 @@ tiles beside threads and local worker processes (``core.workers``), with the sam
 * The submitting process builds the frame's ``TraceContext`` as for any render; it is
   pickled once (protocol 5, its large arrays beside the pickle without a copy) and scattered
   to every worker once per frame (``Client.scatter(..., broadcast=True)``), never once per
-  tile.  Each tile (a plain (y0, y1, x0, x1) or a ``core.progressive.TileJob``) is one task
-  whose arguments are the scattered frame and the tile's numbers; a worker unpickles a frame
-  once (``_worker_frame``) and keeps it for the frame's other tiles.  Results (the tile's
-  pixels in the image's dtype, its RayStats as numbers) come back as they finish and are
-  handed to ``finish`` in this process, exactly as ``core.workers`` hands its tiles over: the
-  image, the progress and Blender's tiles do not know where a tile ran, and a progressive
-  frame's ``WorkQueue`` is read again after every landed tile so that its next pass is
-  submitted as soon as it exists.
+  tile.  The tiles (plain (y0, y1, x0, x1) or ``core.progressive.TileJob``s) are dealt into
+  a few tasks per worker (``task_groups``: a tile is too small a task), whose arguments are
+  the scattered frame and the tiles' numbers; a worker unpickles a frame once
+  (``_worker_frame``) and keeps it for the frame's other tasks.  Results (each tile's pixels
+  in the image's dtype, its RayStats as numbers) come back as tasks finish and are handed to
+  ``finish`` in this process tile by tile, exactly as ``core.workers`` hands its tiles over:
+  the image, the progress and Blender's tiles do not know where a tile ran, and a
+  progressive frame's ``WorkQueue`` is read again after every landed task so that its next
+  pass is submitted as soon as it exists.
 * A worker needs only NumPy and Glint's core, installed with pip from the repository under
-  the package name ``WORKER_PACKAGE`` (``pyproject.toml``).  The submitter imports the core
+  the package name ``WORKER_PACKAGE`` (``pyproject.toml``); so does the scheduler, which
+  unpickles the tasks it is given (Dask's own rule: one environment everywhere).  The
+  submitter imports the core
   under another name (``core`` in a checkout, ``glint.core`` in render.py, ``bl_ext....core``
   in Blender), so nothing crosses by the submitter's module names: the worker's functions
   are called by their name in ``WORKER_PACKAGE`` (``_WorkerFunction``), a frame's pickle is
@@ -27,7 +30,7 @@ tiles beside threads and local worker processes (``core.workers``), with the sam
   others, which have the frame already, and every tile's pixels depend only on the tile,
   so the image is the same.
 * Ctrl-C, a cancel, or any exception here cancels the frame's tasks on the cluster and tells
-  every worker to stop its running tile at its next bundle of rays (``_stop_frame``).
+  every worker to stop its running tile at its next bundle of rays (``stop_frame``).
 * ``distributed`` is imported only here, lazily: the core, the add-on and local renders do
   not need it.
 """

@@ -90,6 +90,17 @@ def test_the_installed_core_is_this_checkout_under_its_own_name(worker_site):
     names = sorted(os.listdir(worker_site))
     assert f"{cluster.WORKER_DISTRIBUTION.replace('-', '_')}-{cluster.VERSION}.dist-info" \
         in names
+    # The same source as this checkout's: a worker installed from it is not refused.
+    import glint_raytracer_core.cluster as installed
+    assert installed.identity() == cluster.identity()
+
+
+def test_a_frames_tiles_are_dealt_into_a_few_tasks_per_worker():
+    tiles = list(range(135))
+    groups = cluster.task_groups(tiles, 2)
+    assert len(groups) == 2 * cluster.TASKS_PER_WORKER
+    assert sorted(sum(groups, [])) == tiles and groups[0][:3] == [0, 8, 16]
+    assert cluster.task_groups(tiles[:3], 64) == [[0], [1], [2]]
 
 
 def test_a_path_traced_triangle_scene_is_the_local_image_bit_for_bit(local_cluster):
