@@ -20,11 +20,15 @@ model needs: the submitter's serial part, the time to pickle and scatter the sce
 tiles' seconds on the workers.
 
 The model (``scale_out``): a frame on N workers takes its serial part (the context built
-here, the scene pickled), plus the scene sent to each of N workers over one link of
-``bandwidth`` (Dask's broadcast sends a copy per worker), plus the longer of the tiles'
-seconds over N, the longest tile, and the pixels coming back over the submitter's link,
-plus the cluster's cost per tile measured here (the tiles' phase on 2 workers less their
-work, divided by the tiles).  Speed-up is against the 2 local processes' time.
+here, the workers checked), plus pickling and scattering the scene as measured here, plus
+its travel over links of ``bandwidth``: Dask's scatter sends it from the submitter to the
+scheduler and on to one worker, then ``replicate`` copies it in rounds in which every
+holder serves up to two more workers (1, 3, 9, 27, 81 holders), each round two copies on a
+holder's link: ``(2 + 2 ceil(log3 N))`` times its bytes over the bandwidth; plus the
+longest of the tiles' seconds over N, the longest tile, and the pixels coming back over the
+submitter's link; plus the cluster's cost per tile measured here (the tiles' phase on 2
+workers less their work, divided by the tiles), which the model keeps at every N.
+Speed-up is against the 2 local processes' time.
 """
 
 from __future__ import annotations
@@ -32,6 +36,8 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import json
+import math
 import os
 import shutil
 import statistics
@@ -173,13 +179,14 @@ def scale_out(result: dict, bandwidth: float) -> dict:
     per_tile = max(0.0, tiles_wall - max(tile_seconds / 2, longest)) / tiles
 
     def seconds(n: int) -> float:
-        send = n * scene_bytes / bandwidth
+        rounds = math.ceil(math.log(n, 3) - 1e-9) if n > 1 else 0
+        send = (2 + 2 * rounds) * scene_bytes / bandwidth
         tiles_part = max(tile_seconds / n, longest, result_bytes / bandwidth)
         return serial + pickle_seconds + send + tiles_part + per_tile * tiles
 
     model = {n: (seconds(n), local_frame / seconds(n)) for n in MODEL_WORKERS}
     best = min(range(1, 4097), key=seconds)
-    return {"model": model, "best": best, "serial": serial, "best_speedup": local_frame / seconds(best),
+    return {"model": model, "best": best, "serial": serial, "pickle": pickle_seconds, "best_speedup": local_frame / seconds(best),
             "tiles": tiles, "tile_seconds": tile_seconds, "longest": longest,
             "scene_bytes": scene_bytes, "result_bytes": result_bytes, "per_tile": per_tile,
             "local_frame": local_frame, "cluster_frame": cluster_frame}
@@ -199,7 +206,8 @@ def report(results, models, bandwidth: float) -> list[str]:
             f"{model['tiles']:.0f} |")
     lines += ["", f"Scale-out model at {bandwidth / 1e6:.0f} MB/s (per frame; speed-up "
                   f"against 2 local processes):", "",
-              "| frame | tiles' seconds (longest) | serial + per tile + scene out | " +
+              "| frame | tiles' seconds (longest) | serial + scene pickled and scattered "
+              "here + per tile + a copy's travel | " +
               " | ".join(f"{n} workers" for n in MODEL_WORKERS) + " | best |",
               "|---|---:|---:|" + "---:|" * len(MODEL_WORKERS) + "---:|"]
     for result in results:
@@ -207,8 +215,9 @@ def report(results, models, bandwidth: float) -> list[str]:
         cells = [f"{s:.2f} s ({x:.1f}x)" for s, x in model["model"].values()]
         lines.append(
             f"| {result['name']} (per frame) | {model['tile_seconds']:.2f} s "
-            f"({model['longest']:.3f} s) | {model['serial']:.3f} s + {model['per_tile'] * 1e3:.1f} ms/tile + "
-            f"{model['scene_bytes'] / bandwidth:.4f} s/worker | " + " | ".join(cells) +
+            f"({model['longest']:.3f} s) | {model['serial']:.3f} s + "
+            f"{model['pickle']:.3f} s + {model['per_tile'] * 1e3:.1f} ms/tile + "
+            f"{model['scene_bytes'] / bandwidth:.3f} s/copy | " + " | ".join(cells) +
             f" | {model['best']} workers, {model['best_speedup']:.1f}x |")
     return lines
 
@@ -220,6 +229,8 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int, default=None)
     parser.add_argument("--bandwidth", type=float, default=DEFAULT_BANDWIDTH / 1e6,
                         metavar="MB_PER_S", help="the model's link (default 117: 1 Gbit/s)")
+    parser.add_argument("--out", default=os.path.join(REPOSITORY, "bench", "out"),
+                        help="folder for cluster.json, the measurements (default bench/out)")
     args = parser.parse_args(argv)
     repeats = args.repeats or (1 if args.quick else 3)
     bandwidth = args.bandwidth * 1e6
@@ -240,8 +251,12 @@ def main(argv=None) -> int:
                 models[name] = scale_out(result, bandwidth)
                 results.append(result)
             cluster.close_clients()
-    print("\n".join(header + [f"Load average at end: {load_average()}", ""] +
-                    report(results, models, bandwidth)))
+    lines = header + [f"Load average at end: {load_average()}", ""] + report(results, models,
+                                                                            bandwidth)
+    os.makedirs(args.out, exist_ok=True)
+    with open(os.path.join(args.out, "cluster.json"), "w") as stream:
+        json.dump({"lines": lines, "results": results, "models": models}, stream, indent=1)
+    print("\n".join(lines))
     return 0
 
 

@@ -323,15 +323,21 @@ def client(address: str):
         if kept is not None and kept.status == "running":
             return kept
         timeout = timeout_seconds()
+        if address.startswith("tls://") and distributed.security.Security(
+                ).get_connection_args("client").get("ssl_context") is None:
+            # (Checked first: a Client that fails on it waits a minute to close.)
+            raise ClusterError(f"{address} is a TLS scheduler, but Dask's configuration "
+                               f"gives this process no TLS certificate "
+                               f"(distributed.comm.tls: ca-file, client cert and key; "
+                               f"docs/user-guide.md)")
         try:
             made = distributed.Client(address, timeout=f"{timeout}s", set_as_default=False)
         except (OSError, TimeoutError) as error:
             raise ClusterError(f"cannot reach the Dask scheduler at {address} within "
                                f"{timeout:g} s ({_reason(error)})") from None
-        except (TypeError, ValueError) as error:   # e.g. tls:// without certificates
+        except (TypeError, ValueError) as error:   # (a configuration Dask cannot use)
             raise ClusterError(f"cannot connect to the Dask scheduler at {address}: "
-                               f"{_reason(error)}; a tls:// scheduler needs Dask's TLS "
-                               f"settings (docs/user-guide.md)") from None
+                               f"{_reason(error)}") from None
         _clients[address] = made
         return made
 

@@ -297,3 +297,11 @@ def test_tls_renders_with_dasks_security_configuration(worker_site, tmp_path):
         finally:
             cluster.close_clients()
     np.testing.assert_array_equal(remote.image, local.image)
+
+
+def test_a_tls_address_without_certificates_is_one_line():
+    with pytest.raises(cluster.ClusterError, match=r"^tls://127\.0\.0\.1:9 is a TLS scheduler, "
+                                                   r"but Dask's configuration gives this "
+                                                   r"process no TLS certificate"):
+        core.render(core.article_scene(32, 24),
+                    core.RenderSettings(cluster="tls://127.0.0.1:9"))
