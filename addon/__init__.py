@@ -1,23 +1,20 @@
-"""Glint's Blender side: properties, export, render engine, operator, panels.
+"""Glint's Blender side: properties, export, render engine, operator, panels, and the command
+line (``cli``, render.py's modules).
 
 ``register``/``unregister`` are symmetric and may be repeated (register, unregister,
-register again), as Blender does when an extension is disabled and enabled.
+register again), as Blender does when an extension is disabled and enabled.  They import
+what they register: importing this package loads no Blender module, so render.py checks its
+arguments (``cli.arguments``) before it loads ``bpy``.
 """
 
 import sys
 
-import bpy
 
-from ..core import cluster, workers
-from . import operators, properties, ui
-from .engine import final
+def _classes():
+    from . import operators, properties, ui
+    from .engine.base import GlintRenderEngine
 
-_classes = (
-    *properties.classes,
-    final.GlintRenderEngine,
-    *operators.classes,
-    *ui.classes,
-)
+    return (*properties.classes, GlintRenderEngine, *operators.classes, *ui.classes)
 
 
 def renders_one_frame(argv) -> bool:
@@ -25,6 +22,8 @@ def renders_one_frame(argv) -> bool:
     -f 7``, the usual render-farm job): then 'auto' weighs the workers' start-up, as
     render.py does for one frame (``core.workers.one_render``).  ``-f 1,3`` or ``-f 1..5``,
     or ``-a``, render more than one."""
+    import bpy
+
     if not bpy.app.background or any(arg in ("-a", "--render-anim") for arg in argv):
         return False
     for flag in ("-f", "--render-frame"):
@@ -36,22 +35,34 @@ def renders_one_frame(argv) -> bool:
 
 
 def register():
-    for cls in _classes:
+    import bpy
+
+    from ..core import workers
+    from . import properties, ui
+
+    for cls in _classes():
         bpy.utils.register_class(cls)
     properties.register_pointers()
-    final.register_panels()
+    ui.register_panels()
     if renders_one_frame(sys.argv):
         workers.expect_one_render()
 
 
 def unregister():
-    final.unregister_panels()
+    import bpy
+
+    from ..core import workers
+    from . import properties, ui
+
+    ui.unregister_panels()
     properties.unregister_pointers()
-    for cls in reversed(_classes):
+    for cls in reversed(_classes()):
         bpy.utils.unregister_class(cls)
     # The render worker processes (core.workers) end with the add-on, not with Blender: a
     # disabled or reloaded extension leaves no process behind (the next render starts new
     # ones).
     workers.shutdown()
+    from ..core import cluster
+
     cluster.close_clients()    # (a Dask cluster's connections likewise; its workers stay)
 

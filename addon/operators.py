@@ -100,7 +100,7 @@ class GLINT_OT_render(bpy.types.Operator):
             return {'CANCELLED'}
         self._job, self._image_name = prepared
         self._start = time.perf_counter()
-        self._worker = ThreadedRender(self._job)
+        self._worker = ThreadedRender.of_job(self._job)
         window_manager = context.window_manager
         window_manager.progress_begin(0, 100)
         self._timer = window_manager.event_timer_add(POLL_INTERVAL, window=context.window)

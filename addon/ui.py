@@ -1,12 +1,13 @@
 """Panels: Glint's settings and Render button in the 3D viewport's sidebar (tab "Glint", any
 render engine) and in Render properties (when Glint is the render engine, per Blender's
-COMPAT_ENGINES convention), and a Glint section in Material properties."""
+COMPAT_ENGINES convention), a Glint section in Material properties, and which of Blender's
+own panels show with Glint (``register_panels``)."""
 
 from __future__ import annotations
 
 import bpy
 
-from .engine.final import GlintRenderEngine
+from .engine.base import GlintRenderEngine
 from .operators import GLINT_OT_render
 
 
@@ -141,3 +142,60 @@ class GLINT_PT_material(bpy.types.Panel):
 
 classes = (GLINT_PT_render, GLINT_PT_render_performance, GLINT_PT_sidebar,
            GLINT_PT_sidebar_performance, GLINT_PT_material)
+
+
+#: Panels marked for every engine that Glint does not show: Blender's type-only light panel
+#: and its node variant (Glint shows one Light panel, EEVEE's, which edits what Glint
+#: exports: type, colour, temperature, power, exposure, radius, angle, shape and size; its
+#: Beam Shape sub-panel, DATA_PT_spot, edits the spot cone) and light probes (Glint does not
+#: use them).
+EXCLUDED_PANEL_PREFIXES = ('DATA_PT_lightprobe', 'DATA_PT_context_lightprobe')
+EXCLUDED_PANELS = {'DATA_PT_light', 'NODE_DATA_PT_light'}
+
+
+def _excluded(name: str) -> bool:
+    return (name in EXCLUDED_PANELS or name.startswith(EXCLUDED_PANEL_PREFIXES)
+            or 'FREESTYLE' in name.upper())
+
+
+def compatible_panels():
+    """Blender's panels Glint's users need, as other engines choose them: every panel marked
+    for all engines ('BLENDER_RENDER': output, format, colour management, camera, ...), minus
+    those that do not apply to Glint (EXCLUDED_PANELS), plus the EEVEE panels that edit what
+    Glint exports (material slots and surface, world surface, the light)."""
+    included = {'EEVEE_MATERIAL_PT_context_material', 'EEVEE_MATERIAL_PT_surface',
+                'EEVEE_WORLD_PT_surface', 'DATA_PT_EEVEE_light'}
+    panels = []
+    for panel in bpy.types.Panel.__subclasses__():
+        engines = getattr(panel, "COMPAT_ENGINES", None)
+        if engines is None:
+            continue
+        name = panel.__name__
+        if name in included or ('BLENDER_RENDER' in engines and not _excluded(name)):
+            panels.append(panel)
+    return panels
+
+
+def _own_engine_sets(panels) -> None:
+    """A panel subclass shares its parent's COMPAT_ENGINES set object unless it defines its
+    own (NODE_DATA_PT_light shares DATA_PT_light's): give each panel Glint adds itself to a
+    set of its own where that set is shared with a panel Glint leaves out, so adding Glint to
+    one does not show the other."""
+    chosen = {id(panel) for panel in panels}
+    others = {id(panel.COMPAT_ENGINES) for panel in bpy.types.Panel.__subclasses__()
+              if id(panel) not in chosen and getattr(panel, "COMPAT_ENGINES", None) is not None}
+    for panel in panels:
+        if id(panel.COMPAT_ENGINES) in others:
+            panel.COMPAT_ENGINES = set(panel.COMPAT_ENGINES)
+
+
+def register_panels():
+    panels = compatible_panels()
+    _own_engine_sets(panels)
+    for panel in panels:
+        panel.COMPAT_ENGINES.add(GlintRenderEngine.bl_idname)
+
+
+def unregister_panels():
+    for panel in compatible_panels():
+        panel.COMPAT_ENGINES.discard(GlintRenderEngine.bl_idname)

@@ -4,9 +4,9 @@
         [--glint-reference 256] [--cycles 1,2,4,8,16,32] [--cycles-reference 1024]
         [--repeats N] [--budget S] [--out DIR]
 
-bench.scale times Glint's F12 at its defaults against Cycles' at 1 sample a pixel; the two
-images are not equally noisy. Glint's only noise in these scenes (anti-aliasing off, a sun of
-angle 0) is the world's occlusion, estimated from ``world_samples`` fixed directions a point
+bench.scale times Glint's F12 (the Whitted integrator, anti-aliasing off) against Cycles' at 1
+sample a pixel; the two images are not equally noisy. Glint's only noise in these scenes (a sun
+of angle 0) is the world's occlusion, estimated from ``world_samples`` fixed directions a point
 (``core.shading``); Cycles' is its path tracing at ``samples`` a pixel. This module renders
 the case's scene (``bench.scale.build``: the same scene, camera, sun and world) through F12
 with Glint at several world-sample counts and Cycles at several sample counts, each timed as

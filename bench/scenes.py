@@ -1,8 +1,10 @@
 """The bench's scenes: the article's, and many small random spheres over the article's floor
-(as ``core.Sphere`` objects, or as one ``core.SphereSet`` for counts up to millions).
+(as ``core.Sphere`` objects, or as one ``core.SphereSet`` for counts up to millions), and
+triangles and spheres under the path integrator (``mesh_and_spheres_scene``).
 
-All use the article's ScreenCamera (eye (0, 0, 1), screen [-1, 1] on z = 0), its light and
-its floor sphere, so that the only thing that changes between them is the sphere count.
+The sphere scenes use the article's ScreenCamera (eye (0, 0, 1), screen [-1, 1] on z = 0), its
+light and its floor sphere, so that the only thing that changes between them is the sphere
+count.
 """
 
 from __future__ import annotations
@@ -11,10 +13,12 @@ import math
 
 import numpy as np
 
-from core import Material, PointLight, Scene, ScreenCamera, Sphere, SphereSet, article_scene
+from core import (AreaLight, BlenderCamera, Material, PointLight, Scene, ScreenCamera, Sphere,
+                  SphereSet, SurfaceMaterial, TriangleMesh, article_scene)
 from core.article import ARTICLE_EYE, ARTICLE_LIGHT, article_spheres
 
-__all__ = ["article_scene", "random_spheres_scene", "random_sphere_set_scene", "SEED"]
+__all__ = ["article_scene", "random_spheres_scene", "random_sphere_set_scene",
+           "mesh_and_spheres_scene", "SEED"]
 
 SEED = 20240601
 RADIUS_RANGE = (0.02, 0.08)
@@ -95,3 +99,73 @@ def random_sphere_set_scene(count: int, width: int, height: int, *, floor: bool 
                  spheres=(floor_sphere,) if floor else (), sphere_sets=(spheres,),
                  lights=(PointLight(ARTICLE_LIGHT, name="light"),))
 
+
+
+def _look_at(eye, target) -> tuple:
+    """A Blender camera's matrix_world at ``eye`` looking at ``target`` (+Z up)."""
+    eye, target = np.asarray(eye, float), np.asarray(target, float)
+    back = eye - target
+    back /= np.linalg.norm(back)
+    right = np.cross((0.0, 0.0, 1.0), back)
+    right /= np.linalg.norm(right)
+    up = np.cross(back, right)
+    rows = np.column_stack([right, up, back, eye])
+    return tuple(map(tuple, rows)) + ((0.0, 0.0, 0.0, 1.0),)
+
+
+def _icosphere(subdivisions: int):
+    """(corners (T, 3, 3)) of a unit icosphere: an icosahedron's faces split in four
+    ``subdivisions`` times, projected onto the sphere."""
+    t = (1 + 5 ** 0.5) / 2
+    v = np.array([(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t),
+                  (0, -1, -t), (0, 1, -t), (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)],
+                 float)
+    f = np.array([(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9),
+                  (5, 11, 4), (11, 10, 2), (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2),
+                  (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5), (2, 4, 11), (6, 2, 10),
+                  (8, 6, 7), (9, 8, 1)])
+    corners = v[f]
+    for _ in range(subdivisions):
+        a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+        ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
+        corners = np.concatenate([np.stack(x, 1) for x in
+                                  ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
+    return corners / np.linalg.norm(corners, axis=2, keepdims=True)
+
+
+def _mesh(corners, material, name):
+    """A flat-shaded mesh of triangles ``corners`` (T, 3, 3)."""
+    count = len(corners)
+    return TriangleMesh(corners.reshape(-1, 3), np.arange(3 * count).reshape(-1, 3), None,
+                        np.zeros(count, np.int64), (material,), name=name)
+
+
+def mesh_and_spheres_scene(spheres: int = 2000, grid: int = 48, subdivisions: int = 4,
+                           width: int = 160, height: int = 120, seed: int = SEED) -> Scene:
+    """Triangles and spheres under the path integrator (``bench.rays``): a rolling terrain
+    of ``grid`` x ``grid`` quads (two triangles each) and, on it, an icosphere of
+    20 * 4^subdivisions triangles among ``spheres`` small spheres (one ``SphereSet``),
+    lit by a square area light and a grey world, seen by a Blender camera."""
+    rng = np.random.default_rng(seed)
+    edge = np.linspace(-8, 8, grid + 1)
+    x, y = np.meshgrid(edge, edge, indexing="ij")
+    z = 0.4 * np.sin(0.7 * x) * np.cos(0.5 * y)
+    points = np.stack([x, y, z], -1)
+    a, b = points[:-1, :-1].reshape(-1, 3), points[1:, :-1].reshape(-1, 3)
+    c, d = points[1:, 1:].reshape(-1, 3), points[:-1, 1:].reshape(-1, 3)
+    terrain = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    ball = _icosphere(subdivisions) * 1.5 + (0.0, 0.0, 1.8)
+    grey = SurfaceMaterial(diffuse=(0.6, 0.6, 0.6))
+    red = SurfaceMaterial(diffuse=(0.7, 0.2, 0.15))
+    centres = np.column_stack([rng.uniform(-7, 7, spheres), rng.uniform(-7, 7, spheres),
+                               rng.uniform(0.3, 1.5, spheres)])
+    colours = tuple(SurfaceMaterial(diffuse=tuple(float(v) for v in rng.uniform(0.1, 0.9, 3)))
+                    for _ in range(8))
+    field = SphereSet(centres, rng.uniform(0.04, 0.12, spheres),
+                      rng.integers(0, len(colours), spheres), colours, name="field")
+    light = AreaLight((2.0, -3.0, 7.0), (0.0, 0.0, -1.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0),
+                      size_x=3.0, size_y=3.0, power=800.0, name="area")
+    camera = BlenderCamera(_look_at((0.0, -13.0, 6.5), (0.0, 0.0, 1.0)),
+                           resolution_x=width, resolution_y=height)
+    return Scene(camera, (), (light,), background=(0.1, 0.1, 0.12), sphere_sets=(field,),
+                 meshes=(_mesh(terrain, grey, "terrain"), _mesh(ball, red, "ball")))

@@ -35,8 +35,8 @@ def main(argv=None) -> int:
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     render_script.register_glint(glint)
-    from glint.addon.engine.viewport import (ProgressiveRender, ViewportView,
-                                             export_viewport_scene)
+    from glint.addon.engine.viewport import ProgressiveRender, export_viewport_scene
+    from glint.addon.export.view import ViewportView
     from glint.addon.utils.article_scene import build_article_scene
 
     scene = build_article_scene()

@@ -244,9 +244,11 @@ def directional_albedo_quadrature(rise=None) -> np.ndarray:
 
     Half vectors are drawn from D(h) (N.H) on a stratified 96 x 32 grid (tan^2 theta_h =
     alpha^2 u / (1 - u)), which resolves sharp and wide lobes alike; each contributes
-    Vis 4 (V.H) (N.L) / (N.H), the estimator of the integral of D Vis cos(theta_l)."""
+    Vis 4 (V.H) (N.L) / (N.H), the estimator of the integral of D Vis cos(theta_l).  The
+    view lies in the x-z plane, so the grid's azimuths pair up as phi and 2 pi - phi with
+    equal contributions: the half of them below pi give the same mean at half the cost."""
     u = (np.arange(96) + 0.5) / 96
-    phi = (np.arange(32) + 0.5) / 32 * 2 * np.pi
+    phi = (np.arange(16) + 0.5) / 32 * 2 * np.pi
     alpha = np.maximum(_ALBEDO_ALPHAS, 1e-3)[:, None, None, None]
     mu = _ALBEDO_COSINES[None, :, None, None]
     cos_h = 1 / np.sqrt(1 + alpha ** 2 * (u / (1 - u))[None, None, :, None])
@@ -484,13 +486,19 @@ def dielectric_table(ior: float) -> np.ndarray:
 def directional_albedo(cos_v, alpha, table=_ALBEDO_TABLE):
     """E(N.V, alpha) (m,) of the GGX lobe (or another table on its grid), bilinear in the
     precomputed table."""
-    x = np.interp(cos_v, _ALBEDO_COSINES, np.arange(len(_ALBEDO_COSINES)))
-    y = np.interp(alpha, _ALBEDO_ALPHAS, np.arange(len(_ALBEDO_ALPHAS)))
-    x0 = np.minimum(x.astype(int), len(_ALBEDO_COSINES) - 2)
-    y0 = np.minimum(y.astype(int), len(_ALBEDO_ALPHAS) - 2)
+    # Both grids are uniform: the cells' indices by arithmetic, one flat gather per corner
+    # (np.interp twice and four 2-D gathers cost 3x as much per point).
+    columns, rows = len(_ALBEDO_COSINES), len(_ALBEDO_ALPHAS)
+    low, step = _ALBEDO_COSINES[0], _ALBEDO_COSINES[1] - _ALBEDO_COSINES[0]
+    x = np.clip((np.asarray(cos_v, np.float64) - low) / step, 0, columns - 1)
+    y = np.clip(np.asarray(alpha, np.float64) * (rows - 1), 0, rows - 1)
+    x0 = np.minimum(x.astype(np.intp), columns - 2)
+    y0 = np.minimum(y.astype(np.intp), rows - 2)
     fx, fy = x - x0, y - y0
-    top = table[y0, x0] * (1 - fx) + table[y0, x0 + 1] * fx
-    bottom = table[y0 + 1, x0] * (1 - fx) + table[y0 + 1, x0 + 1] * fx
+    flat = table.ravel()
+    corner = y0 * columns + x0
+    top = flat.take(corner) * (1 - fx) + flat.take(corner + 1) * fx
+    bottom = flat.take(corner + columns) * (1 - fx) + flat.take(corner + columns + 1) * fx
     return (top * (1 - fy) + bottom * fy).astype(np.asarray(cos_v).dtype)
 
 

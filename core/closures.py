@@ -10,9 +10,13 @@ The lobes, per hit (each weight a colour, as a sum of Cycles' closures of one ki
 * glossy: GGX of alpha = roughness^2 with Fresnel from ``f0`` to ``f90`` (Schlick's curve,
   blended by ``dielectric`` towards a dielectric's of index ``specular_ior``) and Turquin's
   multiple-scattering compensation (``core.bsdf``); alpha at most ``DELTA_ALPHA`` is a mirror;
-* transmission: sharp refraction by Snell's law (``ior`` inside over outside), weight
-  ``transmission`` x (1 - ``transmission_fresnel`` F), F Schlick's for the index on the less
-  dense side; under total internal reflection that share is reflected;
+* transmission: refraction by Snell's law (``ior`` inside over outside) through the normal,
+  or for rough glass through a microfacet drawn from GGX's visible normals (weighed by its
+  shadowing G1 of the refracted direction), weight ``transmission`` x (1 -
+  ``transmission_fresnel`` F), F Schlick's for the index on the less dense side; under total
+  internal reflection that share is reflected.  Refraction is sampled only (no density):
+  light reaches through glass by BSDF rays, as through Cycles' glass without caustics
+  tricks;
 * translucent: Lambert on the back side, albedo ``translucency``;
 * transparent: straight through, weight ``transparency``.
 
@@ -292,10 +296,17 @@ def ggx_visible_normal(normal, to_view, alpha, u1, u2):
 @dataclass
 class LobeChoice:
     """How a hit's lobes are chosen: probability (5, k) of each lobe (``LOBES`` order),
-    and the lobes' albedo estimates (5, 3, k) the probabilities come from."""
+    and the lobes' albedo estimates (5, 3, k) the probabilities come from; with them what
+    depends on the view alone, for ``evaluate`` at every light: compensation (3, k) the
+    glossy lobe's multiple-scattering factor."""
 
     probability: np.ndarray
     albedo: np.ndarray
+    compensation: np.ndarray
+
+    def take(self, rows) -> "LobeChoice":
+        return LobeChoice(self.probability[:, rows], self.albedo[:, :, rows],
+                          self.compensation[:, rows])
 
 
 def lobe_albedos(closures: Closures, normal, to_view, entering) -> LobeChoice:
@@ -317,13 +328,16 @@ def lobe_albedos(closures: Closures, normal, to_view, entering) -> LobeChoice:
     weight = np.maximum(albedo, 0).mean(axis=1)
     total = weight.sum(axis=0)
     probability = weight / np.where(total > 0, total, 1)
-    return LobeChoice(probability, albedo)
+    compensation = _compensation(closures.f0, directional_albedo(
+        cos_o, np.maximum(closures.alpha, DELTA_ALPHA)))
+    return LobeChoice(probability, albedo, compensation)
 
 
 def evaluate(closures: Closures, choice: LobeChoice, normal, to_view, towards):
     """(f cos (3, k), pdf (k,)) of the non-delta lobes for light arriving from unit
     ``towards`` (3, k), seen from ``to_view``; pdf the density of ``sample`` drawing that
-    direction (per solid angle, the lobes' choice included)."""
+    direction (per solid angle, the lobes' choice included).  choice: ``lobe_albedos`` of
+    the same hits, normals and view."""
     cos_o = np.clip(dot(normal, to_view), 1e-6, 1)
     cos_i = dot(normal, towards)
     above = cos_i > 0
@@ -335,16 +349,18 @@ def evaluate(closures: Closures, choice: LobeChoice, normal, to_view, towards):
     if closures.smooth is not None:
         softened = bump_shadowing(closures.smooth, normal, towards)
     if p[DIFFUSE].any():
-        f += diffuse_seen(closures, cos_o) * (lit / np.pi * softened)
+        f += choice.albedo[DIFFUSE] * (lit / np.pi * softened)
         pdf += p[DIFFUSE] * (lit / np.pi)
     rough = closures.alpha > DELTA_ALPHA
     if (p[GLOSSY] * rough).any():
         alpha = np.maximum(closures.alpha, DELTA_ALPHA)
-        half, _ = normalize(towards + to_view)
+        half = towards + to_view      # (0 for light straight through: no reflection there)
+        size = np.sqrt(dot(half, half))
+        half = np.where(size > 0, half / np.where(size > 0, size, 1), normal)
         cos_h = np.clip(dot(normal, half), 0, 1)
         d = _ggx_d(cos_h, alpha)
         reflectance = fresnel(closures, np.clip(dot(towards, half), 0, 1))
-        compensation = _compensation(closures.f0, directional_albedo(cos_o, alpha))
+        compensation = choice.compensation
         lobe = d * _visibility(np.maximum(cos_i, 1e-6), cos_o, alpha * alpha) * lit
         f += np.where(rough & above, reflectance * compensation * lobe, 0)
         density = _smith_g1(cos_o, alpha) * d / (4 * cos_o)
@@ -419,14 +435,29 @@ def sample(closures: Closures, choice: LobeChoice, normal, to_view, entering, u_
     if refracting.any():
         index = np.flatnonzero(refracting)
         part = closures.take(index)
-        c = cos_o[index]
-        refracted, returned, total, eta, cos_t = _transmission_share(part, c, entering[index])
-        d = -take(to_view, index)
+        view = take(to_view, index)
         n = take(normal, index)
-        bent, _ = normalize(eta * d + (eta * c - cos_t) * n)
-        directions[:, index] = np.where(total, take(reflected, index), bent)
-        weight[:, index] = (np.where(total, returned, refracted)
-                            / safe(probability[TRANSMISSION][index]))
+        # Rough glass refracts through a microfacet drawn from GGX's visible normals (its
+        # shadowing weighs the ray by G1 of where it goes); smooth glass through the normal.
+        rough_glass = part.alpha > DELTA_ALPHA
+        facet = n
+        if rough_glass.any():
+            facet = n.copy()
+            rows = np.flatnonzero(rough_glass)
+            facet[:, rows] = ggx_visible_normal(take(n, rows), take(view, rows),
+                                                part.alpha[rows], u1[index[rows]],
+                                                u2[index[rows]])
+        c = np.clip(dot(view, facet), 1e-6, 1)
+        refracted, returned, total, eta, cos_t = _transmission_share(part, c, entering[index])
+        bent, _ = normalize(-eta * view + (eta * c - cos_t) * facet)
+        mirrored = 2 * c * facet - view
+        directions[:, index] = np.where(total, mirrored, bent)
+        shares = np.where(total, returned, refracted)
+        if rough_glass.any():
+            going = np.abs(dot(n, directions[:, index]))
+            shadowing = _smith_g1(np.maximum(going, 1e-6), np.maximum(part.alpha, DELTA_ALPHA))
+            shares = shares * np.where(rough_glass, shadowing, 1.0)
+        weight[:, index] = shares / safe(probability[TRANSMISSION][index])
         through[index] = ~total
 
     scattered = diffuse | translucent | rough

@@ -1,5 +1,5 @@
 """Everything a render precomputes once and every tile reads, in three layouts: the scene's
-geometry (``core.aggregate.Aggregate``), its lights (``Lights``: positions, intensities,
+geometry (``core.geometry.Aggregate``), its lights (``Lights``: positions, intensities,
 sample points of soft lights and the geometry's terms at each) and its material table
 (``Materials``), plus the settings and the bound that lets paths stop early.
 """
@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .aggregate import Aggregate
+from .geometry import DEFAULT_POLICY, Aggregate, GeometryPolicy
 from .arrays import scene_arrays
 from .bsdf import SurfaceArrays, surface_arrays, translucent_view
 from .camera import eye_position
@@ -134,13 +134,16 @@ class TraceContext:
 
 def make_context(scene: Scene, settings: RenderSettings, dtype, *,
                  root_formula: str | None = None, threads: int = 1,
-                 frame=None) -> TraceContext:
+                 frame=None,
+                 geometry_policy: GeometryPolicy = DEFAULT_POLICY) -> TraceContext:
     """The context of a render of ``scene`` in precision ``dtype``.  root_formula:
-    'textbook' or 'stable' ray/sphere roots (``core.aggregate.ROOT_FORMULAS``); None picks
+    'textbook' or 'stable' ray/sphere roots (``core.geometry.ROOT_FORMULAS``); None picks
     the article's textbook formula in article semantics and the stable one otherwise.
     threads: how many threads the geometry's tree may be built on (the same tree for any).
     frame: the ``core.frame.Frame`` that took the scene to ``scene`` (its canonical frame),
-    so that shader programs see positions in the scene's own units; None: the same."""
+    so that shader programs see positions in the scene's own units; None: the same.
+    geometry_policy: the thresholds by which the geometry picks its strategies
+    (``GeometryPolicy``)."""
     arrays = scene_arrays(scene)
     lights, table = arrays.lights, arrays.materials
     article = settings.semantics == "article"
@@ -150,7 +153,8 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
     # for the eye and each light sample.)
     geometry = Aggregate(arrays.spheres, arrays.triangles, dtype, article=article,
                          root_formula=root_formula, threads=threads,
-                         rays_per_origin=scene.camera.width * scene.camera.height)
+                         rays_per_origin=scene.camera.width * scene.camera.height,
+                         policy=geometry_policy)
     eye = eye_position(scene.camera)
     perspective = not (isinstance(scene.camera, BlenderCamera) and scene.camera.projection == "ORTHO")
     samples = []
@@ -216,7 +220,7 @@ def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces, frame)
     """The path integrator's frame (``core.path.PathSetup``): Blender's lights, the
     emitting triangles, the materials' and the world's programs."""
     from .emitters import mesh_lights, prepare_lights
-    from .path import path_setup
+    from .path import LIGHT_SAMPLE_RAY, path_setup
     from .surface_points import SurfaceTables
     # (A light scaled to 0 or of size 0 emits nothing, as in Cycles: ``emits``.)
     lights = prepare_lights([light for light in scene.lights if getattr(light, "emits", True)],
@@ -232,14 +236,34 @@ def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces, frame)
         from .shader.program import run
         from .shader.world import world_points
 
-        def run_world(directions):
-            value = run(scene.world, world_points(directions))
+        def run_world(directions, program):
+            # (The map is the world as light samples see it: no ray type, as Cycles
+            # evaluates a background for its importance map.)
+            value = run(program, world_points(directions, LIGHT_SAMPLE_RAY))
             return np.broadcast_to(np.maximum(value.emission, 0), directions.shape)
         world = world_light(scene.world, run_world, _world_image_size(scene.world))
     return path_setup(settings, lights, mesh, arrays.background,
                       any_holdout=surfaces.any_holdout, programs=programs,
                       surface_tables=tables, world_program=scene.world,
-                      pixel=pixel_footprint(scene.camera), world_light=world)
+                      pixel=pixel_footprint(scene.camera), world_light=world,
+                      transparent_shadows=bool(surfaces.transparency.any()) or any(
+                          may_be_transparent(program) for program in programs.values()),
+                      frame=frame)
+
+
+def may_be_transparent(program) -> bool:
+    """Whether a material's program may give a hit some transparency: a Transparent BSDF in
+    it, or a Principled BSDF whose Alpha is not a constant 1 (so shadow rays must look
+    through its surfaces)."""
+    from .shader.program import Register
+    for instruction in program.instructions:
+        if instruction.node == "ShaderNodeBsdfTransparent":
+            return True
+        if instruction.node == "ShaderNodeBsdfPrincipled":
+            alpha = instruction.arguments[4]
+            if isinstance(alpha, Register) or float(alpha) < 1:
+                return True
+    return False
 
 
 def _world_image_size(program):

@@ -9,7 +9,8 @@ sampling.  Units are Cycles' (``core.lights``'s module docstring derives them):
 * spot light: the point light times the spot's smoothstep mask;
 * sun of strength S: a cone of directions of half-angle angle / 2, radiance
   S c / (pi sin^2(angle / 2)) (so that a surface facing it receives S); angle 0 is a delta;
-* area light: a one-sided Lambertian rectangle or ellipse of radiance P c / (pi A);
+* area light: a one-sided Lambertian rectangle or ellipse of radiance P c / (pi A); a
+  rectangle is sampled uniformly in the solid angle it covers, an ellipse over its area;
 * emitting triangles: their material's emission, on both sides (Cycles' Emission closure);
 * the world: a constant radiance (found by escaping rays only: for a constant world,
   cosine-weighted BSDF samples are the better estimator, and no shadow ray is spent on it).
@@ -215,15 +216,19 @@ def sample_light(light: Light, points, u1, u2) -> LightSample:
             mask = _spot_mask(light, -towards)
             radiance, over = radiance * mask, over * mask
         return LightSample(towards, distance, radiance, pdf, over)
-    # Area light: a point uniform over its surface.
-    if light.disk:
-        x, y = _disk(u1, u2)
-        x, y = 0.5 * x, 0.5 * y
-    else:
-        x, y = u1 - 0.5, u2 - 0.5
+    if not light.disk:
+        # A rectangle: a direction uniform in the solid angle it covers, as Cycles samples it.
+        target, solid_angle = _spherical_rectangle(light, points, u1, u2)
+        towards, distance = normalize(target - points)
+        front = (dot(points - light.position.astype(dtype)[:, None],
+                     light.direction.astype(dtype)[:, None]) > 0) & (solid_angle > 0)
+        pdf = np.where(front, 1 / np.where(front, solid_angle, 1), 0)
+        return LightSample(towards, distance, col * front, pdf, col * (solid_angle * front))
+    # An ellipse: a point uniform over its surface.
+    x, y = _disk(u1, u2)
     target = (light.position.astype(dtype)[:, None]
-              + (x * light.size_x) * light.axis_x.astype(dtype)[:, None]
-              + (y * light.size_y) * light.axis_y.astype(dtype)[:, None])
+              + (0.5 * x * light.size_x) * light.axis_x.astype(dtype)[:, None]
+              + (0.5 * y * light.size_y) * light.axis_y.astype(dtype)[:, None])
     towards, distance = normalize(target - points)
     cos_l = -dot(towards, light.direction.astype(dtype)[:, None])
     front = cos_l > 0
@@ -232,6 +237,52 @@ def sample_light(light: Light, points, u1, u2) -> LightSample:
     over = np.where(front, col * (np.maximum(cos_l, 0) * light.area)
                     / (distance * distance), 0)
     return LightSample(towards, distance, radiance, pdf, over)
+
+
+def _spherical_rectangle(light: Light, points, u1=None, u2=None):
+    """(points on the light (3, k) or None, solid angle (k,)): the solid angle a rectangle
+    ``light`` covers seen from each of ``points`` (3, k), and with numbers u1, u2 (k,) a
+    point on it whose direction is uniform in that solid angle (Urena et al., "An
+    Area-Preserving Parametrization for Spherical Rectangles", 2013, as Cycles'
+    ``area_light_rect_sample``)."""
+    dtype = points.dtype
+    x_axis = light.axis_x.astype(dtype)[:, None]
+    y_axis = light.axis_y.astype(dtype)[:, None]
+    z_axis = np.cross(light.axis_x, light.axis_y).astype(dtype)[:, None]
+    corner = (light.position.astype(dtype)[:, None] - (0.5 * light.size_x) * x_axis
+              - (0.5 * light.size_y) * y_axis)
+    to_corner = corner - points
+    z0 = dot(to_corner, z_axis)
+    side = np.where(z0 > 0, -1.0, 1.0).astype(dtype)   # z points away from the rectangle
+    z0 = z0 * side
+    x0, y0 = dot(to_corner, x_axis), dot(to_corner, y_axis)
+    x1, y1 = x0 + light.size_x, y0 + light.size_y
+    # The normals of the pyramid's four faces (their z components), then its angles.
+    diff = np.stack([x0 - x1, y1 - y0, x1 - x0, y0 - y1])
+    nz = np.stack([y0, x1, y1, x0]) * diff
+    with np.errstate(invalid="ignore", divide="ignore"):
+        nz = np.nan_to_num(nz / np.sqrt(z0 * z0 * diff * diff + nz * nz))
+    angle = [np.arccos(np.clip(-nz[i] * nz[(i + 1) % 4], -1, 1)) for i in range(4)]
+    b0, b1 = nz[0], nz[2]
+    k = 2 * np.pi - angle[2] - angle[3]
+    solid_angle = np.maximum(angle[0] + angle[1] - k, 0)
+    if u1 is None:
+        return None, solid_angle
+    with np.errstate(invalid="ignore", divide="ignore"):
+        au = u1 * solid_angle + k
+        fu = (np.cos(au) * b0 - b1) / np.sin(au)
+        cu = np.clip(np.where(fu > 0, 1.0, -1.0) / np.sqrt(fu * fu + b0 * b0), -1, 1)
+        xu = np.clip(np.nan_to_num(-(cu * z0) / np.maximum(np.sqrt(1 - cu * cu), 1e-7)),
+                     x0, x1)
+        d2 = xu * xu + z0 * z0
+        h0 = y0 / np.sqrt(d2 + y0 * y0)
+        h1 = y1 / np.sqrt(d2 + y1 * y1)
+        hv = h0 + u2 * (h1 - h0)
+        hv2 = hv * hv
+        yv = np.where(hv2 < 1 - 1e-6, hv * np.sqrt(d2) / np.sqrt(np.maximum(1 - hv2, 1e-12)),
+                      y1)
+    target = points + xu * x_axis + np.nan_to_num(yv) * y_axis + (z0 * side) * z_axis
+    return target.astype(dtype), solid_angle.astype(dtype)
 
 
 def light_hit(light: Light, origins, directions, t_max):
@@ -275,8 +326,16 @@ def light_hit(light: Light, origins, directions, t_max):
     y = dot(at, light.axis_y.astype(dtype)[:, None]) / light.size_y
     inside = (x * x + y * y <= 0.25) if light.disk else (np.abs(x) <= 0.5) & (np.abs(y) <= 0.5)
     hit = (denominator < 0) & (t > 0) & (t < t_max) & inside
-    cos_l = np.maximum(-denominator, 1e-9)
-    pdf = t * t / (cos_l * light.area)
+    if light.disk:
+        cos_l = np.maximum(-denominator, 1e-9)
+        pdf = t * t / (cos_l * light.area)
+    else:
+        rows = np.flatnonzero(hit)
+        pdf = np.zeros(k, dtype)
+        if len(rows):
+            _, solid_angle = _spherical_rectangle(
+                light, np.broadcast_to(origins, directions.shape)[:, rows])
+            pdf[rows] = 1 / np.maximum(solid_angle, 1e-30)
     return hit, np.where(hit, t, np.inf), col * hit, np.where(hit, pdf, 0)
 
 
@@ -370,17 +429,24 @@ WORLD_MAP_DEFAULT = (256, 128)
 class WorldLight:
     """A world whose radiance varies with direction (a program: an HDRI, a sky), as a light:
     directions drawn from ``environment`` (``core.environment.EnvironmentMap``, Cycles'
-    background map, of the world baked at its resolution), its radiance the program's own
-    value in each (so the map only steers the samples, exactly or not)."""
+    background map, of the world baked at its resolution; a ``SunGuidedMap`` where a Sky
+    Texture's sun is sampled on its own), its radiance the program's own value in each (so
+    the map only steers the samples, exactly or not)."""
 
     environment: object
     power: float
 
 
 def world_light(program, run_world, size=None) -> WorldLight:
-    """The WorldLight of a world program: ``run_world(directions (3, n)) -> (3, n)`` its
-    radiance; size: (width, height) of the bake (None: ``WORLD_MAP_DEFAULT``)."""
-    from .environment import EnvironmentMap, equirectangular_directions
+    """The WorldLight of a world program: ``run_world(directions (3, n), program) -> (3, n)``
+    the radiance of ``program`` (the world's, or a variant of it); size: (width, height) of
+    the bake (None: ``WORLD_MAP_DEFAULT``).  A Sky Texture's sun disc (``shader.sky.
+    world_sun``) is sampled on its own and left out of the bake, as in Cycles: a disc of
+    half a degree would otherwise be a few cells of the map, or none."""
+    from .environment import EnvironmentMap, SunGuidedMap, equirectangular_directions
+    from .shader.sky import world_sun, without_sun_discs
+    sun = world_sun(program)
+    baked = program if sun is None else without_sun_discs(program)
     width, height = size or WORLD_MAP_DEFAULT
     width = max(8, min(int(width), WORLD_MAP_MAX[0]))
     height = max(4, min(int(height), WORLD_MAP_MAX[1]))
@@ -390,9 +456,18 @@ def world_light(program, run_world, size=None) -> WorldLight:
         rows = np.arange(row, min(row + 64, height))
         v = 1 - (rows + 0.5) / height            # image row 0 looks up (+Z)
         directions = equirectangular_directions(np.tile(u, len(rows)), np.repeat(v, width))
-        rgb[rows] = np.asarray(run_world(directions), np.float32).T.reshape(len(rows), width, 3)
+        rgb[rows] = np.asarray(run_world(directions, baked), np.float32).T.reshape(
+            len(rows), width, 3)
     rgb = np.nan_to_num(rgb, nan=0.0, posinf=0.0, neginf=0.0)
     environment = EnvironmentMap.from_array("world", rgb)
     sin_theta = np.sin(np.pi * (np.arange(height) + 0.5) / height)[:, None, None]
     power = float(np.abs(rgb * sin_theta).mean() * 2 * np.pi ** 2)
+    if sun is not None:
+        direction, half_angle = sun
+        centre = direction[:, None]
+        disc = np.abs(np.asarray(run_world(centre, program), np.float64)
+                      - np.asarray(run_world(centre, baked), np.float64)).mean()
+        # The disc's radiance at its centre over its solid angle, limb darkening's mean 0.8.
+        power += float(np.nan_to_num(disc)) * 0.8 * 2 * np.pi * (1 - np.cos(half_angle))
+        environment = SunGuidedMap(environment, direction, half_angle)
     return WorldLight(environment, power)

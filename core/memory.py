@@ -15,10 +15,10 @@ The constants are measured peaks (tracemalloc; the article scene, 20,000 and 200
 spheres with a hard and a soft light, a 79,202-triangle mesh drawn 10 times; 64 x 64 to
 1024 x 1024, 1 and 2 threads: 320-1,200 bytes a sphere, 404 a triangle), rounded up, so the
 plan errs on the side of refusing.  (A dense field's depth-ordered bins for the eye,
-``core.bins``, add about 55 bytes a sphere held and 370 while they are built, once, in the
+``core.geometry.bins``, add about 55 bytes a sphere held and 370 while they are built, once, in the
 rendering process, which shares them with its workers (``Aggregate.build_frame_tables``):
 tracemalloc on the 10^6 sphere set at 1080p.  A sun's parallel bins,
-``core.bins.ParallelBins``, hold about 6 entries of 24 bytes a sphere in each process that
+``core.geometry.bins.ParallelBins``, hold about 6 entries of 24 bytes a sphere in each process that
 traces the sun's rays, where they are built: frames of at least as many pixels as the tree
 has spheres.)  ``check`` compares the plan with the memory this machine has available
 (``/proc/meminfo``'s MemAvailable, and a cgroup's limit if lower) and raises

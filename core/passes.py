@@ -1,12 +1,13 @@
-"""Render passes: what the camera ray through each pixel's centre hit first.
+"""Render passes: what each pixel's camera ray hit first.
 
 ``render(scene, settings, passes=True)`` fills a ``PrimaryPasses`` beside the image, tile by
-tile (each tile writes only its own slice, like the image).  The values come from one extra
-trace of the tile's pixel centres to their first hits (``trace_bundle(record_primary=True,
+tile (each tile writes only its own slice, like the image).  Path-traced frames take them,
+as Cycles does, from each pixel's first sample: its tiles' first jobs carry them beside
+their sums (``first_hit_channels``).  Other frames trace the tile's pixel centres once more
+to their first hits (``fill_tile_passes``: ``trace_bundle(record_primary=True,
 primary_only=True)``, which reads t, the primitive and the normal at the bounce loop's first
-hit and shades nothing): passes are per pixel
-centre, not averaged over anti-aliasing samples, as depth, normals and indices cannot be
-meaningfully averaged across an edge anyway.
+hit and shades nothing).  Either way passes are one ray's, not averaged over anti-aliasing
+samples, as depth, normals and indices cannot be meaningfully averaged across an edge.
 
 Conventions are Blender's render passes':
 * depth: distance along the camera's view axis (Blender's Depth/Z pass, as Cycles writes it),
@@ -92,23 +93,50 @@ def fill_tile_passes(passes: PrimaryPasses, ctx, camera, tile, stats, world=None
     traced = trace_bundle(ctx, rays, stats, record_primary=True, record_emission=emission,
                           primary_only=not emission)
     hits = traced.primary
-    hit = hits.primitive >= 0
-    t = np.where(hit, hits.t, 0.0).astype(np.float64)
-    position = rays.origins + t * rays.directions            # (3, n)
+    channels = first_hit_channels(camera, rays.origins, rays.directions, hits.t,
+                                  hits.primitive, hits.material, hits.normal, world)
+    store_first_hits(passes, tile, channels.reshape(y1 - y0, x1 - x0, PASS_CHANNELS))
+    if emission:
+        passes.emission[y0:y1, x0:x1] = traced.emission.T.reshape(y1 - y0, x1 - x0, 3)
+
+
+#: The channels ``first_hit_channels`` packs a pixel's passes into, as floats a tile's sums
+#: can carry: depth, position (3), normal (3), then the primitive and material ids each as
+#: two 16-bit halves (exact in float32).
+PASS_CHANNELS = 11
+
+
+def first_hit_channels(camera, origins, directions, t, primitive, material, normal,
+                       world=None) -> np.ndarray:
+    """(n, PASS_CHANNELS) the passes of n camera rays (origins (3, n) or (3, 1), directions
+    (3, n), in the render's frame) from their first hits: t (n,) (anything where missed),
+    primitive and material (n,) ids (-1 where missed), normal (3, n)."""
+    hit = primitive >= 0
+    t = np.where(hit, t, 0.0).astype(np.float64)
+    position = origins + t * directions            # (3, n)
     # Perspective rays start at the eye, orthographic ones on the camera's plane: either way
     # the view-axis depth is t times the direction's component along the axis.
-    depth = t * (view_axis(camera) @ rays.directions)
+    depth = t * (view_axis(camera) @ directions)
     if world is not None:
         position = position / world.scale + world.centre[:, None]
         depth = depth / world.scale
-    shape = (y1 - y0, x1 - x0)
-    passes.depth[y0:y1, x0:x1] = np.where(hit, depth, MISSED_DEPTH).reshape(shape)
-    passes.position[y0:y1, x0:x1] = np.where(hit, position, 0.0).T.reshape(*shape, 3)
-    passes.normal[y0:y1, x0:x1] = hits.normal.T.reshape(*shape, 3)
-    passes.primitive[y0:y1, x0:x1] = hits.primitive.reshape(shape)
-    passes.material[y0:y1, x0:x1] = hits.material.reshape(shape)
-    if emission:
-        passes.emission[y0:y1, x0:x1] = traced.emission.T.reshape(*shape, 3)
+    ids = np.stack([primitive, material]).astype(np.int64) + 1   # >= 0
+    return np.concatenate([np.where(hit, depth, MISSED_DEPTH)[None],
+                           np.where(hit, position, 0.0), normal,
+                           ids[:1] >> 16, ids[:1] & 0xFFFF,
+                           ids[1:] >> 16, ids[1:] & 0xFFFF]).T
+
+
+def store_first_hits(passes: PrimaryPasses, tile, channels: np.ndarray) -> None:
+    """Write tile (y0, y1, x0, x1)'s ``first_hit_channels`` (h, w, PASS_CHANNELS) into
+    ``passes``."""
+    y0, y1, x0, x1 = tile
+    passes.depth[y0:y1, x0:x1] = channels[..., 0]
+    passes.position[y0:y1, x0:x1] = channels[..., 1:4]
+    passes.normal[y0:y1, x0:x1] = channels[..., 4:7]
+    ids = np.rint(channels[..., 7:11]).astype(np.int64)
+    passes.primitive[y0:y1, x0:x1] = (ids[..., 0] << 16) + ids[..., 1] - 1
+    passes.material[y0:y1, x0:x1] = (ids[..., 2] << 16) + ids[..., 3] - 1
 
 
 def primitive_sources(scene) -> np.ndarray:

@@ -13,8 +13,8 @@ Bounces follow Cycles (``path_state_next``): a transparent bounce counts only ag
 ``transparent_bounces``; any other counts against ``max_bounces`` and its kind's limit
 (diffuse, glossy, transmission).  A path past a limit still traces its next ray, which
 collects only emission (so 0 bounces is direct light, from both of its estimators).
-Russian roulette from the second bounce on keeps a path with probability
-min(1, sqrt(max throughput)), as Cycles does.  Contributions are clamped as Cycles' film
+Russian roulette, at vertices two bounces or more from the camera (Cycles spares the
+first), keeps a path with probability min(1, sqrt(max throughput)), as Cycles does.  Contributions are clamped as Cycles' film
 clamps them (the sum of a sample's RGB, direct and indirect apart).
 
 Alpha and holdouts follow ``core.trace``'s rules: a path is on the camera's view while it
@@ -36,6 +36,8 @@ from .emitters import (SAMPLED_EACH, LightSample, MeshLights, WorldLight, light_
                        mesh_light_pdf, sample_light, sample_mesh_light)
 from .rays import RayBatch, RayStats, ray_offsets
 from .sampler import bounce_groups, index_bits, sample_group
+from .shader.input_nodes import (RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_REFLECT, RAY_SHADOW,
+                                 RAY_SINGULAR, RAY_TRANSMIT, RAY_TRANSPARENT)
 from .shader.program import run
 from .surface_points import surface_points
 from .vectors import dot, facing, take
@@ -55,6 +57,18 @@ class PathResult:
     alpha: np.ndarray
     albedo: np.ndarray
     normal: np.ndarray
+    #: trace_paths(first_hits=True): each camera ray's first hit, (t, primitive, material)
+    #: (n,) each (primitive and material -1 where the ray escaped), the passes' source.
+    first_hits: tuple | None = None
+
+
+#: What the Light Path node sees on a shadow ray, and where a light sample evaluates the
+#: world (Cycles' emission evaluation: no ray type).
+SHADOW_RAY = {"ray_type": RAY_SHADOW}
+LIGHT_SAMPLE_RAY = {"ray_type": 0}
+#: Bounces Russian roulette never ends a path at (Cycles' kernel min_bounce: the scene's
+#: Min Light Bounces, 0 by default, plus one).
+ROULETTE_SPARED_BOUNCES = 1
 
 
 def _power_heuristic(a, b):
@@ -83,10 +97,12 @@ def _add(colour, path, values):
         colour[row] += np.bincount(path, values[row], colour.shape[1])
 
 
-def closures_at(ctx, hits, normal, geometric, front, travelled=None) -> Closures:
+def closures_at(ctx, hits, normal, geometric, front, travelled=None, ray=None) -> Closures:
     """The closures of ``hits``: their materials' table rows, and where a material has a
     program (``PathSetup.programs``), its value at those hits (normals facing the ray);
-    travelled: (k,) how far each hit's path has come (its footprint's growth)."""
+    travelled: (k,) how far each hit's path has come (its footprint's growth); ray: what the
+    Light Path node reads of the rays that found them ({'ray_type': codes, depths: (k,)
+    each or a number}; None: camera rays), their lengths added here."""
     closures = Closures.from_table(ctx.look.surfaces, hits.material)
     setup = ctx.paths
     if not setup.programs:
@@ -102,9 +118,15 @@ def closures_at(ctx, hits, normal, geometric, front, travelled=None) -> Closures
         if travelled is not None:
             footprint = (setup.pixel_base + setup.pixel_spread * travelled[rows]).astype(
                 ctx.dtype)
+        found = None
+        if ray is not None:
+            found = {name: (values[rows] if np.ndim(values) else values)
+                     for name, values in ray.items()}
+            found["ray_length"] = hits.t[rows] / setup.surface_tables.world_scale
         points = surface_points(setup.surface_tables, ctx.geometry, take(hits.points, rows),
                                 shading, take(geometric, rows), -take(hits.directions, rows),
-                                ~front[rows], hits.primitive[rows], barycentrics, footprint)
+                                ~front[rows], hits.primitive[rows], barycentrics, footprint,
+                                found)
         value = run(program, points).closures(len(rows), ctx.dtype, shading)
         value.holdout_object = closures.holdout_object[rows]
         if value.normal is not None:
@@ -116,23 +138,38 @@ def closures_at(ctx, hits, normal, geometric, front, travelled=None) -> Closures
     return closures
 
 
-def world_radiance(ctx, directions) -> np.ndarray:
+def world_radiance(ctx, directions, ray=None) -> np.ndarray:
     """(3, k) the world's radiance along unit ``directions`` (3, k): its program's value
-    there, or the constant background."""
+    there, or the constant background; ray: the Light Path node's coordinates of those
+    rays (``closures_at``; None: camera rays)."""
     setup = ctx.paths
     if setup.world_program is None:
         return np.broadcast_to(setup.world.astype(directions.dtype)[:, None], directions.shape)
     from .shader.world import world_points
-    value = run(setup.world_program, world_points(directions))
+    value = run(setup.world_program, world_points(directions, ray))
     return np.broadcast_to(np.maximum(value.emission, 0), directions.shape).astype(
         directions.dtype)
 
 
-def _blocked(ctx, points, towards, distance, exclude, lift, stats):
+def _transmittance(ctx, points, towards, distance, exclude, lift, stats):
+    """(3, k) what reaches points (3, k) from along unit ``towards`` (k,) before ``distance``
+    (k,) (inf: never): 1 where nothing is in the way, 0 where something opaque is, and
+    where the scene may hold transparent surfaces (``PathSetup.transparent_shadows``) the
+    product of their Transparent BSDF colours (Cycles' transparent shadows, up to its
+    transparent bounces; glass and every other lobe block, as in Cycles).  exclude (k,): the
+    primitive each ray ignores; lift: the points' ``TerminatorLift`` or None."""
+    if ctx.paths.transparent_shadows:
+        return _blocked(ctx, points, towards, distance, exclude, lift, stats, any_hit=False)
+    open_ = ~_blocked(ctx, points, towards, distance, exclude, lift, stats)
+    return np.broadcast_to(open_.astype(points.dtype), points.shape)
+
+
+def _blocked(ctx, points, towards, distance, exclude, lift, stats, any_hit=True):
     """(k,) whether shadow rays from points (3, k) along unit ``towards`` are blocked before
     ``distance`` (k,) (inf: never), ignoring ``exclude`` (k,); ``lift`` the points'
     ``TerminatorLift`` or None.  Segments to a light stop short of it by the light's own
-    offset, so an emitting triangle does not block its own light."""
+    offset, so an emitting triangle does not block its own light.  any_hit False: (3, k)
+    the transmittance through transparent surfaces instead (``_transmittance``)."""
     offset = ray_offsets(points)
     reach = np.where(np.isfinite(distance), distance - ray_offsets(
         points + towards * np.where(np.isfinite(distance), distance, 0)), np.inf)
@@ -145,8 +182,54 @@ def _blocked(ctx, points, towards, distance, exclude, lift, stats):
             origins[:, moved] = lifted
             exclusion = exclude.copy()
             exclusion[moved] = ignored
-    return ctx.geometry.occluded(
-        RayBatch(origins, towards, offset, reach, None, exclusion, source=exclusion), stats)
+    if any_hit:
+        return ctx.geometry.occluded(
+            RayBatch(origins, towards, offset, reach, None, exclusion, source=exclusion),
+            stats)
+    return _through_transparency(ctx, origins, towards, offset, reach, exclusion, stats)
+
+
+def _through_transparency(ctx, origins, towards, offset, reach, exclude, stats):
+    """(3, k) the transmittance of shadow segments through the surfaces they cross: each
+    crossing multiplies by the hit's transparency (its closures, programs included), until
+    the segment's end, an opaque hit, or the transparent bounce limit."""
+    setup = ctx.paths
+    k = towards.shape[1]
+    dtype = towards.dtype
+    result = np.ones((3, k), dtype)
+    rows = np.arange(k)
+    origins = np.broadcast_to(origins, towards.shape).copy()
+    start = np.broadcast_to(np.asarray(offset, dtype), (k,)).copy()
+    reach = np.broadcast_to(np.asarray(reach, dtype), (k,)).copy()
+    exclude = np.broadcast_to(exclude, (k,)).copy()
+    for _ in range(setup.transparent_bounces + 1):
+        batch = RayBatch(origins, take(towards, rows), start, reach, None, exclude)
+        stats.shadow_rays += len(rows)
+        hits = ctx.geometry.nearest(batch, stats)
+        if len(hits) == 0:
+            return result
+        front = hits.front
+        normal = facing(hits.shading, front)
+        closures = closures_at(ctx, hits, normal, facing(hits.normals, front), front,
+                               ray=SHADOW_RAY)
+        passed = closures.transparency
+        # Only a surface that is nothing but transparent lets light through whole; any other
+        # lobe's share blocks (Cycles' shadow rays see the transparent closure's weight).
+        index = rows[hits.rays]
+        result[:, index] *= passed
+        going = np.flatnonzero(np.abs(passed).max(axis=0) > 0)
+        if len(going) == 0:
+            return result
+        rows = index[going]
+        points = take(hits.points, going)
+        spawned = ctx.geometry.spawn(points, take(hits.normals, going), hits.primitive[going],
+                                     take(towards, rows), ~front[going])
+        origins = spawned.origins
+        exclude = spawned.exclude
+        start = np.zeros(len(rows), dtype)
+        reach = reach[hits.rays[going]] - hits.t[going]
+    result[:, rows] = 0     # past the transparent bounce limit: blocked
+    return result
 
 
 def _next_event(ctx, setup, closures, choice, points, normal, geometric, to_view, exclude,
@@ -184,7 +267,7 @@ def _next_event(ctx, setup, closures, choice, points, normal, geometric, to_view
         else:
             sample = sample_light(source, where, u1, u2)
         part = closures.take(rows)
-        part_choice = lobes.LobeChoice(choice.probability[:, rows], choice.albedo[:, :, rows])
+        part_choice = choice.take(rows)
         shading = take(normal, rows)
         f, pdf = lobes.evaluate(part, part_choice, shading, take(to_view, rows),
                                 sample.towards)
@@ -198,11 +281,10 @@ def _next_event(ctx, setup, closures, choice, points, normal, geometric, to_view
         light_pdf = sample.pdf[useful] * probability
         weight = np.where(np.isinf(light_pdf), 1.0, _power_heuristic(light_pdf, pdf[useful]))
         contribution = f[:, useful] * sample.over_pdf[:, useful] * (weight / probability)
-        blocked = _blocked(ctx, take(where, useful), take(sample.towards, useful),
-                           sample.distance[useful], ignore[useful],
-                           None if lift is None else lift.take(rows[useful]), stats)
-        open_ = useful[~blocked]
-        total[:, rows[open_]] += contribution[:, ~blocked]
+        passed = _transmittance(ctx, take(where, useful), take(sample.towards, useful),
+                                sample.distance[useful], ignore[useful],
+                                None if lift is None else lift.take(rows[useful]), stats)
+        total[:, rows[useful]] += contribution * passed
     return total
 
 
@@ -210,16 +292,18 @@ def _sample_world(ctx, world: WorldLight, u1, u2, dtype) -> LightSample:
     """Directions towards a WorldLight drawn from its map, the world's radiance in each."""
     towards, pdf, _ = world.environment.sample(u1, u2)
     towards = towards.astype(dtype)
-    radiance = world_radiance(ctx, towards)
+    radiance = world_radiance(ctx, towards, LIGHT_SAMPLE_RAY)
     pdf = pdf.astype(dtype)
     over = np.where(pdf > 0, radiance / np.where(pdf > 0, pdf, 1), 0)
     k = len(u1)
     return LightSample(towards, np.full(k, np.inf, dtype), radiance, pdf, over)
 
 
-def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> PathResult:
+def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats,
+                first_hits: bool = False) -> PathResult:
     """Follow n camera rays (sample ``sample_index`` (n,) of the pixels whose sampler seeds
-    are ``seeds`` (n,)) to the end of their paths (module docstring)."""
+    are ``seeds`` (n,)) to the end of their paths (module docstring); first_hits: also
+    return what the camera rays hit first (``PathResult.first_hits``)."""
     setup = ctx.paths
     settings = ctx.settings
     dtype = ctx.dtype
@@ -245,6 +329,7 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
     by_diffuse = np.zeros(n, bool)         # the ray left a diffuse or translucent lobe
     min_pdf = np.full(n, np.inf, dtype)    # for Filter Glossy
     travelled = np.zeros(n, dtype)         # the path's length so far (ray footprints)
+    ray_type = np.full(n, RAY_CAMERA, np.int64)   # the Light Path node's flags of the ray
     origins = rays.origins
     batch = RayBatch(rays.origins, rays.directions, rays.t_min, rays.t_max,
                      ctx.camera_origin if rays.shared_origin else None)
@@ -254,6 +339,10 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
         hits = geometry.nearest(batch, stats)
         t_geometry = np.full(len(batch), np.inf, dtype)
         t_geometry[hits.rays] = hits.t
+        if depth == 0 and first_hits:
+            first = (t_geometry, np.full(n, -1, np.int64), np.full(n, -1, np.int64))
+            first[1][hits.rays] = hits.primitive
+            first[2][hits.rays] = hits.material
         seed = seeds[path]
         sample = sample_index[path]
         # Emission found by this depth's rays counts as the bounce before's light (Cycles'
@@ -282,7 +371,9 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
             shown = missed[~camera_view[missed]] if film == "transparent" else missed
             if len(shown) and setup.world_shines:
                 towards = take(batch.directions, shown)
-                seen = world_radiance(ctx, towards)
+                seen = world_radiance(ctx, towards, _ray_coordinates(
+                    shown, ray_type, bounce, diffuse_bounce, glossy_bounce,
+                    transmission_bounce, transparent_bounce))
                 world = setup.world_light
                 if world is not None:
                     # Weighted against the world's light samples, which could have found it.
@@ -297,6 +388,7 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
         keep = hits.rays
         path, throughput, seed, sample = path[keep], throughput[:, keep], seed[keep], sample[keep]
         bounce, last_pdf, camera_view = bounce[keep], last_pdf[keep], camera_view[keep]
+        ray_type = ray_type[keep]
         emission_only, by_diffuse, min_pdf = emission_only[keep], by_diffuse[keep], min_pdf[keep]
         diffuse_bounce, glossy_bounce = diffuse_bounce[keep], glossy_bounce[keep]
         transmission_bounce, transparent_bounce = (transmission_bounce[keep],
@@ -308,7 +400,11 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
         geometric = facing(hits.normals, front)
         to_view = -directions
         travelled = travelled[keep] + hits.t
-        closures = closures_at(ctx, hits, normal, geometric, front, travelled)
+        closures = closures_at(ctx, hits, normal, geometric, front, travelled,
+                               _ray_coordinates(slice(None), ray_type, bounce, diffuse_bounce,
+                                                glossy_bounce, transmission_bounce,
+                                                transparent_bounce)
+                               if setup.programs else None)
         if closures.normal is not None:
             normal = closures.normal
         if depth == 0:
@@ -335,10 +431,14 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
         alive = ~emission_only
         if held is not None:
             alive[held] = False
-        if depth > 0:
+        # The vertex's choices: lobe, light, Russian roulette.
+        choices = sample_group(seed, sample, bounce_groups(depth)[1], bits, dtype)
+        if depth > 1:
+            # Cycles' Russian roulette spares the first bounce (its kernel's min_bounce is
+            # Min Light Bounces, 0, plus one): which matters where light is clamped.
             survive = np.minimum(np.sqrt(np.abs(throughput).max(axis=0)), 1.0)
-            u_rr = sample_group(seed, sample, bounce_groups(depth)[1], bits, dtype)[2]
-            roulette = bounce >= 1
+            u_rr = choices[2]
+            roulette = bounce > ROULETTE_SPARED_BOUNCES
             alive &= ~roulette | (u_rr < survive)
             throughput = np.where(roulette & (survive > 0), throughput
                                   / np.where(survive > 0, survive, 1), throughput)
@@ -348,7 +448,8 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
         if len(go) < len(alive):
             path, throughput, seed, sample = path[go], throughput[:, go], seed[go], sample[go]
             bounce, camera_view, min_pdf = bounce[go], camera_view[go], min_pdf[go]
-            last_pdf, travelled = last_pdf[go], travelled[go]
+            last_pdf, travelled, choices = last_pdf[go], travelled[go], choices[:, go]
+            ray_type = ray_type[go]
             by_diffuse = by_diffuse[go]
             diffuse_bounce, glossy_bounce = diffuse_bounce[go], glossy_bounce[go]
             transmission_bounce, transparent_bounce = (transmission_bounce[go],
@@ -368,7 +469,6 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
         if depth == 0:
             albedo[:, path] = np.clip(choice.albedo.sum(axis=0), 0, 1)
         numbers = sample_group(seed, sample, bounce_groups(depth)[0], bits, dtype)
-        choices = sample_group(seed, sample, bounce_groups(depth)[1], bits, dtype)
         if setup.sources:
             exclude = (geometry.exclusions(primitive, front),
                        geometry.exclusions(primitive, ~front))
@@ -388,6 +488,8 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
             break
         lobe = drawn.lobe[go]
         transparent = lobe == lobes.TRANSPARENT
+        ray_type = _next_ray_type(ray_type[go], lobe, drawn.through[go],
+                                  closures.alpha[go] > lobes.DELTA_ALPHA)
         path, throughput, seed, sample = path[go], throughput[:, go], seed[go], sample[go]
         bounce, camera_view, min_pdf = bounce[go], camera_view[go], min_pdf[go]
         diffuse_bounce, glossy_bounce = diffuse_bounce[go], glossy_bounce[go]
@@ -423,7 +525,27 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats) -> 
                                leave_front)
         stats.reflection_rays += len(go)
     alpha = np.clip(1 - transparency, 0, 1)
-    return PathResult(colour, alpha, albedo, first_normal)
+    return PathResult(colour, alpha, albedo, first_normal, first if first_hits else None)
+
+
+def _ray_coordinates(rows, ray_type, bounce, diffuse, glossy, transmission, transparent):
+    """The Light Path node's coordinates of the rays ``rows``: their type flags and the
+    path's bounces so far, as Cycles' ray depths count them."""
+    return {"ray_type": ray_type[rows], "ray_depth": bounce[rows],
+            "diffuse_depth": diffuse[rows], "glossy_depth": glossy[rows],
+            "transmission_depth": transmission[rows], "transparent_depth": transparent[rows]}
+
+
+def _next_ray_type(ray_type, lobe, through, rough):
+    """The Light Path flags of the rays a vertex sends on (Cycles' ``path_state_next``): a
+    transparent bounce keeps the ray's flags; any other lobe makes them its own (diffuse,
+    glossy, or singular glossy for sharp mirrors and glass; reflect or transmit)."""
+    diffuse = (lobe == lobes.DIFFUSE) | (lobe == lobes.TRANSLUCENT)
+    glossy = (lobe == lobes.GLOSSY) | (lobe == lobes.TRANSMISSION)
+    kind = np.where(diffuse, RAY_DIFFUSE, 0) | np.where(
+        glossy, np.where(rough, RAY_GLOSSY, RAY_GLOSSY | RAY_SINGULAR), 0)
+    kind |= np.where(through, RAY_TRANSMIT, RAY_REFLECT)
+    return np.where(lobe == lobes.TRANSPARENT, ray_type | RAY_TRANSPARENT, kind)
 
 
 def _filter_closures(setup, closures: Closures, min_pdf, by_diffuse) -> None:
@@ -492,6 +614,10 @@ class PathSetup:
     pixel_base: float = 0.0
     pixel_spread: float = 0.0
     world_light: object = None
+    transparent_shadows: bool = False
+    #: The ``core.frame.Frame`` that took the scene to the render's frame (passes'
+    #: positions and depths go back through it), or None.
+    frame: object = None
 
     @property
     def world_shines(self) -> bool:
@@ -506,7 +632,8 @@ class PathSetup:
 
 def path_setup(settings, lights, mesh, world, any_holdout: bool, programs=None,
                surface_tables=None, world_program=None, pixel=(0.0, 0.0),
-               world_light=None) -> PathSetup:
+               world_light=None, transparent_shadows: bool = False,
+               frame=None) -> PathSetup:
     """The frame's ``PathSetup`` (settings: ``RenderSettings``; lights: prepared
     ``core.emitters.Light``s; mesh: ``MeshLights`` or None; world: (3,) radiance;
     programs: {material table row: its ShaderProgram}; surface_tables: what the programs'
@@ -539,7 +666,8 @@ def path_setup(settings, lights, mesh, world, any_holdout: bool, programs=None,
         world=np.asarray(world, np.float64), any_holdout=any_holdout,
         index_bits=index_bits(settings.samples), programs=dict(programs or {}),
         surface_tables=surface_tables, world_program=world_program,
-        pixel_base=float(pixel[0]), pixel_spread=float(pixel[1]), world_light=world_light)
+        pixel_base=float(pixel[0]), pixel_spread=float(pixel[1]), world_light=world_light,
+        transparent_shadows=transparent_shadows, frame=frame)
 
 
 def filter_offsets(u, filter_type: str, width: float):
@@ -551,28 +679,31 @@ def filter_offsets(u, filter_type: str, width: float):
 
 
 _FILTER_TABLES: dict = {}
+#: Entries of a filter's inverse distribution, as Cycles' FILTER_TABLE_SIZE.
+FILTER_TABLE_SIZE = 1024
 
 
 def _filter_table(filter_type: str, width: float) -> np.ndarray:
     """The inverse cumulative distribution of Cycles' filter (``film.cpp``'s filter table):
-    a box over the width; a Gaussian exp(-2 (6 x / width)^2) over it; Blackman-Harris over
-    twice the width (Cycles doubles it: the window is narrow)."""
+    a box over the width; a Gaussian over three times the width, exp(-2 (6 x / span)^2),
+    so its standard deviation is a quarter of the width; Blackman-Harris over twice the
+    width (Cycles widens both: their tails are thin)."""
     key = (filter_type, width)
     table = _FILTER_TABLES.get(key)
     if table is None:
-        span = 2 * width if filter_type == "BLACKMAN_HARRIS" else width
+        span = {"BLACKMAN_HARRIS": 2 * width, "GAUSSIAN": 3 * width}.get(filter_type, width)
         x = np.linspace(-0.5, 0.5, 4097) * span
         if filter_type == "BOX":
             weight = np.ones_like(x)
         elif filter_type == "GAUSSIAN":
-            weight = np.exp(-2 * (6 * x / width) ** 2)
+            weight = np.exp(-2 * (6 * x / span) ** 2)
         else:
             t = np.linspace(0, 1, len(x))
             weight = (0.35875 - 0.48829 * np.cos(2 * np.pi * t)
                       + 0.14128 * np.cos(4 * np.pi * t) - 0.01168 * np.cos(6 * np.pi * t))
         cumulative = np.concatenate([[0], np.cumsum((weight[1:] + weight[:-1]) / 2)])
         cumulative /= cumulative[-1]
-        table = np.interp(np.linspace(0, 1, 257), cumulative, x)
+        table = np.interp(np.linspace(0, 1, FILTER_TABLE_SIZE), cumulative, x)
         _FILTER_TABLES[key] = table
     return table
 
@@ -597,13 +728,28 @@ def converged(total, half, count, threshold: float):
     return difference / (1e-4 + normalise) < threshold
 
 
+def camera_space(camera, normal):
+    """(3, n) world normals in Cycles' camera space (x right, y up, z along the view), the
+    space of its Denoising Normal pass."""
+    from .camera import camera_to_world
+    from .scene import BlenderCamera
+    if not isinstance(camera, BlenderCamera):
+        return normal
+    rotation = camera_to_world(camera)[0].astype(normal.dtype)
+    local = rotation.T @ normal
+    local[2] *= -1
+    return local
+
+
 def render_path_tile(ctx, camera, job, stop=None):
     """(sums (h, w, channels), stats) of a ``core.progressive.TileJob``: the tile's live
     pixels traced with samples job.first..job.last, each positioned by the pixel filter's
     density; per pixel the sums ``core.progressive`` adds up (radiance, twice the odd
-    samples' radiance, alpha, the count, and with guides their sums).  A pixel's sums depend
-    only on its own samples: never on the tile."""
+    samples' radiance, alpha, the count, and with guides their sums), then for a job with
+    passes ``core.passes.PASS_CHANNELS`` more, the passes of what sample 0 hit first (0 in
+    later passes).  A pixel's sums depend only on its own samples: never on the tile."""
     from .camera import camera_rays, has_aperture
+    from .passes import PASS_CHANNELS, first_hit_channels
     from .progressive import GUIDE_SUM_CHANNELS, SUM_CHANNELS
     from .render import RenderCancelled, _pixel_grid
     from .sampler import PIXEL_GROUP, pixel_seeds
@@ -625,6 +771,9 @@ def render_path_tile(ctx, camera, job, stop=None):
     aperture = has_aperture(camera)
     channels = SUM_CHANNELS + (GUIDE_SUM_CHANNELS if settings.guides else 0)
     sums = np.zeros((channels, n))
+    # A frame with passes: its jobs carry them after the sums, filled by the first sample.
+    passes = np.zeros((n, PASS_CHANNELS)) if job.passes else None
+    first_hits = job.passes and job.first == 0
     count = job.last - job.first
     per_bundle = max(1, max(1024, settings.tile_size ** 2) // count)
     for first in range(0, n, per_bundle):
@@ -641,7 +790,15 @@ def render_path_tile(ctx, camera, job, stop=None):
         began = time.perf_counter()
         rays = camera_rays(camera, xs, ys, dtype, u[2:4] if aperture else None)
         traced = time.perf_counter()
-        result = trace_paths(ctx, rays, seeds[pixel], sample, stats)
+        result = trace_paths(ctx, rays, seeds[pixel], sample, stats, first_hits=first_hits)
+        if first_hits:
+            # As Cycles' passes: what each pixel's first sample hit.
+            zero = np.flatnonzero(sample == 0)
+            t, primitive, material = (values[zero] for values in result.first_hits)
+            origins = rays.origins if rays.origins.shape[1] == 1 else rays.origins[:, zero]
+            passes[pixel[zero]] = first_hit_channels(
+                camera, origins, rays.directions[:, zero], t, primitive, material,
+                result.normal[:, zero], ctx.paths.frame)
         stats.seconds_camera += traced - began
         stats.seconds_bounces += time.perf_counter() - traced
         odd = (sample & 1).astype(np.float64) * 2
@@ -649,12 +806,16 @@ def render_path_tile(ctx, camera, job, stop=None):
                    result.colour[0] * odd, result.colour[1] * odd, result.colour[2] * odd,
                    result.alpha, None]
         if channels > SUM_CHANNELS:
-            columns += list(result.albedo) + list(result.normal)
+            columns += list(result.albedo) + list(camera_space(camera, result.normal))
         for row, values in enumerate(columns):
             if values is not None:
                 sums[row] += np.bincount(pixel, values, n)
     sums[7] = count
-    grid = np.zeros((h, w, channels))
+    if passes is not None:
+        sums = np.concatenate([sums, passes.T])
+    # float32, the sums worker processes hand over (``core.workers``' shared array): a
+    # frame's image is then the same bit for bit on threads and on processes.
+    grid = np.zeros((h, w, len(sums)), np.float32)
     grid[rows - y0, cols - x0] = sums.T
     stats.seconds_tiles += time.perf_counter() - start
     return grid, stats

@@ -94,10 +94,11 @@ def write_protected(path: str) -> bool:
 
 
 @contextmanager
-def atomic_file(path: str):
-    """``with atomic_file(path) as stream: stream.write(...)``: the bytes replace the file
-    ``path`` names only if the block completes; on any exception the temporary file is
-    removed and the previous file is untouched.
+def atomic_path(path: str, suffix: str = ".tmp"):
+    """``with atomic_path(path) as temporary: writer(temporary)``: for writers that take a
+    file name (Blender's ``Image.save_render``).  ``temporary`` is a new, empty file beside
+    the target (ending in ``suffix``) that replaces the file ``path`` names only if the block
+    completes; on any exception it is removed and the previous file is untouched.
 
     A symlink is followed (the file it points to is replaced, the link is kept); an existing
     file keeps its permission bits; a new one gets what a plain ``open()`` would give it (the
@@ -112,15 +113,12 @@ def atomic_file(path: str):
     except FileNotFoundError:
         previous_mode = None
     folder = os.path.dirname(target)
-    temporary = os.path.join(folder, f".glint-{secrets.token_hex(8)}.tmp")
-    handle = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+    temporary = os.path.join(folder, f".glint-{secrets.token_hex(8)}{suffix}")
+    os.close(os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
     try:
-        with os.fdopen(handle, "wb") as stream:
-            if previous_mode is not None:
-                os.fchmod(stream.fileno(), previous_mode)
-            yield stream
-            stream.flush()
-            os.fsync(stream.fileno())
+        yield temporary
+        if previous_mode is not None:
+            os.chmod(temporary, previous_mode)
         os.replace(temporary, target)
     except BaseException:
         try:
@@ -130,10 +128,17 @@ def atomic_file(path: str):
         raise
 
 
-def write_atomically(path: str, data: bytes) -> None:
-    """Write data to path through ``atomic_file``."""
-    with atomic_file(path) as stream:
-        stream.write(data)
+@contextmanager
+def atomic_file(path: str):
+    """``with atomic_file(path) as stream: stream.write(...)``: the bytes replace the file
+    ``path`` names only if the block completes (``atomic_path``'s rules: the previous file
+    is untouched on any exception, symlinks are written through, permissions kept,
+    write-protected files refused); they reach the disk before the rename."""
+    with atomic_path(path) as temporary:
+        with open(temporary, "wb") as stream:
+            yield stream
+            stream.flush()
+            os.fsync(stream.fileno())
 
 
 def write_png(path: str, image: np.ndarray, *,

@@ -32,7 +32,8 @@ GUIDE_SUM_CHANNELS = 6
 class TileJob(NamedTuple):
     """One tile's share of a pass: rows y0..y1, columns x0..x1, sample indices
     first..last, and live: which of its pixels take them (a packed bit per pixel in row
-    order, bytes), or None for all."""
+    order, bytes), or None for all; passes: the frame has passes, which the job's sums
+    carry (``core.path.render_path_tile``)."""
 
     y0: int
     y1: int
@@ -41,6 +42,7 @@ class TileJob(NamedTuple):
     first: int
     last: int
     live: bytes | None = None
+    passes: bool = False
 
     def live_pixels(self) -> np.ndarray | None:
         """(h, w) bool of the pixels taking samples, or None for all."""
@@ -97,8 +99,10 @@ class ProgressiveFrame:
     image: (H, W, 4 [+ 6]) of the image dtype, the current mean of every pixel (and its
     guides), what ``on_tile`` sees.  tiles: the frame's tiles (y0, y1, x0, x1)."""
 
-    def __init__(self, settings, tiles, image: np.ndarray, guides: bool):
+    def __init__(self, settings, tiles, image: np.ndarray, guides: bool,
+                 passes: bool = False):
         self.settings = settings
+        self.passes = passes
         self.tiles = list(tiles)
         self.image = image
         height, width = image.shape[:2]
@@ -144,7 +148,7 @@ class ProgressiveFrame:
             if not live.any():
                 continue
             packed = None if live.all() else np.packbits(live.ravel()).tobytes()
-            jobs.append(TileJob(y0, y1, x0, x1, first, last, packed))
+            jobs.append(TileJob(y0, y1, x0, x1, first, last, packed, self.passes))
         self.outstanding = len(jobs)
         if not jobs:
             return self.next_pass() if self.passes_made < len(self.sizes) else []

@@ -1,7 +1,7 @@
 """What the tracer hands the geometry and gets back: ray batches, hits, and ray statistics.
 
 The bounce loop (``core.trace``) and the shading (``core.shading``) talk to the scene's
-geometry only through these types and ``core.aggregate.Aggregate``'s ``nearest``,
+geometry only through these types and ``core.geometry.Aggregate``'s ``nearest``,
 ``occluded`` and ``spawn``; how the geometry finds hits (culling, packets, a BVH) stays
 behind that interface, as in pbrt's ``Primitive``/``Aggregate``.
 
@@ -107,7 +107,7 @@ class SharedOrigin:
     eye, a light sample.  Made by ``Aggregate.shared_origin``; opaque to the tracer."""
 
     position: np.ndarray
-    sphere_terms: object = None      # core.intersect.OriginTerms of the flat-culled spheres
+    sphere_terms: object = None      # core.geometry.spheres.OriginTerms of the flat-culled spheres
     tree_terms: object = None        # OriginTerms of every sphere, for the tree's, or None
 
 
@@ -127,7 +127,7 @@ class RayBatch:
         in similar directions are traced together;
     arrived_from: (3,) the point the rays that arrived where these leave all left (a
         perspective camera's eye), or None: reflections off flat or large surfaces then pass
-        near its mirror image (``Aggregate._mirror_groups``).
+        near its mirror image (``DirectionBins._mirror_groups``).
     """
 
     origins: np.ndarray

@@ -26,14 +26,14 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .aggregate import builds_tree
 from .camera import camera_rays, has_aperture
 from .colour import linear_to_srgb
 from .context import RayStats, TraceContext, make_context, path_traced
-from .passes import PrimaryPasses, fill_tile_passes
+from .passes import PASS_CHANNELS, PrimaryPasses, fill_tile_passes, store_first_hits
 from .path import render_path_tile
 from .progressive import ProgressiveFrame, WorkQueue
-from .cull import PACKET_SIZE
+from .geometry import DEFAULT_POLICY, GeometryPolicy
+from .geometry.cull import PACKET_SIZE
 from . import memory
 from .memory import GUIDE_CHANNELS
 from .frame import canonical_scene, scene_frame
@@ -215,7 +215,7 @@ def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None, shares
 
 def _pixel_grid(y0, y1, x0, x1):
     """(cols, rows) (n,) of the pixels of a region, in BLOCK x BLOCK block order, so that the
-    tracer's packets of consecutive rays cover square blocks (``core.cull``)."""
+    tracer's packets of consecutive rays cover square blocks (``core.geometry.cull``)."""
     cols, rows, _ = _block_order(y1 - y0, x1 - x0)
     return cols + x0, rows + y0
 
@@ -522,7 +522,8 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
            image_dtype=None, reserve_bytes: int = 0,
            on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None,
            passes: "bool | PrimaryPasses" = False,
-           on_pass: Optional[Callable[[int, np.ndarray], None]] = None) -> RenderResult:
+           on_pass: Optional[Callable[[int, np.ndarray], None]] = None,
+           geometry_policy: GeometryPolicy = DEFAULT_POLICY) -> RenderResult:
     """Render ``scene``; see ``core`` for the result's layout.  image_dtype: the image's
     dtype (default: the render's precision); float32 halves a float64 render's largest array
     for callers that keep no more than float32 anyway (Blender's render results).
@@ -538,6 +539,9 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     primitive and material of each pixel centre's first hit, in world units); a
     PrimaryPasses of the image's size is filled in place, so ``on_tile`` can read each tile's
     passes as the tile lands.
+    geometry_policy: the thresholds by which the geometry picks its strategies
+    (``core.geometry.GeometryPolicy``: tests and benchmarks try others; the image is the
+    same for any).
 
     Before anything is allocated, the render's memory is planned (``core.memory``) and a
     render that cannot fit raises memory.NotEnoughMemory, a SceneError."""
@@ -571,7 +575,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     on_cluster = bool(settings.cluster) and not emission_pass
     kept_here = (f"the Emission pass is rendered on this machine, not on the cluster at "
                  f"{settings.cluster}") if settings.cluster and emission_pass else None
-    tree = builds_tree(scene.sphere_count, scene.triangle_count)
+    tree = geometry_policy.builds_tree(scene.sphere_count, scene.triangle_count)
     in_processes = not emission_pass and not on_cluster and _in_processes(
         settings, width * height, len(tiles), threads, tree, path_traced(scene, settings))
     memory_plan = memory.plan(scene, settings, image_dtype, threads, reserve_bytes)
@@ -583,7 +587,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
         workers.prestart(threads)  # they start while the context is built
         tiles = _even_tail(tiles, threads)
     ctx = make_context(scene, settings, dtype, threads=threads,   # (the tree: on threads)
-                       frame=world)
+                       frame=world, geometry_policy=geometry_policy)
     # What the frame's tiles would each build on first use (in every worker process), built
     # once here on the render's threads: the eye's bins, the occlusion trails' tables.
     shared_eye = ctx.camera_origin is not None and not has_aperture(scene.camera)
@@ -723,7 +727,10 @@ def _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype, 
     """A path-traced frame, pass by pass (``core.progressive``), its tiles' passes on
     worker processes, a cluster or threads like any frame's tiles."""
     image = np.zeros(shape, image_dtype)
-    frame = ProgressiveFrame(settings, tiles, image, guides=settings.guides)
+    # The passes of what each pixel's first sample hit come with the tiles' sums; the
+    # Emission pass follows whole camera paths of its own (``fill_passes``).
+    carried = primary is not None and primary.emission is None
+    frame = ProgressiveFrame(settings, tiles, image, guides=settings.guides, passes=carried)
     queue = WorkQueue(frame)
     stats = RayStats()
     total_samples = settings.samples
@@ -733,9 +740,13 @@ def _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype, 
             y0, y1, x0, x1 = job[:4]
             raise RenderError(f"pixels {x0}-{x1 - 1} x {y0}-{y1 - 1} came out NaN or "
                               f"infinite; please report this scene")
-        view = frame.land(job, sums)
-        if first_pass:
+        if carried:
+            if first_pass:
+                store_first_hits(primary, job[:4], sums[..., -PASS_CHANNELS:])
+            sums = sums[..., :-PASS_CHANNELS]
+        elif first_pass:
             fill_passes(job[:4], tile_stats)
+        view = frame.land(job, sums)
         stats.add(tile_stats)
         if on_tile is not None:
             on_tile(job[:4], view[..., :4])
@@ -755,7 +766,7 @@ def _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype, 
         """A job from worker processes or a cluster: its sums as they arrived (float32)."""
         landed(job, np.array(sums, np.float64), tile_stats, job.first == 0)
 
-    sums_shape = (shape[0], shape[1], frame.channels)
+    sums_shape = (shape[0], shape[1], frame.channels + (PASS_CHANNELS if carried else 0))
     if on_cluster:
         cluster.render_tiles(settings.cluster, ctx, scene.camera, queue, sums_shape,
                              np.float32, finish, should_cancel)
@@ -772,7 +783,8 @@ def _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype, 
             pass
         except workers.ProcessesUnavailable as error:
             fallback = _fallback_line(str(error))
-        queue = WorkQueue(ProgressiveFrame(settings, tiles, image, guides=settings.guides))
+        queue = WorkQueue(ProgressiveFrame(settings, tiles, image, guides=settings.guides,
+                                           passes=carried))
         frame = queue.frame
 
     if threads == 1 or len(tiles) == 1:

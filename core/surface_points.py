@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .shader.points import ShadingPoints
+from .shader.world import light_path_sources
 from .vectors import take
 
 
@@ -251,10 +252,13 @@ class _HitSources:
 
 
 def surface_points(tables: SurfaceTables, geometry, points, normal, true_normal, incoming,
-                   backfacing, primitive, barycentrics, footprint=None) -> ShadingPoints:
+                   backfacing, primitive, barycentrics, footprint=None,
+                   ray=None) -> ShadingPoints:
     """The ShadingPoints of k hits: points, shading and true normals (facing the ray) and
     incoming (towards the viewer) (3, k), backfacing (k,), primitive (k,) global ids,
-    barycentrics (b0, b1, b2) (k,) each or None (no triangle hit)."""
+    barycentrics (b0, b1, b2) (k,) each or None (no triangle hit); ray: the Light Path
+    node's coordinates of the rays that found them (``core.shader.world.light_path_sources``)
+    or None (camera rays)."""
     if barycentrics is None:
         zero = np.zeros(points.shape[1], points.dtype)
         barycentrics = (zero, zero, zero)
@@ -285,6 +289,7 @@ def surface_points(tables: SurfaceTables, geometry, points, normal, true_normal,
     for name in {name for maps in tables.tangent_maps for name, _ in maps}:
         sources[f"tangent:{name}"] = (lambda name=name: hits.tangent(name, False))
         sources[f"tangent:{name}_sign"] = (lambda name=name: hits.tangent(name, True))
+    sources.update(light_path_sources(ray))
     if footprint is not None:
         footprint = footprint * tables.world_scale
     return ShadingPoints(tables.to_world(points).astype(points.dtype), normal, true_normal,

@@ -26,7 +26,7 @@ import numpy as np
 from .camera import CameraRays
 from .context import RayStats, TraceContext
 from .bsdf import scatter
-from .rays import RayBatch, SharedOrigin
+from .rays import RayBatch
 from .shading import shade, shade_translucent
 from .vectors import facing, take
 
@@ -68,20 +68,6 @@ class BundleResult:
     primary: PrimaryHits | None = None
     emission: np.ndarray | None = None   # (3, n) record_emission: see trace_bundle
     world_noise: np.ndarray | None = None   # (3, n) see the docstring
-
-
-def nearest_sphere(ctx: TraceContext, origins, directions, t_min, t_max, exclude,
-                   stats: RayStats, terms=None):
-    """Nearest hit per ray, (t (n,), primitive (n,), -1 for none), for a bare batch: origins
-    (3, 1) with ``terms`` (``core.intersect.OriginTerms`` at that origin) when all rays share
-    it, else (3, n); directions (3, n); t_min, t_max: scalars or (n,); exclude: (n,) or None.
-    (The numerical tests' entry point; the tracer itself calls ``ctx.geometry.nearest``.)"""
-    shared = None
-    if terms is not None:
-        shared = SharedOrigin(np.asarray(origins[:, 0], np.float64), terms)
-    t, primitive, _ = ctx.geometry.intersect(
-        RayBatch(origins, directions, t_min, t_max, shared, exclude), stats)
-    return t, primitive
 
 
 def _accumulate(colour, path, values, unique: bool, whole: bool):

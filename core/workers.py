@@ -93,7 +93,7 @@ TILES_IN_FLIGHT = 2
 #: process: starting a worker (a Python and NumPy import, 0.1-0.3 s, once per process) costs
 #: more than a small render gains.
 MIN_PIXELS = 300_000
-#: A camera sample of a scene that needs a tree (``aggregate.builds_tree``) counts as this
+#: A camera sample of a scene that needs a tree (``GeometryPolicy.builds_tree``) counts as this
 #: many of the article scene's: at 640 x 360 (230,400 pixels, under MIN_PIXELS) 1,000 spheres
 #: took 14x the article scene's time (2 threads, same run), a million point-cloud spheres and
 #: 100,000 instanced ones about 100x and 70x, and there processes took 0.71x and 0.57x of

@@ -48,6 +48,10 @@ def empty_file():
     scene.view_settings.look = 'None'
     scene.render.dither_intensity = 0.0  # Blender dithers 8-bit output by default
     scene.glint.anti_aliasing = 'OFF'
+    # The renderer's own image: OIDN's output is not what a test of the renderer compares
+    # (it moves a flat grey frame's border pixels by up to a quarter).  The tests of
+    # denoising turn it back on.
+    scene.glint.use_denoising = False
     return scene
 
 
@@ -142,6 +146,21 @@ def animate_small_sphere(last_frame):
     return small
 
 
+def invert_compositor(scene, layer="ViewLayer"):
+    """Compositing that shows ``layer`` inverted (Blender 5.0's compositing node group)."""
+    tree = bpy.data.node_groups.new("Invert", "CompositorNodeTree")
+    tree.interface.new_socket("Image", in_out='OUTPUT', socket_type='NodeSocketColor')
+    render_layers = tree.nodes.new("CompositorNodeRLayers")
+    render_layers.layer = layer
+    invert = tree.nodes.new("CompositorNodeInvert")
+    output = tree.nodes.new("NodeGroupOutput")
+    tree.links.new(render_layers.outputs["Image"], invert.inputs["Color"])
+    tree.links.new(invert.outputs["Color"], output.inputs["Image"])
+    scene.compositing_node_group = tree
+    scene.render.use_compositing = True
+    return tree
+
+
 def camera_and_light_file():
     """An empty file holding only the default ``add_camera`` and ``add_point_light``."""
     scene = empty_file()
@@ -162,6 +181,9 @@ def simple_scene():
 
 
 def depsgraph():
+    # (Setting a property of scene.glint from Python does not tag the scene: without the
+    # tag its evaluated copy keeps the settings of the last evaluation.)
+    bpy.context.scene.update_tag()
     graph = bpy.context.evaluated_depsgraph_get()
     graph.update()
     return graph

@@ -38,9 +38,10 @@ from glint.core.camera import blender_view_plane, camera_to_world
 
 ENGINES = ("BLENDER_WORKBENCH", "CYCLES")
 
-#: Glint's settings for masks: one ray through each pixel centre, no bounces needed.
-GLINT_SETTINGS = core.RenderSettings(semantics="default", precision="float64", max_depth=1,
-                                     anti_aliasing="off")
+#: Glint's settings for masks: one path sample per pixel, through its centre (a box filter
+#: 1e-4 px wide moves it by at most 5e-5 px, far inside EDGE_TOLERANCE_PIXELS), no bounces.
+GLINT_SETTINGS = core.RenderSettings(semantics="default", precision="float64", samples=1,
+                                     filter_type="BOX", filter_width=1e-4, max_bounces=0)
 
 
 # --------------------------------------------------------------------------------------------

@@ -9,6 +9,7 @@ STAGE: export, tile, hand-over or write (see test_faults.py for what each one br
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 
@@ -34,6 +35,19 @@ def fail_on_second_call(function, message):
     return broken
 
 
+def disk_fills_up(atomic_path):
+    """``core.png.atomic_path`` whose writer (Blender, for render.py's files) runs, after which
+    the disk is full: the temporary file is cut to half its length and the rename never
+    happens."""
+    @contextlib.contextmanager
+    def broken(path, *args, **kwargs):
+        with atomic_path(path, *args, **kwargs) as temporary:
+            yield temporary
+            os.truncate(temporary, os.path.getsize(temporary) // 2)
+            raise OSError(28, "injected fault: disk full")
+    return broken
+
+
 def inject(stage: str, core, job=None) -> None:
     # The modules by name: ``core.render`` is also the function the package exports.
     render_module = sys.modules[core.__name__ + ".render"]
@@ -44,18 +58,13 @@ def inject(stage: str, core, job=None) -> None:
         render_module.render_tile = fail("a tile ran out of memory", MemoryError)
     elif stage == "hand-over":
         job.JobResult = fail("hand-over")
-    elif stage == "write":
+    elif stage == "write" and job is None:
+        # python -m core streams its PNG a block of rows at a time: the disk fills up on the
+        # second block.
         png_module.ROW_BLOCK = 4  # several blocks even for a small image
         png_module._filtered = fail_on_second_call(png_module._filtered, "disk full")
-
-        def half_then_full(path, data):
-            # render.py writes the PNG Blender's colour management encoded: the disk fills
-            # up half way through it.
-            with png_module.atomic_file(path) as stream:
-                stream.write(data[:len(data) // 2])
-                raise OSError(28, "injected fault: disk full")
-
-        png_module.write_atomically = half_then_full
+    elif stage == "write":
+        png_module.atomic_path = disk_fills_up(png_module.atomic_path)
     else:
         raise SystemExit(f"unknown stage {stage!r}")
 

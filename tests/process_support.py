@@ -1,8 +1,18 @@
-"""Helpers for tests that watch child processes (Linux ``/proc``)."""
+"""Helpers for tests that start, signal and watch child processes (Linux ``/proc``)."""
 
 from __future__ import annotations
 
+import signal
 import time
+
+
+def sigint_disposition(ignored: bool = False):
+    """A ``preexec_fn`` that sets the child's SIGINT action explicitly: the default (Ctrl-C
+    ends or cancels it) or, with ``ignored``, ignored, as a shell does for ``command &``.
+    A child otherwise inherits this process's: the suite started with SIGINT ignored
+    (``nohup``, ``trap '' INT``) would hand that on, and the child would rightly keep it."""
+    action = signal.SIG_IGN if ignored else signal.SIG_DFL
+    return lambda: signal.signal(signal.SIGINT, action)
 
 
 def running(pid: int) -> bool:

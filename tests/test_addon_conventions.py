@@ -13,7 +13,7 @@ import pytest
 
 from addon_support import (RENDER_SCRIPT, REPOSITORY, add_sphere, add_world, depsgraph, glint,
                            link, prepare_job, read_image, read_png, simple_scene, to_rgba8)
-from glint.addon.engine.final import compatible_panels
+from glint.addon.ui import compatible_panels
 
 
 def glint_panels():
@@ -26,11 +26,11 @@ def test_one_light_panel_and_no_panels_that_do_not_apply():
     shown = glint_panels()
     light_panels = {name for name in shown if name.startswith(("DATA_PT_", "NODE_DATA_PT_"))
                     and "light" in name.lower()}
-    # EEVEE's light panel (type, colour, power, radius) is the one Light panel; the others are
-    # the light's context, custom properties and animation, as for every engine.
+    # EEVEE's light panel (type, colour, power, radius, ...) is the one Light panel; the
+    # others are the light's context, custom properties and animation, as for every engine.
     assert light_panels == {"DATA_PT_EEVEE_light", "DATA_PT_context_light",
                             "DATA_PT_custom_props_light", "DATA_PT_light_animation"}
-    for name in ("DATA_PT_light", "NODE_DATA_PT_light", "DATA_PT_spot", "DATA_PT_lightprobe",
+    for name in ("DATA_PT_light", "NODE_DATA_PT_light", "DATA_PT_lightprobe",
                  "DATA_PT_context_lightprobe"):
         assert name not in shown, name
     assert not any("lightprobe" in name for name in shown)
@@ -41,6 +41,109 @@ def test_one_light_panel_and_no_panels_that_do_not_apply():
     finally:
         glint.register()
     assert glint_panels() == shown and all('GLINT' in p.COMPAT_ENGINES for p in compatible_panels())
+
+
+class EditedFields:
+    """A UILayout stand-in for a panel's ``draw``: records the property of every ``prop``
+    call on ``data``; every other layout call (row, column, label, ...) gives another
+    recorder, and any attribute (active, use_property_split, ...) may be set."""
+
+    def __init__(self, data, fields):
+        self._data, self._fields = data, fields
+
+    def prop(self, data, name, *args, **kwargs):
+        if data == self._data:
+            self._fields.add(name)
+
+    def __getattr__(self, name):
+        return lambda *args, **kwargs: EditedFields(self._data, self._fields)
+
+
+class FieldsRead:
+    """A light datablock seen through the exporter's eyes: records every field read."""
+
+    def __init__(self, light):
+        object.__setattr__(self, "_light", light)
+        object.__setattr__(self, "fields", set())
+
+    def __getattr__(self, name):
+        self.fields.add(name)
+        return getattr(self._light, name)
+
+
+class PanelContext:
+    """``bpy.context`` as the Properties editor's Light tab has it with Glint as the engine;
+    whatever else a panel's poll asks for (context.mesh, ...) is None."""
+
+    def __init__(self, obj):
+        self.object, self.light, self.engine = obj, obj.data, 'GLINT'
+        self.scene = bpy.context.scene
+
+    def __getattr__(self, name):
+        return None
+
+
+def light_panels_shown(context):
+    """The light panels of the Properties editor shown with Glint for ``context``: marked for
+    Glint, polled true, under a parent that is shown too."""
+    panels = {p.__name__: p for p in bpy.types.Panel.__subclasses__()
+              if 'GLINT' in getattr(p, "COMPAT_ENGINES", ()) and p.bl_space_type == 'PROPERTIES'
+              and getattr(p, "bl_context", "") == "data"}
+    polled = {name for name, p in panels.items()
+              if not hasattr(p, "poll") or p.poll(context)}
+
+    def shown(name):
+        parent = getattr(panels[name], "bl_parent_id", "")
+        return name in polled and (not parent or (parent in panels and shown(parent)))
+    return [panels[name] for name in polled if shown(name)]
+
+
+#: Fields the exporter reads that Blender derives from another one, which is the one edited.
+DERIVED_FIELDS = {"temperature_color": "temperature"}
+
+
+@pytest.mark.parametrize("kind, shape", [("POINT", None), ("SPOT", None), ("SUN", None),
+                                         ("AREA", "SQUARE"), ("AREA", "RECTANGLE"),
+                                         ("AREA", "DISK"), ("AREA", "ELLIPSE")])
+def test_light_panels_edit_what_the_exporter_reads_and_nothing_shown_is_ignored(kind, shape):
+    """With Glint as the engine, every field of a light the exporter reads can be edited in a
+    panel shown for it (Blender 4.2+ edits the spot cone only in Beam Shape, DATA_PT_spot),
+    and every light panel shown edits something the exporter reads (a panel of EEVEE's
+    shadow settings, say, would edit only what Glint ignores).  Panels every datablock has
+    (custom properties, animation) are not about what is rendered and are left out."""
+    from bl_ui.space_properties import PropertiesAnimationMixin
+    from rna_prop_ui import PropertyPanel
+
+    from glint.addon.export.lights import export_article_light, export_light
+
+    simple_scene()
+    light = bpy.data.lights.new("lamp", type=kind)
+    if shape is not None:
+        light.shape = shape
+    light.use_temperature = True     # so that the temperature's colour is read too
+    obj = link(bpy.data.objects.new("lamp", light))
+    read = FieldsRead(light)
+    identity = [[float(r == c) for c in range(4)] for r in range(4)]
+    export_light(read, identity, "lamp")
+    export_article_light(read, identity, "lamp")
+    needed = {DERIVED_FIELDS.get(name, name) for name in read.fields}
+
+    edited = set()
+    context = PanelContext(obj)
+    for panel in light_panels_shown(context):
+        if issubclass(panel, (PropertyPanel, PropertiesAnimationMixin)):
+            continue
+        fields = set()
+        panel.draw(type("Self", (), {"layout": EditedFields(light, fields),
+                                     "bl_space_type": panel.bl_space_type})(), context)
+        if fields:
+            assert fields & needed, f"{panel.__name__} edits only what Glint ignores: {fields}"
+        edited |= fields
+
+    assert {"type", "color", "energy"} <= needed      # the recorder sees the reads
+    assert needed <= edited, f"not editable with Glint: {needed - edited}"
+    if kind == 'SPOT':
+        assert {"spot_size", "spot_blend"} <= needed
 
 
 def particle_scene():
@@ -94,6 +197,7 @@ def test_world_samples_reach_the_core_and_0_leaves_the_world_unoccluded():
     scene = simple_scene()
     add_world("grey", (0.5, 0.5, 0.5))
     scene.render.resolution_x, scene.render.resolution_y = 96, 64
+    scene.glint.integrator = 'WHITTED'       # (World Samples are the Whitted integrator's)
     scene.glint.anti_aliasing = 'OFF'
     assert scene.glint.world_samples == RenderSettings.world_samples
     occluded = prepare_job(depsgraph()).run().image
@@ -173,10 +277,9 @@ def _partial(row):
 
 
 def test_each_choice_list_is_defined_once_in_the_core():
+    from glint.addon.cli.arguments import parse_args as script_parse_args
     from glint.core import choices
     from glint.core.__main__ import parse_args as core_parse_args
-
-    import render as render_script
 
     settings = bpy.context.scene.glint
     for prop, choice_list in (("semantics", choices.SEMANTICS_CHOICES),
@@ -186,17 +289,14 @@ def test_each_choice_list_is_defined_once_in_the_core():
         items = settings.bl_rna.properties[prop].enum_items
         assert [(i.identifier, i.name, i.description) for i in items] == [
             (value.upper(), label, text) for value, label, text in choice_list]
-    script = render_script.load_choices()
-    assert (script.SEMANTICS, script.PRECISIONS, script.PARALLELISM) == (
-        choices.SEMANTICS, choices.PRECISIONS, choices.PARALLELISM)
     # The command lines accept exactly the core's values.
     for value in choices.PRECISIONS:
         assert core_parse_args(["--output", "x.png", "--precision", value]).precision == value
     for value in choices.PARALLELISM:
         assert core_parse_args(["--output", "x.png", "--parallelism", value]).parallelism \
             == value
-        assert render_script.parse_args(["--output", "x.png", "--parallelism", value]
-                                        ).parallelism == value
+        assert script_parse_args(["--output", "x.png", "--parallelism", value]
+                                 ).parallelism == value
     from glint.core.scene import RenderSettings, SceneError
     # One default everywhere: the core's.
     assert core_parse_args(["--output", "x.png"]).parallelism == RenderSettings.parallelism

@@ -13,7 +13,7 @@ import pytest
 from addon_support import (add_camera, add_sphere, add_world, camera_and_light_file, core,
                            depsgraph, empty_file, export_scene, link)
 from cycles_support import node_material
-from glint.addon.engine.final import GlintRenderEngine
+from glint.addon.engine.base import GlintRenderEngine
 
 
 @pytest.fixture
@@ -162,6 +162,15 @@ def test_an_unsupported_shader_renders_grey_and_is_named(scene):
     surface, warnings = exported_material(material)
     assert surface.diffuse == (0.8, 0.8, 0.8)
     assert any(node.name in w and "not supported" in w for w in warnings)
+
+
+@pytest.mark.parametrize("kind", ["ShaderNodeSubsurfaceScattering", "ShaderNodeBsdfSheen",
+                                  "ShaderNodeBsdfToon"])
+def test_approximated_shaders_are_a_diffuse_of_their_colour_with_one_note(scene, kind):
+    material, node = material_with(kind, Color=(0.2, 0.4, 0.6))
+    surface, warnings = exported_material(material)
+    np.testing.assert_allclose(surface.diffuse, (0.2, 0.4, 0.6), rtol=1e-6)
+    assert len([w for w in warnings if node.name in w and "approximated" in w]) == 1
 
 
 def test_without_a_linked_surface_the_material_is_black_as_in_cycles(scene):

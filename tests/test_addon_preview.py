@@ -15,7 +15,7 @@ import numpy as np
 
 from addon_support import (add_camera, add_point_light, add_sphere, cube_mesh, depsgraph,
                            empty_file, link, prepare_job)
-from glint.addon.engine.final import GlintRenderEngine
+from glint.addon.engine.base import GlintRenderEngine
 from glint.addon.engine.preview import prepare_preview_job
 
 
@@ -81,7 +81,15 @@ def test_a_point_light_being_previewed_is_the_light():
     assert [light.name for light in job.scene.lights] == ["previewed"]
 
 
-def test_the_engine_uses_the_preview_path_for_previews():
+def test_the_engine_uses_the_preview_path_for_previews(monkeypatch):
+    from types import SimpleNamespace
+
+    from glint.addon.engine import base
+
     assert GlintRenderEngine.bl_use_preview is True
-    source = open(GlintRenderEngine.render.__code__.co_filename).read()
-    assert "prepare_preview_job if self.is_preview" in source
+    calls = []
+    monkeypatch.setattr(base, "render_preview", lambda engine, graph: calls.append("preview"))
+    monkeypatch.setattr(base, "render_final", lambda engine, graph: calls.append("final"))
+    for is_preview in (True, False):
+        GlintRenderEngine.render(SimpleNamespace(is_preview=is_preview), None)
+    assert calls == ["preview", "final"]

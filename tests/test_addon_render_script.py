@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from addon_support import (RENDER_SCRIPT, REPOSITORY, add_point_light, add_sphere, add_world,
-                           animate_small_sphere, empty_file, read_png, simple_scene)
+                           animate_small_sphere, empty_file, invert_compositor, read_png,
+                           simple_scene)
 
 ARTICLE_REFERENCE = os.path.join(REPOSITORY, "tests", "data", "article_300x200.npy")
 
@@ -120,10 +121,25 @@ def test_transparent_film_gives_coverage_alpha_and_a_transparent_background(tmp_
 
     assert result.returncode == 0, result.stderr
     rgba = read_script_png(tmp_path / "t.png")
-    background = rgba[..., 3] == 0
-    assert background.any() and (rgba[..., 3][~background] == 255).all()
+    background, covered = rgba[..., 3] == 0, rgba[..., 3] == 255
+    partial = ~background & ~covered
+    assert background.any() and covered.any() and partial.any()
+    # Coverage: partial only on the silhouettes, which the pixel filter (Blackman-Harris,
+    # 1.5 px: samples up to 1.5 px from the centre) spreads over 2 pixels at most.
+    assert (_grown(background, 2) & _grown(covered, 2))[partial].all()
     assert (rgba[background] == 0).all()
     np.testing.assert_array_equal(rgba, button_render())
+
+
+def _grown(mask, pixels: int):
+    """mask, grown by ``pixels`` in every direction (a square)."""
+    height, width = mask.shape
+    padded = np.pad(mask, pixels)
+    grown = np.zeros_like(mask)
+    for dy in range(2 * pixels + 1):
+        for dx in range(2 * pixels + 1):
+            grown |= padded[dy:dy + height, dx:dx + width]
+    return grown
 
 
 @pytest.mark.parametrize("view_transform", ["Standard", "AgX"])
@@ -158,8 +174,21 @@ def test_an_unreadable_blend_fails_with_one_line_and_leaves_the_output_alone(tmp
     assert result.returncode != 0
     (line,) = error_lines(result)
     assert "cannot open" in line and "corrupt.blend" in line
+    assert "Error:" not in result.stdout     # not said again by Blender's report
     assert output.read_bytes() == b"previous render"
     assert sorted(os.listdir(tmp_path)) == ["corrupt.blend", "out.png"]
+
+
+def test_blenders_warnings_still_reach_stdout(tmp_path):
+    scene = simple_scene()
+    scene.render.use_motion_blur = True
+    blend = save_blend(tmp_path / "blurred.blend")
+
+    result = run_script(blend, "--output", tmp_path / "out.png")
+
+    assert result.returncode == 0, result.stderr
+    assert "Warning: Glint ignores these settings, which change what Cycles renders: motion " \
+           "blur" in result.stdout
 
 
 def test_a_blend_without_camera_fails_with_one_line(tmp_path):
@@ -178,11 +207,14 @@ def test_a_blend_without_camera_fails_with_one_line(tmp_path):
 
 BAD_ARGUMENTS = {
     "missing blend": (["{tmp}/missing.blend", "--output", "{tmp}/o.png"], "no such .blend"),
-    "no output": ([], "--output"),
+    "no output for the article's scene": ([], "--output is needed for the article's scene"),
+    "format without output": (["--format", "png"], "--format png needs --output"),
     "output folder missing": (["--output", "{tmp}/nowhere/o.png"], "folder does not exist"),
     "output is a directory": (["--output", "{tmp}/folder.png"], "is a directory"),
     "output not png": (["--output", "{tmp}/o.jpg"], "must name a .png"),
-    "zero width": (["--output", "{tmp}/o.png", "--width", "0"], "--width"),
+    "zero width": (["--output", "{tmp}/o.png", "--width", "0"], "--width: must be at least 4"),
+    "zero percentage": (["--output", "{tmp}/o.png", "--percentage", "0"],
+                        "--percentage: must be at least 1"),
     "width below Blender's minimum": (["--output", "{tmp}/o.png", "--width", "3"],
                                       "--width: must be at least 4"),
     "height past Blender's maximum": (["--output", "{tmp}/o.png", "--height", "100000"],
@@ -208,6 +240,18 @@ def test_bad_arguments_fail_with_one_line_and_write_nothing(tmp_path, case):
     (line,) = result.stderr.strip().splitlines()
     assert line.startswith("render.py: error:") and mentioned in line
     assert os.listdir(tmp_path) == ["folder.png"]
+
+
+def test_the_arguments_are_checked_before_blender_is_loaded():
+    """Importing the add-on and render.py's arguments loads no Blender module, so a mistake
+    costs no Blender start-up."""
+    code = ("import sys; sys.path.insert(0, sys.argv[1]); import render; render.import_glint(); "
+            "import glint.addon.cli.arguments; "
+            "print(sorted(m for m in ('bpy', 'addon_utils', 'bmesh') if m in sys.modules))")
+    result = subprocess.run([sys.executable, "-c", code, REPOSITORY], capture_output=True,
+                            text=True, timeout=120, cwd=REPOSITORY)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "[]"
 
 
 def test_a_write_protected_output_is_refused_with_one_line(tmp_path):
@@ -246,8 +290,189 @@ def test_a_symlinked_output_is_written_through_and_stays_a_link(tmp_path):
 def test_a_frame_outside_blenders_range_fails_with_one_line(tmp_path, frame):
     result = run_script("--output", tmp_path / "o.png", "--frame", frame)
 
-    assert result.returncode == 1
+    assert result.returncode == 2
     (line,) = result.stderr.strip().splitlines()
     assert line.startswith("render.py: error:") and f"--frame {frame}" in line
     assert "1048574" in line
     assert os.listdir(tmp_path) == []
+
+
+def f12_png(scene, path) -> np.ndarray:
+    """The frame F12 (and ``blender -b FILE -f N``) saves as an 8-bit RGBA PNG at ``path``."""
+    scene.render.engine = 'GLINT'
+    scene.render.filepath = str(path)
+    scene.render.image_settings.file_format = 'PNG'
+    scene.render.image_settings.color_mode = 'RGBA'
+    scene.render.image_settings.color_depth = '8'
+    bpy.ops.render.render(write_still=True)
+    return read_png(str(path))
+
+
+def two_layer_scene(first_layer_shows_small=False):
+    """simple_scene() whose small sphere is in a collection of its own, which the first view
+    layer ('ViewLayer') excludes unless asked not to; a second layer, 'All', shows both."""
+    scene = simple_scene()
+    collection = bpy.data.collections.new("small things")
+    scene.collection.children.link(collection)
+    small = bpy.data.objects["small"]
+    scene.collection.objects.unlink(small)
+    collection.objects.link(small)
+    scene.view_layers.new("All")
+    first = scene.view_layers["ViewLayer"]
+    first.layer_collection.children["small things"].exclude = not first_layer_shows_small
+    return scene
+
+
+def test_a_blend_with_a_compositor_gives_f12s_pixels(tmp_path):
+    """The compositor runs, as with F12 and ``blender -b FILE -f N``: the file holds the
+    inverted 'All' layer, not a layer as rendered."""
+    scene = two_layer_scene()
+    invert_compositor(scene, "All")
+    blend = save_blend(tmp_path / "composited.blend")
+
+    result = run_script(blend, "--output", tmp_path / "script.png")
+
+    assert result.returncode == 0, result.stderr
+    script = read_script_png(tmp_path / "script.png")
+    np.testing.assert_array_equal(script, f12_png(scene, tmp_path / "f12.png"))
+    scene.render.use_compositing = False
+    assert not np.array_equal(script, f12_png(scene, tmp_path / "plain.png"))
+
+
+def test_ctrl_c_during_a_composited_render_keeps_the_previous_file(tmp_path):
+    """A cancel while Blender renders and composites: exit 130, one line, the previous file
+    as it was and nothing else written."""
+    import signal
+    import time
+
+    from process_support import sigint_disposition
+
+    scene = simple_scene()
+    invert_compositor(scene)
+    scene.render.resolution_x, scene.render.resolution_y = 1920, 1080
+    blend = save_blend(tmp_path / "slow.blend")
+    output = tmp_path / "out.png"
+    output.write_bytes(b"previous render")
+    process = subprocess.Popen([sys.executable, RENDER_SCRIPT, str(blend), "--output",
+                                str(output), "--samples", "64"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               cwd=REPOSITORY, preexec_fn=sigint_disposition())
+    time.sleep(5.0)   # bpy's import and the file's, then rendering (about a minute in all)
+    assert process.poll() is None, "the render ended before the signal: make it bigger"
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=60)
+
+    assert process.returncode == 130, err
+    (line,) = err.strip().splitlines()
+    assert "cancelled by SIGINT" in line and "nothing written" in line
+    assert output.read_bytes() == b"previous render"
+    assert sorted(os.listdir(tmp_path)) == ["out.png", "slow.blend"]
+
+
+def test_the_file_of_a_blend_with_several_view_layers_is_f12s(tmp_path):
+    """Without a compositor, Blender's file of a frame shows the first view layer (here the
+    one without the small sphere), whatever layers come after it."""
+    scene = two_layer_scene()
+    blend = save_blend(tmp_path / "layers.blend")
+
+    result = run_script(blend, "--output", tmp_path / "script.png")
+
+    assert result.returncode == 0, result.stderr
+    np.testing.assert_array_equal(read_script_png(tmp_path / "script.png"),
+                                  f12_png(scene, tmp_path / "f12.png"))
+
+
+def test_only_the_view_layers_the_file_shows_are_rendered(tmp_path):
+    from glint.addon.cli.arguments import parse_args
+    from glint.addon.cli.interruption import Interruption
+    from glint.addon.cli.output import OutputPlan
+    from glint.addon.cli.run import render_scene
+
+    def plan(*arguments):
+        return OutputPlan.choose(bpy.context.scene, parse_args(list(map(str, arguments))))
+
+    scene = two_layer_scene()
+    for name in ("Third", "Fourth", "Fifth"):
+        scene.view_layers.new(name)
+    png, exr = tmp_path / "o.png", tmp_path / "o.exr"
+    assert plan("--output", png).view_layers == ("ViewLayer",)
+    assert plan("--output", exr).view_layers == ("ViewLayer",)
+    assert plan("--output", exr, "--format", "multilayer-exr").view_layers is None  # all 5
+    scene.view_layers["ViewLayer"].use = False          # not rendered by F12 either
+    assert plan("--output", png).view_layers == ("All",)
+    scene.view_layers["ViewLayer"].use = True
+    invert_compositor(scene, "Fourth")
+    scene.view_layers["Fourth"].use = False   # it reads no layer that renders: all render
+    assert plan("--output", png).view_layers is None
+    scene.view_layers["Fourth"].use = True
+    composited = plan("--output", png)
+    assert composited.view_layers == ("Fourth",) and composited.from_render_result
+
+    scene.render.engine = 'GLINT'
+    composited.select_view_layers(scene)
+    frames = render_scene(scene, Interruption(), fill_render_result=True)
+
+    assert len(frames) == 1     # the engine rendered one view layer of 5
+    assert [layer.name for layer in scene.view_layers if layer.use] == ["Fourth"]
+
+
+def test_a_blend_with_sequencer_strips_gives_f12s_pixels(tmp_path):
+    scene = simple_scene()
+    strip = scene.sequence_editor_create().strips.new_effect(
+        name="red", type='COLOR', channel=1, frame_start=1, length=10)
+    strip.color = (1.0, 0.2, 0.1)
+    blend = save_blend(tmp_path / "edit.blend")
+
+    result = run_script(blend, "--output", tmp_path / "script.png")
+
+    assert result.returncode == 0, result.stderr
+    script = read_script_png(tmp_path / "script.png")
+    np.testing.assert_array_equal(script, f12_png(scene, tmp_path / "f12.png"))
+    assert (script[..., :3] == (255, 51, 26)).all()     # the strip's colour, not the spheres
+
+
+def test_without_output_the_scene_output_path_format_and_frame_are_used(tmp_path):
+    """As ``blender -b FILE -f N``: the .blend's output path (relative to the .blend, its
+    folder made), file format, frame numbering, and its Overwrite and Placeholders."""
+    scene = simple_scene()
+    animate_small_sphere(10)
+    scene.frame_set(3)
+    scene.render.filepath = "//shots/frame_###"
+    scene.render.image_settings.file_format = 'JPEG'
+    scene.render.use_overwrite, scene.render.use_placeholder = False, True
+    blend = save_blend(tmp_path / "shot.blend")
+
+    result = run_script(blend)
+
+    assert result.returncode == 0, result.stderr
+    written = tmp_path / "shots" / "frame_003.jpg"
+    assert f"wrote {written} (frame 3," in result.stdout
+    # What 'blender -b FILE -f 3' does: an animation of frame 3.
+    scene.render.engine = 'GLINT'
+    scene.render.filepath = str(tmp_path / "f12_###")
+    scene.frame_start = scene.frame_end = 3
+    bpy.ops.render.render(animation=True)
+    np.testing.assert_array_equal(read_png(str(written)),
+                                  read_png(str(tmp_path / "f12_003.jpg")))
+    # Another frame and the scene's frames: Overwrite off keeps what exists.
+    (tmp_path / "shots" / "frame_005.jpg").write_bytes(b"previous render")
+    result = run_script(blend, "--frames", "4-5")
+    assert result.returncode == 0, result.stderr
+    assert "skipped frame 5" in result.stdout and "wrote 1 of 2 frames, skipped 1" in result.stdout
+    assert (tmp_path / "shots" / "frame_005.jpg").read_bytes() == b"previous render"
+    assert sorted(os.listdir(tmp_path / "shots")) == ["frame_003.jpg", "frame_004.jpg",
+                                                      "frame_005.jpg"]
+
+
+def test_without_output_a_video_format_is_refused_with_one_line(tmp_path):
+    scene = simple_scene()
+    scene.render.filepath = str(tmp_path / "movie_")
+    scene.render.image_settings.media_type = 'VIDEO'
+    blend = save_blend(tmp_path / "movie.blend")
+
+    result = run_script(blend)
+
+    assert result.returncode == 1
+    (line,) = result.stderr.strip().splitlines()
+    assert "writes a video (FFMPEG)" in line and "--output" in line
+    assert os.listdir(tmp_path) == ["movie.blend"]

@@ -24,12 +24,12 @@ from mathutils import Matrix
 from addon_support import add_camera, core, depsgraph, empty_file, simple_scene
 from glint.addon.draw.viewport import texture_pixels
 from glint.addon.engine import viewport
-from glint.addon.engine.final import GlintRenderEngine
+from glint.addon.engine.base import GlintRenderEngine
 from glint.addon.engine.job import prepare_job
 from glint.addon.engine.viewport import (COARSE_PIXELS, ProgressiveRender, ViewportSession,
-                                         ViewportView, border_rect, camera_frame_rect,
                                          coarse_divisor, export_viewport_scene,
-                                         refinement_schedule, view_camera)
+                                         refinement_schedule)
+from glint.addon.export.view import ViewportView, border_rect, camera_frame_rect, view_camera
 from glint.addon.utils.colour import srgb_to_linear
 from glint.core.camera import camera_rays
 
@@ -259,23 +259,36 @@ def viewport_inputs(width=200, height=150):
     return scene, settings, size, view
 
 
-def test_progressive_passes_end_with_the_image_f12_renders():
+@pytest.mark.parametrize("integrator", ["path", "whitted"])
+def test_progressive_passes_end_with_the_image_f12_renders(integrator):
     scene, settings, _, view = viewport_inputs(400, 300)
-    settings = dataclasses.replace(settings, anti_aliasing="adaptive", samples=4)
+    if integrator == "whitted":
+        settings = dataclasses.replace(settings, integrator="whitted",
+                                       anti_aliasing="adaptive", samples=4)
+    else:   # (no noise threshold: every pass of 1, 1 and 2 samples is taken)
+        settings = dataclasses.replace(settings, samples=4, noise_threshold=0.0)
     frames = []
 
     progressive = ProgressiveRender(scene, view, settings, on_frame=frames.append)
     assert progressive.wait(timeout=120)
 
     assert progressive.error is None
-    assert [f.index for f in frames] == [0, 1, 2] and frames[-1].final
-    assert [f.image.shape for f in frames] == [(75, 100, 4), (300, 400, 4), (300, 400, 4)]
-    assert progressive.frame is frames[-1]
+    assert progressive.frame is frames[-1] and frames[-1].final
     assert progressive.frame_times == sorted(progressive.frame_times)
     f12 = dataclasses.replace(scene, camera=view.camera())
     expected = prepare_job(depsgraph())
     expected.scene, expected.settings = f12, settings
     np.testing.assert_array_equal(frames[-1].image, expected.run().image)
+    if integrator == "path":
+        # The coarse pass, then the view's own frame after 1, 2 and 4 samples a pixel
+        # (``core.progressive``), each sharper than the last and only the last final.
+        assert [f.index for f in frames] == [0, 1, 1, 1]
+        assert [f.final for f in frames] == [False, False, False, True]
+        assert [f.image.shape for f in frames] == [(75, 100, 4)] + [(300, 400, 4)] * 3
+        assert not np.array_equal(frames[1].image, frames[2].image)
+        return
+    assert [f.index for f in frames] == [0, 1, 2]
+    assert [f.image.shape for f in frames] == [(75, 100, 4), (300, 400, 4), (300, 400, 4)]
     # The pixel-centre pass is the same picture without anti-aliasing: equal away from edges.
     centre = dataclasses.replace(settings, anti_aliasing="off")
     expected.settings = centre
@@ -463,6 +476,10 @@ def test_view_update_and_view_draw_draw_each_pass_and_warn_once():
 
 def test_a_camera_view_renders_only_its_render_border():
     scene = simple_scene()
+    # Pixel centres, compared bit for bit: the Whitted integrator's.  (A path sample's
+    # numbers are seeded by the pixel's place in the frame it is traced in, and the border
+    # is traced as a frame of its own: the same picture, another grain.)
+    scene.glint.integrator = 'WHITTED'
     render = scene.render
     render.use_border = True
     render.border_min_x, render.border_max_x = 0.25, 0.75

@@ -19,7 +19,7 @@ from addon_support import REPOSITORY, RENDER_SCRIPT, depsgraph, glint, read_png,
 from glint.addon.engine.final import FrameRequest, requesting_frames
 from glint.addon.engine.job import prepare_job
 from glint.core import workers
-from process_support import all_ended
+from process_support import all_ended, sigint_disposition
 
 TILE = 32
 COLUMNS, ROWS = 5, 4
@@ -246,7 +246,8 @@ def test_ctrl_c_cancels_render_py_rendering_in_workers(tmp_path):
     process = subprocess.Popen(
         [sys.executable, RENDER_SCRIPT, "--width", "1920", "--height", "1080", "--samples",
          "64", "--parallelism", "processes", "--quiet", "--output", str(output)],
-        cwd=REPOSITORY, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        cwd=REPOSITORY, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=sigint_disposition())
 
     def children():
         return subprocess.run(["ps", "-o", "pid=", "--ppid", str(process.pid)],

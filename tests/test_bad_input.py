@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from addon_support import (RENDER_SCRIPT, REPOSITORY, core, depsgraph, export_scene,
-                           prepare_job, read_image, render_script, simple_scene)
+                           prepare_job, read_image, simple_scene)
 
 NAN, INF = float("nan"), float("inf")
 
@@ -370,6 +370,8 @@ def test_render_script_names_the_culprit_in_one_line(tmp_path, case):
     assert result.returncode == 1
     line = check_line(result.stderr, REFUSED[case][1])
     assert line.startswith("render.py: error:")
+    # Said once: Blender does not print it as well (as "Error: ..." on stdout).
+    assert line.removeprefix("render.py: error: ") not in result.stdout
     assert sorted(os.listdir(tmp_path)) == ["bad.blend"]
 @pytest.mark.parametrize("name", ["x" * 64, "é" * 32])  # 64 bytes each
 def test_an_image_name_longer_than_blenders_limit_is_refused_and_creates_nothing(name):
@@ -448,11 +450,11 @@ def test_the_settings_hard_maximums_are_the_cores_limits():
     settings = simple_scene().glint
     settings.samples = 100_000_000  # Blender clamps to the hard maximum
     assert settings.samples == limits.MAX_SAMPLES
-    # render.py checks its options before importing the package, with the same numbers.
-    assert (render_script.MAX_SAMPLES, render_script.MAX_DEPTH) == (limits.MAX_SAMPLES,
-                                                                    limits.MAX_DEPTH)
+    # render.py checks its options before loading Blender, with Blender's numbers.
+    from glint.addon.cli import arguments
+
     resolution = bpy.types.RenderSettings.bl_rna.properties["resolution_x"]
-    assert (render_script.MIN_RESOLUTION, render_script.MAX_RESOLUTION) == (
+    assert (arguments.MIN_RESOLUTION, arguments.MAX_RESOLUTION) == (
         resolution.hard_min, resolution.hard_max)
 
 

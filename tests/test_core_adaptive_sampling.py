@@ -2,7 +2,8 @@
 sample shares), and adaptive AA's edge test (``core.render.EDGE_CONTRAST``): a supersampled
 pixel traces about as many shadow rays per light as its centre alone, every stratum of a
 light still counts once per pixel, and a surface of many flat facets of one colour is not an
-"edge" everywhere."""
+"edge" everywhere.  All of it is the Whitted integrator's (``WHITTED``); the path
+integrator samples lights and the world per path (``core.path``)."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import core
 from core.lights import _grid, fibonacci_sphere, pixel_shares, share_weights
 
 GREY = core.SurfaceMaterial(diffuse=(0.5, 0.5, 0.5))
+WHITTED = dict(integrator="whitted")
 
 
 def top_camera(size, height=3.0, lens=50.0):
@@ -48,8 +50,8 @@ def test_a_pixel_traces_max_of_light_and_aa_samples_shadow_rays(aa, samples, per
     # Every pixel sees the lit floor, so every sample it traces is one shadow ray: S AA
     # samples would trace 16 S each without the shares (1,024 at S = 64).
     scene = core.Scene(camera=top_camera(8), meshes=(grid_floor(1),), lights=(square_light(),))
-    settings = core.RenderSettings(anti_aliasing=aa, samples=samples, light_samples=16,
-                                   world_samples=0)
+    settings = core.RenderSettings(**WHITTED, anti_aliasing=aa, samples=samples,
+                                   light_samples=16, world_samples=0)
     stats = core.render(scene, settings).stats
     assert stats.shadow_rays == 64 * per_pixel
 
@@ -60,7 +62,7 @@ def test_world_directions_are_max_of_world_and_aa_samples_per_pixel(samples, per
     ball = core.Sphere((20, 0, 0), 0.5, GREY)
     scene = core.Scene(camera=top_camera(8), spheres=(ball,), meshes=(grid_floor(1),),
                        background=(0.2, 0.3, 0.5), ambient=(0.2, 0.3, 0.5))
-    settings = core.RenderSettings(anti_aliasing="fixed" if samples > 1 else "off",
+    settings = core.RenderSettings(**WHITTED, anti_aliasing="fixed" if samples > 1 else "off",
                                    samples=samples, world_samples=9)
     assert core.render(scene, settings).stats.shadow_rays == 64 * per_pixel
 
@@ -97,7 +99,7 @@ def test_a_penumbra_seen_by_half_the_light_gets_every_stratum():
     camera = top_camera(16, height=0.5, lens=50.0)   # sees |x| < 0.18 of the floor
     scene = core.Scene(camera=camera, meshes=(grid_floor(1), plate),
                        lights=(square_light(z=4.0, size=2.0),))
-    settings = dict(light_samples=16, world_samples=0, max_depth=1)
+    settings = dict(WHITTED, light_samples=16, world_samples=0, max_depth=1)
     centre = core.render(scene, core.RenderSettings(**settings)).image[..., :3]
     fixed = core.render(scene, core.RenderSettings(anti_aliasing="fixed", samples=16,
                                                    **settings))
@@ -118,10 +120,13 @@ def test_flat_facets_of_one_colour_are_not_edges_but_shadows_and_silhouettes_are
     scene = core.Scene(camera=top_camera(64, height=6.0, lens=35.0), spheres=(ball,),
                        meshes=(grid_floor(40, bend=0.02),),  # 2 pixels a cell
                        lights=(core.SphereLight((2.0, 1.0, 4.0), power=3000.0),))
-    adaptive = core.render(scene, core.RenderSettings(anti_aliasing="adaptive", samples=16))
-    fixed = core.render(scene, core.RenderSettings(anti_aliasing="fixed", samples=16)).image
-    reference = core.render(scene, core.RenderSettings(anti_aliasing="fixed", samples=64))
-    plain = core.render(scene).image
+    adaptive = core.render(scene, core.RenderSettings(**WHITTED, anti_aliasing="adaptive",
+                                                      samples=16))
+    fixed = core.render(scene, core.RenderSettings(**WHITTED, anti_aliasing="fixed",
+                                                   samples=16)).image
+    reference = core.render(scene, core.RenderSettings(**WHITTED, anti_aliasing="fixed",
+                                                       samples=64))
+    plain = core.render(scene, core.RenderSettings(**WHITTED)).image
 
     def rms(image):
         return float(np.sqrt(np.mean((image - reference.image) ** 2)))
@@ -141,7 +146,7 @@ def test_soft_lights_with_adaptive_aa_do_not_depend_on_tiles_or_threads():
                        lights=(square_light(), core.SphereLight((2, 1, 4), power=500.0, radius=0.5),
                                core.SunLight((-0.3, 0.2, -1), strength=2.0, angle=0.2)),
                        background=(0.1, 0.1, 0.2), ambient=(0.1, 0.1, 0.2))
-    images = [core.render(scene, core.RenderSettings(anti_aliasing=aa, samples=8,
+    images = [core.render(scene, core.RenderSettings(**WHITTED, anti_aliasing=aa, samples=8,
                                                      tile_size=tile, threads=threads)).image
               for aa in ("adaptive", "fixed") for tile, threads in ((8, 1), (128, 1), (16, 2))]
     for first in (0, 3):

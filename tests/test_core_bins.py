@@ -1,5 +1,5 @@
-"""Direction bins (``core.bins``) answer rays that share an origin exactly as the tree does:
-every box a ray passes through is listed in the ray's cell, the aggregate's hits and
+"""Direction bins (``core.geometry.bins``) answer rays that share an origin exactly as the tree
+does: every box a ray passes through is listed in the ray's cell, the aggregate's hits and
 occlusion are the tree's ray for ray (grazing rays included), renders are identical, and bins
 are refused where they would not pay (a dense field) or would be too large."""
 
@@ -8,13 +8,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import dataclasses
+
 import core
-from core import aggregate, bins
-from core.bins import OriginBins, ray_cells
 from core.context import RayStats, make_context
-from core_scenes import dense_wall_scene
-from core.cull import direction_cells
+from core.geometry import DEFAULT_POLICY, bins
+from core.geometry.bins import OriginBins
+from core.geometry.cells import direction_cells
 from core.rays import RayBatch
+from core_scenes import dense_wall_scene
+
+#: A policy that gives no origin bins: the tree answers every batch.
+NO_BINS = dataclasses.replace(DEFAULT_POLICY, bins_max_primitives=-1)
 
 MATERIALS = (core.Material(reflection=0.5), core.Material(diffuse=(0.8, 0.2, 0.1)))
 
@@ -67,8 +72,7 @@ def test_a_ray_finds_every_box_it_passes_through_in_its_cell(dtype):
     edges = edges[:, np.abs(edges).sum(axis=0) > 0]
     directions = np.concatenate([_unit(rng.normal(size=(3, 20000))), _unit(aimed), *nudges,
                                  _unit(edges)], axis=1).astype(dtype)
-    cell = ray_cells(directions, grid.cells)
-    assert np.array_equal(cell, direction_cells(directions, grid.cells)) or dtype == np.float32
+    cell = direction_cells(directions, grid.cells)
     listed = np.zeros((directions.shape[1], 300), bool)
     for row, c in enumerate(cell):
         listed[row, (grid.cell_entries(c) - 7) // 2] = True
@@ -115,7 +119,7 @@ def _silhouette_directions(rng, origin, centres, radii, per_sphere):
 
 @pytest.mark.parametrize("semantics", ["default", "article"])
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
-def test_bins_answer_as_the_tree_does(monkeypatch, dtype, semantics):
+def test_bins_answer_as_the_tree_does(dtype, semantics):
     """900 spheres and 150 triangles in the tree, a floor beside it: rays from the eye, from
     a light and from a point inside the cloud and a sphere's box (random and grazing the
     spheres' silhouettes) get the tree's nearest hits (distance, primitive, barycentrics) and occlusion, bit for
@@ -123,8 +127,7 @@ def test_bins_answer_as_the_tree_does(monkeypatch, dtype, semantics):
     scene = _cloud_scene()
     settings = core.RenderSettings(semantics=semantics)
     binned = make_context(scene, settings, dtype).geometry
-    monkeypatch.setattr(aggregate, "BINS_MAX_PRIMITIVES", -1)
-    tree = make_context(scene, settings, dtype).geometry
+    tree = make_context(scene, settings, dtype, geometry_policy=NO_BINS).geometry
     rng = np.random.default_rng(3)
     centres, radii = scene.sphere_sets[0].centers, scene.sphere_sets[0].radii
     seen = []
@@ -192,7 +195,7 @@ def _mesh_spot_scene():
 @pytest.mark.parametrize("semantics,precision", [("default", "float32"),
                                                  ("default", "float64"),
                                                  ("article", "float64")])
-def test_renders_through_bins_are_the_trees(monkeypatch, semantics, precision):
+def test_renders_through_bins_are_the_trees(semantics, precision):
     """A cloud of spheres, a smooth mesh, a spot light and a soft light (its samples are
     origins of their own), on two threads: the image is the tree's exactly, with fewer box
     tests (camera rays and the larger batches of shadow rays went through bins)."""
@@ -200,8 +203,7 @@ def test_renders_through_bins_are_the_trees(monkeypatch, semantics, precision):
     settings = core.RenderSettings(semantics=semantics, precision=precision, threads=2,
                                    parallelism="threads", light_samples=4)
     binned = core.render(scene, settings)
-    monkeypatch.setattr(aggregate, "BINS_MAX_PRIMITIVES", -1)
-    tree = core.render(scene, settings)
+    tree = core.render(scene, settings, geometry_policy=NO_BINS)
     assert np.array_equal(binned.image, tree.image)
     assert binned.stats.node_tests < 0.75 * tree.stats.node_tests
     assert binned.stats.triangle_tests > 0 and (binned.image[..., 3] == 1).mean() > 0.5
@@ -213,19 +215,19 @@ def test_bins_are_refused_where_they_do_not_pay_or_would_be_too_large():
     the entry cap, and none where even the coarsest would."""
     scene = dense_wall_scene(MATERIALS[0])
     geometry = make_context(scene, core.RenderSettings(), np.float64).geometry
-    assert OriginBins.build((0, 0, 3), *geometry._tree_boxes) is None
+    assert OriginBins.build((0, 0, 3), *geometry.tree.boxes) is None
     cloud = make_context(_cloud_scene(), core.RenderSettings(), np.float64).geometry
     eye = (0.0, 0.0, 12.0)
-    sparse = OriginBins.build(eye, *cloud._tree_boxes)
+    sparse = OriginBins.build(eye, *cloud.tree.boxes)
     assert sparse is not None and sparse.cells == bins.CELLS
-    coarser = OriginBins.build(eye, *cloud._tree_boxes, max_entries=sparse.entries - 1)
+    coarser = OriginBins.build(eye, *cloud.tree.boxes, max_entries=sparse.entries - 1)
     assert coarser.cells == bins.CELLS // 2 and coarser.entries < sparse.entries
-    assert OriginBins.build(eye, *cloud._tree_boxes, max_entries=1000) is None
+    assert OriginBins.build(eye, *cloud.tree.boxes, max_entries=1000) is None
 
 
-def test_a_batch_with_too_many_candidates_goes_to_the_tree(monkeypatch):
-    """The per-batch rule: rays whose cells average more than MAX_PAIRS_PER_RAY candidates
-    are answered by the tree (box tests happen), with the same hits."""
+def test_a_batch_with_too_many_candidates_goes_to_the_tree():
+    """The per-batch rule: rays whose cells average more than ``max_pairs_per_ray``
+    candidates are answered by the tree (box tests happen), with the same hits."""
     geometry = make_context(_cloud_scene(), core.RenderSettings(), np.float64).geometry
     origin = np.array([0.0, 0.0, 12.0])
     directions = _unit(np.random.default_rng(6).normal(size=(3, 3000)))
@@ -233,7 +235,10 @@ def test_a_batch_with_too_many_candidates_goes_to_the_tree(monkeypatch):
     stats = RayStats()
     t, primitive, _ = geometry.intersect(batch, stats)
     assert stats.node_tests == 0
-    monkeypatch.setattr(bins, "MAX_PAIRS_PER_RAY", 0.0)
+    geometry = make_context(_cloud_scene(), core.RenderSettings(), np.float64,
+                            geometry_policy=dataclasses.replace(DEFAULT_POLICY,
+                                                                max_pairs_per_ray=0.0)).geometry
+    batch = RayBatch(origin[:, None], directions, 0.0, np.inf, geometry.shared_origin(origin))
     stats = RayStats()
     t2, primitive2, _ = geometry.intersect(batch, stats)
     assert stats.node_tests > 0
@@ -256,15 +261,15 @@ def test_an_aggregate_travels_to_a_worker_with_the_bins_it_holds():
         return g.intersect(batch, RayStats())[:2]
 
     t, primitive = nearest(geometry)
-    assert len(geometry._bins) == 1
+    assert len(geometry.bins.held) == 1
     copy = pickle.loads(pickle.dumps(geometry))
-    assert copy._bins.keys() == geometry._bins.keys()
-    assert copy._bins_bytes == geometry._bins_bytes > 0
-    held = list(copy._bins.values())
+    assert copy.bins.held.keys() == geometry.bins.held.keys()
+    assert copy.bins.bytes == geometry.bins.bytes > 0
+    held = list(copy.bins.held.values())
     t2, primitive2 = nearest(copy)
-    assert list(copy._bins.values()) == held
+    assert list(copy.bins.held.values()) == held
     assert np.array_equal(t, t2) and np.array_equal(primitive, primitive2)
-    assert fresh._bins == {}
+    assert fresh.bins.held == {}
     t2, primitive2 = nearest(fresh)
-    assert len(fresh._bins) == 1
+    assert len(fresh.bins.held) == 1
     assert np.array_equal(t, t2) and np.array_equal(primitive, primitive2)

@@ -6,13 +6,20 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import dataclasses
+
 import core
-from core import aggregate, bvh
 from core.context import RayStats, make_context
-from core_scenes import dense_wall_scene
+from core.geometry import DEFAULT_POLICY, bvh, bvh_build, cells
+from core.geometry.kernels import OcclusionPairs
+from core.geometry.tree import TreeAccelerator
 from core.rays import RayBatch
+from core_scenes import dense_wall_scene
 
 MATERIALS = (core.Material(reflection=0.5), core.Material(diffuse=(0.8, 0.2, 0.1)))
+#: A policy under which no scene gets a tree: every primitive is tested flat.
+FLAT = dataclasses.replace(DEFAULT_POLICY, tree_min_spheres=10 ** 9,
+                           tree_min_triangles=10 ** 9, tree_saved_tests=np.inf)
 
 
 def _cloud(count, seed=0):
@@ -28,14 +35,12 @@ def _scene(count, floor=True, meshes=()):
                       lights=(core.PointLight((3, 20, 8)),))
 
 
-def _contexts(scene, monkeypatch, dtype=np.float64):
-    """(with a tree, flat) contexts of the same scene; fails if either is not what it says."""
-    tree = make_context(scene, core.RenderSettings(), dtype)
-    monkeypatch.setattr(aggregate, "BVH_MIN_SPHERES", 10 ** 9)
-    monkeypatch.setattr(aggregate, "BVH_MIN_TRIANGLES", 10 ** 9)
-    monkeypatch.setattr(aggregate, "TREE_SAVED_TESTS", np.inf)
-    flat = make_context(scene, core.RenderSettings(), dtype)
-    assert tree.geometry._tree is not None and flat.geometry._tree is None
+def _contexts(scene, dtype=np.float64, policy=DEFAULT_POLICY):
+    """(with a tree under ``policy``, flat) contexts of the same scene; fails if either is
+    not what it says."""
+    tree = make_context(scene, core.RenderSettings(), dtype, geometry_policy=policy)
+    flat = make_context(scene, core.RenderSettings(), dtype, geometry_policy=FLAT)
+    assert tree.geometry.tree is not None and flat.geometry.tree is None
     return tree, flat
 
 
@@ -49,7 +54,7 @@ def _rays(rng, n, dtype, shared_origin=None):
 
 @pytest.mark.parametrize("sorts", ["treelets", "widest", "unsorted"])
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
-def test_tree_finds_exactly_the_flat_paths_hits(monkeypatch, dtype, sorts):
+def test_tree_finds_exactly_the_flat_paths_hits(dtype, sorts):
     """3,000 spheres, a floor kept out of the tree, 200 triangles: nearest hits (distance and
     primitive) and occlusion agree with the flat paths ray for ray, for rays with their own
     origins, rays sharing one (with its terms) and rays that exclude what they leave; with
@@ -60,14 +65,15 @@ def test_tree_finds_exactly_the_flat_paths_hits(monkeypatch, dtype, sorts):
     soup = core.TriangleMesh(corners.reshape(-1, 3), np.arange(600).reshape(200, 3), None,
                              np.zeros(200, np.int64), MATERIALS)
     scene = _scene(3000, meshes=(soup,))
-    monkeypatch.setattr(bvh, "SORTED_FROM", 10 ** 9 if sorts == "unsorted" else 0)
-    monkeypatch.setattr(bvh, "DEEP_SORT_CROSSINGS", 0.0 if sorts == "widest" else np.inf)
-    tree, flat = _contexts(scene, monkeypatch, dtype)
-    levels = tree.geometry._tree._nearest_levels
-    widest = int(np.argmax(np.bincount(tree.geometry._tree.depths)))
+    policy = dataclasses.replace(DEFAULT_POLICY,
+                                 sorted_from=10 ** 9 if sorts == "unsorted" else 0,
+                                 deep_sort_crossings=0.0 if sorts == "widest" else np.inf)
+    tree, flat = _contexts(scene, dtype, policy)
+    levels = tree.geometry.tree.bvh._nearest_levels
+    widest = int(np.argmax(np.bincount(tree.geometry.tree.bvh.depths)))
     assert (levels is None) == (sorts == "unsorted")
     assert sorts == "unsorted" or (levels[-1] == widest) == (sorts == "widest")
-    assert 0 in tree.geometry._flat_ids            # the floor stays flat beside the tree
+    assert 0 in tree.geometry.flat_spheres.ids      # the floor stays flat beside the tree
     for shared in (None, (0.5, 1.0, 11.0)):
         origins, directions = _rays(rng, 4000, dtype, shared)
         exclude = rng.integers(-1, 3201, 4000)
@@ -86,11 +92,10 @@ def test_tree_finds_exactly_the_flat_paths_hits(monkeypatch, dtype, sorts):
         assert (p1 >= 3001).any() and ((p1 >= 1) & (p1 < 3001)).any() and o1.any() and not o1.all()
 
 
-def test_sphere_set_renders_the_same_through_the_tree_and_flat(monkeypatch):
+def test_sphere_set_renders_the_same_through_the_tree_and_flat():
     scene = _scene(1500)
     tree = core.render(scene, core.RenderSettings(precision="float64"))
-    monkeypatch.setattr(aggregate, "BVH_MIN_SPHERES", 10 ** 9)
-    flat = core.render(scene, core.RenderSettings(precision="float64"))
+    flat = core.render(scene, core.RenderSettings(precision="float64"), geometry_policy=FLAT)
     # Box tests happen only in the tree: without them this would compare the tree with itself.
     assert tree.stats.node_tests > 0 and flat.stats.node_tests == 0
     assert np.array_equal(tree.image, flat.image)
@@ -113,7 +118,7 @@ def test_rays_stop_at_their_nearest_hit():
 
 def test_small_scenes_build_no_tree():
     ctx = make_context(core.article_scene(30, 20), core.article_settings(), np.float64)
-    assert ctx.geometry._tree is None
+    assert ctx.geometry.tree is None
     stats = core.render(core.article_scene(30, 20), core.article_settings()).stats
     assert stats.node_tests == 0
 
@@ -143,8 +148,9 @@ def _floor(z=-1.0, half=10.0):
              [[-10, -10, -1], [-10, 10, -1], [-10, 10, 9], [-10, -10, 9]]),), False),  # a room
     ((_quads(_floor()),), False)])
 def test_a_few_compact_triangles_get_a_tree_and_the_same_image(monkeypatch, meshes, tree):
-    """At most BVH_MIN_TRIANGLES triangles get a tree where it saves a ray TREE_SAVED_TESTS
-    tests (a cube's faces are small beside the floor they stand on: 12.2 of 14 saved),
+    """At most ``tree_min_triangles`` triangles get a tree where it saves a ray
+    ``tree_saved_tests`` tests (a cube's faces are small beside the floor they stand on:
+    12.2 of 14 saved),
     not where every triangle spans the scene (a room's floor and walls, a lone floor); the
     tree answers only rays that leave points (the suns', the world's), batches from one
     origin (the eye, a soft point light's samples) test the flat triangles, and the image
@@ -159,22 +165,22 @@ def test_a_few_compact_triangles_get_a_tree_and_the_same_image(monkeypatch, mesh
         ambient=(0.05, 0.05, 0.05))
     settings = core.RenderSettings(anti_aliasing="adaptive", samples=4, light_samples=4)
     ctx = make_context(scene, settings, np.float64)
-    t = ctx.geometry.triangles
-    saved = aggregate.small_mesh_saved_tests(t.v0, t.v1, t.v2)
-    assert (saved >= aggregate.TREE_SAVED_TESTS) == tree
-    assert (ctx.geometry._tree is not None) == tree == aggregate.builds_tree(
+    saved = ctx.geometry.triangle_shape.saved_tests(DEFAULT_POLICY.tree_min_triangles)
+    assert (saved >= DEFAULT_POLICY.tree_saved_tests) == tree
+    assert (ctx.geometry.tree is not None) == tree == DEFAULT_POLICY.builds_tree(
         0, scene.triangle_count, saved)
     through_tree = []     # (whether the batch shares an origin) of each batch in the tree
-    for name in ("_nearest_in_tree", "_occluded_in_tree"):
-        method = getattr(aggregate.Aggregate, name)
-        monkeypatch.setattr(aggregate.Aggregate, name,
+    for name in ("nearest_pairs", "occlusion_pairs"):
+        method = getattr(TreeAccelerator, name)
+        monkeypatch.setattr(TreeAccelerator, name,
                             lambda self, rays, *rest, method=method: through_tree.append(
                                 rays.shared is not None) or method(self, rays, *rest))
     chosen = core.render(scene, settings)
     assert (len(through_tree) > 0) == tree and not any(through_tree)
-    monkeypatch.setattr(aggregate, "TREE_SAVED_TESTS", np.inf)
-    assert make_context(scene, settings, np.float64).geometry._tree is None
-    flat = core.render(scene, settings)
+    no_small_trees = dataclasses.replace(DEFAULT_POLICY, tree_saved_tests=np.inf)
+    assert make_context(scene, settings, np.float64,
+                        geometry_policy=no_small_trees).geometry.tree is None
+    flat = core.render(scene, settings, geometry_policy=no_small_trees)
     assert np.array_equal(chosen.image, flat.image)
     assert (chosen.stats.triangle_tests < 0.5 * flat.stats.triangle_tests) == tree
 
@@ -184,7 +190,7 @@ def test_a_few_compact_triangles_get_a_tree_and_the_same_image(monkeypatch, mesh
 def test_builds_tree_says_what_the_aggregate_builds(spheres, triangles):
     """The worker-process rule weighs scenes by ``builds_tree``'s counts: with a few
     triangles' saved tests it is the truth."""
-    from core.aggregate import builds_tree
+    builds_tree = DEFAULT_POLICY.builds_tree
     rng = np.random.default_rng(2)
     sets = (core.SphereSet(rng.uniform(-3, 3, (spheres, 3)), rng.uniform(0.01, 0.05, spheres),
                            np.zeros(spheres, np.intp), (core.Material(),)),) if spheres else ()
@@ -195,9 +201,8 @@ def test_builds_tree_says_what_the_aggregate_builds(spheres, triangles):
     scene = core.Scene(camera=core.ScreenCamera(16, 16, eye=(0, 0, 12)), sphere_sets=sets,
                        meshes=meshes, lights=(core.PointLight((3, 20, 8)),))
     ctx = make_context(scene, core.RenderSettings(), np.float64)
-    t = ctx.geometry.triangles
-    saved = aggregate.small_mesh_saved_tests(t.v0, t.v1, t.v2) if triangles else 0.0
-    assert (ctx.geometry._tree is not None) == builds_tree(scene.sphere_count,
+    saved = ctx.geometry.triangle_shape.saved_tests(DEFAULT_POLICY.tree_min_triangles)
+    assert (ctx.geometry.tree is not None) == builds_tree(scene.sphere_count,
                                                             scene.triangle_count, saved)
     # By counts alone (what the rule weighs): a few triangles never make a scene heavy.
     assert builds_tree(scene.sphere_count, scene.triangle_count) == (spheres > 24
@@ -215,7 +220,7 @@ def _mixed_boxes(rng, small, large):
 
 def _check_tree(tree, ids, low, high):
     """Every id in exactly one leaf; every slot's box holds what is below it."""
-    from core.bvh import EMPTY, WIDTH
+    from core.geometry.bvh_build import EMPTY, WIDTH
     assert sorted(tree.primitives().tolist()) == sorted(ids.tolist())
     where = {int(i): k for k, i in enumerate(ids)}
     box_low, box_high = tree.blocks[:3].astype(float), tree.blocks[3:].astype(float)
@@ -277,28 +282,27 @@ def test_leaf_crossings_count_the_leaf_boxes_random_lines_cross():
     # 60,000 boxes filling a cube: a dense field, sorted down to the widest depth.
     dense_centre = rng.uniform(-1, 1, (60000, 3))
     dense = bvh.BVH.build(np.arange(60000), dense_centre - 0.03, dense_centre + 0.03)
-    assert tree.leaf_crossings < bvh.DEEP_SORT_CROSSINGS <= dense.leaf_crossings
+    assert tree.leaf_crossings < DEFAULT_POLICY.deep_sort_crossings <= dense.leaf_crossings
     assert tree._nearest_levels in (None, tree._levels())
     assert dense._nearest_levels[-1] == int(np.argmax(np.bincount(dense.depths)))
 
 
 @pytest.mark.parametrize("cluster_from", [10 ** 9, 500])
-def test_sah_tree_holds_every_primitive_once_and_bounds_its_children(monkeypatch,
-                                                                     cluster_from):
+def test_sah_tree_holds_every_primitive_once_and_bounds_its_children(cluster_from):
     """Tiny primitives among large ones, ids not 0..P-1, built over primitives and (with
-    CLUSTER_FROM lowered) over Morton clusters; also a single primitive and two that
+    ``cluster_from`` lowered) over Morton clusters; also a single primitive and two that
     coincide (no plane separates them)."""
-    from core import bvh
-    monkeypatch.setattr(bvh, "CLUSTER_FROM", cluster_from)
+    policy = dataclasses.replace(DEFAULT_POLICY, cluster_from=cluster_from)
     rng = np.random.default_rng(3)
     low, high = _mixed_boxes(rng, 1500, 60)
     ids = rng.permutation(5000)[:1560]
-    tree = bvh.BVH.build(ids, low, high)
+    tree = bvh.BVH.build(ids, low, high, policy=policy)
     _check_tree(tree, ids, low, high)
     assert tree.depths.max() <= 12                  # log4 of 1,560 is 5.3
     for count in (1, 2, 9):
         same = np.zeros((count, 3)), np.ones((count, 3))
-        _check_tree(bvh.BVH.build(np.arange(count), *same), np.arange(count), *same)
+        _check_tree(bvh.BVH.build(np.arange(count), *same, policy=policy), np.arange(count),
+                    *same)
 
 
 def _backdrop_and_ball():
@@ -342,11 +346,11 @@ def test_rays_away_from_a_fine_mesh_do_not_pay_for_it():
     tests at most 8 * MAX_LEAF triangles, and at most WIDTH box tests per node on at most 8
     root-to-leaf paths of the tree's depth D (1 + 8 * WIDTH * (D + 1)).  A tree that mixed
     the ball's triangles into the backdrop's boxes (the Morton tree did) exceeds both."""
-    from core.bvh import MAX_LEAF, WIDTH
+    from core.geometry.bvh_build import MAX_LEAF, WIDTH
     scene, ball = _backdrop_and_ball()
     ctx = make_context(scene, core.RenderSettings(), np.float64)
-    tree = ctx.geometry._tree
-    assert tree is not None and len(ctx.geometry._flat_triangles) == 0
+    tree = ctx.geometry.tree.bvh
+    assert len(ctx.geometry.flat_triangles) == 0
     rng = np.random.default_rng(5)
     xz = rng.uniform(-9.5, 9.5, (20000, 2))
     xz = xz[np.hypot(*xz.T) > 3][:8000]
@@ -364,11 +368,9 @@ def test_rays_away_from_a_fine_mesh_do_not_pay_for_it():
 
 
 @pytest.mark.parametrize("cluster_from", [10 ** 9, 200])
-def test_tree_agrees_with_brute_force_on_mixed_sizes(monkeypatch, cluster_from):
+def test_tree_agrees_with_brute_force_on_mixed_sizes(cluster_from):
     """The ball on its backdrop, 600 small spheres around it and 3 large ones, against the
     flat paths (every primitive tested): nearest hits and occlusion, ray for ray."""
-    from core import bvh
-    monkeypatch.setattr(bvh, "CLUSTER_FROM", cluster_from)
     mesh_scene, _ = _backdrop_and_ball()
     rng = np.random.default_rng(8)
     centres = np.concatenate([rng.normal(scale=1.5, size=(600, 3)) + (0, 1.5, 0),
@@ -377,7 +379,8 @@ def test_tree_agrees_with_brute_force_on_mixed_sizes(monkeypatch, cluster_from):
     balls = core.SphereSet(centres, radii, rng.integers(0, 2, 603), MATERIALS)
     scene = core.Scene(camera=mesh_scene.camera, meshes=mesh_scene.meshes,
                        sphere_sets=(balls,), lights=mesh_scene.lights)
-    tree, flat = _contexts(scene, monkeypatch)
+    tree, flat = _contexts(scene, policy=dataclasses.replace(DEFAULT_POLICY,
+                                                            cluster_from=cluster_from))
     for shared in (None, (0.5, 6.0, 11.0)):
         origins, directions = _rays(rng, 3000, np.float64, shared)
         origins = origins + np.array([[0], [3], [0]])
@@ -403,7 +406,7 @@ def test_single_rays_leave_the_tree_as_it_was():
     it gathers, never on the tree's own)."""
     scene, _ = _backdrop_and_ball()
     ctx = make_context(scene, core.RenderSettings(), np.float64)
-    tree = ctx.geometry._tree
+    tree = ctx.geometry.tree.bvh
     root, blocks = tree.root_box.copy(), tree.blocks.copy()
     rng = np.random.default_rng(2)
     origins, directions = _rays(rng, 40, np.float64)
@@ -427,7 +430,8 @@ def test_box_tests_give_each_slot_the_textbook_slab_answer(dtype, shared):
     plane) in the slabs' precision, an empty slot never hit; with rays parallel to an axis,
     some of them lying in the planes of the boxes they meet (0 * inf), and t_max given in
     float64 (inf for some)."""
-    from core.bvh import BVH, EMPTY, WIDTH, _ray_terms
+    from core.geometry.bvh import BVH, _ray_terms
+    from core.geometry.bvh_build import EMPTY, WIDTH
     rng = np.random.default_rng(5)
     centre = rng.uniform(-4, 4, (300, 3))
     tree = BVH.build(np.arange(300), centre - 0.3, centre + 0.3)
@@ -504,7 +508,7 @@ def test_occlusion_trails_block_exactly_the_rays_the_flat_paths_do(monkeypatch, 
     corners = rng.uniform(-5, 5, (200, 1, 3)) + rng.normal(scale=0.3, size=(200, 3, 3))
     soup = core.TriangleMesh(corners.reshape(-1, 3), np.arange(600).reshape(200, 3), None,
                              np.zeros(200, np.int64), MATERIALS)
-    tree, flat = _contexts(_scene(3000, meshes=(soup,)), monkeypatch, dtype)
+    tree, flat = _contexts(_scene(3000, meshes=(soup,)), dtype)
     rays = _leaving_rays(tree, rng, 6000)
     n = len(rays)
     source = rays.source.copy()
@@ -527,19 +531,19 @@ def test_occlusion_trails_block_exactly_the_rays_the_flat_paths_do(monkeypatch, 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_trails_by_leaf_block_exactly_the_rays_every_sphere_does(monkeypatch, dtype):
     """A tree of spheres alone (a floor kept out of it) visits its trails' leaves through the
-    leaf-ordered spheres (``Aggregate._leaf_blocks``): the same blocked rays as the flat path
+    leaf-ordered spheres (``OcclusionPairs.slot_blocks``): the same blocked rays as the flat path
     (every sphere tested) and as the visit by primitive, with the same sphere tests, for
     rays leaving spheres, the floor and nothing, short segments and infinite, with fewer
     sphere tests (the spheres the rays leave are not tested)."""
-    from core.bvh import BVH
+    from core.geometry.bvh import BVH
     rng = np.random.default_rng(8)
-    tree, flat = _contexts(_scene(3000), monkeypatch, dtype)
+    tree, flat = _contexts(_scene(3000), dtype)
     rays = _leaving_rays(tree, rng, 6000)
     n = len(rays)
     source = rays.source.copy()
     source[rng.random(n) < 0.1] = -1
     assert (source >= 1).sum() > 1000 and (source < 1).sum() > 100
-    traverse, leaf_blocks = BVH.traverse, tree.geometry._leaf_blocks
+    traverse, leaf_blocks = BVH.traverse, OcclusionPairs.slot_blocks
     calls = []
 
     def by_primitive(self, *args, leaf_blocks=None, **kwargs):
@@ -549,7 +553,7 @@ def test_trails_by_leaf_block_exactly_the_rays_every_sphere_does(monkeypatch, dt
         calls.append(1)
         return leaf_blocks(*args)
 
-    monkeypatch.setattr(tree.geometry, "_leaf_blocks", counted)
+    monkeypatch.setattr(OcclusionPairs, "slot_blocks", counted)
 
     for length in (np.inf, rng.uniform(0.05, 3, n).astype(dtype)):
         segments = RayBatch(rays.origins, rays.directions, rays.t_min, length, None,
@@ -584,13 +588,14 @@ def test_trails_by_leaf_block_exactly_the_rays_every_sphere_does(monkeypatch, dt
 def test_leaf_ordered_spheres_hold_each_leafs_spheres_in_its_slots():
     scene = _scene(2000)
     geometry = make_context(scene, core.RenderSettings(), np.float32).geometry
-    x, y, z, radii, ids = geometry._leaf_spheres()
-    assert np.array_equal(ids, geometry._tree.leaves.ravel())
+    x, y, z, radii, ids = geometry.tree.leaf_spheres()
+    assert np.array_equal(ids, geometry.tree.bvh.leaves.ravel())
     held = ids >= 0
     assert held.sum() == 2000
     for k, column in enumerate((x, y, z, radii)):
         assert column.dtype == np.float32 and column.shape == ids.shape
-        values = geometry._centers_t[k] if k < 3 else geometry._radii_t
+        shape = geometry.sphere_shape
+        values = shape.centers_t[k] if k < 3 else shape.radii
         assert np.array_equal(column[held], values[ids[held]])
         assert np.isnan(column[~held]).all()
 
@@ -599,8 +604,8 @@ def test_leaf_ordered_spheres_hold_each_leafs_spheres_in_its_slots():
 def test_leaf_boxes_hold_each_slots_primitive_within_its_leafs_box(count):
     """Each leaf slot's box (``BVH.leaf_boxes``) holds its primitive's box (float32, padded),
     lies within the leaf's own box in its node, and is NaN in a padding slot: with and
-    without the Morton clusters (CLUSTER_FROM)."""
-    from core.bvh import BVH
+    without the Morton clusters (``GeometryPolicy.cluster_from``)."""
+    from core.geometry.bvh import BVH
     rng = np.random.default_rng(9)
     low = rng.uniform(-5, 5, (count, 3))
     high = low + rng.uniform(0.001, 0.05, (count, 3))
@@ -622,7 +627,8 @@ def test_leaf_boxes_hold_each_slots_primitive_within_its_leafs_box(count):
 
 
 def test_trail_tables_hold_each_primitives_leaf_and_each_nodes_parent():
-    from core.bvh import BVH, EMPTY
+    from core.geometry.bvh import BVH
+    from core.geometry.bvh_build import EMPTY
     rng = np.random.default_rng(4)
     low = rng.uniform(-5, 5, (5000, 3))
     ids = rng.permutation(6000)[:5000]
@@ -643,7 +649,8 @@ def test_trail_tables_hold_each_primitives_leaf_and_each_nodes_parent():
 def test_sibling_tables_hold_each_nodes_parents_other_slots():
     """A trail's climbing step from a node meets its parent's other slots (boxes and
     references), and counts the real ones as box tests."""
-    from core.bvh import BVH, EMPTY, WIDTH
+    from core.geometry.bvh import BVH
+    from core.geometry.bvh_build import EMPTY, WIDTH
     rng = np.random.default_rng(5)
     low = rng.uniform(-5, 5, (4000, 3))
     tree = BVH.build(np.arange(4000), low, low + rng.uniform(0.01, 0.2, (4000, 3)))
@@ -680,7 +687,7 @@ def test_trails_find_every_blocker_a_brute_force_finds(count):
     """Boxes as the primitives themselves (a pair blocks where the ray's segment crosses the
     primitive's own box): from the trails (sources in the tree, out of it, none) exactly
     the rays a test of every primitive blocks, in trees of one leaf to many levels."""
-    from core.bvh import BVH
+    from core.geometry.bvh import BVH
     rng = np.random.default_rng(count)
     low = rng.uniform(-5, 5, (count, 3))
     high = low + rng.uniform(0.05, 1.0, (count, 3))
@@ -730,7 +737,7 @@ def test_binary_tree_boxes_are_exactly_their_primitives_bounds(median_up_to, max
     low, high = _mixed_boxes(rng, 3000, 80)
     low[:40], high[:40] = low[40], high[40]
     low, high = np.ascontiguousarray(low.T), np.ascontiguousarray(high.T)
-    tree = bvh.build_binary_sah(low, high, max_leaf=max_leaf, median_up_to=median_up_to)
+    tree = bvh_build.build_binary_sah(low, high, max_leaf=max_leaf, median_up_to=median_up_to)
     assert sorted(tree.order.tolist()) == list(range(low.shape[1]))
     for node in range(len(tree.left)):
         members = tree.order[tree.start[node]:tree.start[node] + tree.count[node]]
@@ -750,14 +757,14 @@ def test_binary_tree_boxes_are_exactly_their_primitives_bounds(median_up_to, max
 
 def test_morton_codes_interleave_each_coordinates_21_bits_and_cells_cut_at_prefixes():
     """``morton_codes`` (spread by table) against bit-by-bit interleaving of the cells,
-    and ``_cells`` (by bisection) against trying every 3-bit prefix in turn."""
+    and ``morton_cells`` (by bisection) against trying every 3-bit prefix in turn."""
     rng = np.random.default_rng(2)
     points = rng.uniform(-3, 7, (3, 500))
     points[:, :5] = points[:, 5:6]
-    codes = bvh.morton_codes(points)
+    codes = cells.morton_codes(points)
     low, extent = points.min(axis=1), np.ptp(points, axis=1).max()
-    cells = ((points - low[:, None]) / extent * (2 ** 21 - 1)).astype(np.int64)
-    expected = [sum(((int(cells[axis, i]) >> bit) & 1) << (3 * bit + axis)
+    grid = ((points - low[:, None]) / extent * (2 ** 21 - 1)).astype(np.int64)
+    expected = [sum(((int(grid[axis, i]) >> bit) & 1) << (3 * bit + axis)
                     for bit in range(21) for axis in range(3)) for i in range(500)]
     assert codes.tolist() == expected
     ordered = np.sort(codes)
@@ -767,7 +774,7 @@ def test_morton_codes_interleave_each_coordinates_21_bits_and_cells_cut_at_prefi
                           != (ordered[:-1] >> np.uint64(shift))]
             if start.sum() * per_cell <= len(ordered):
                 break
-        assert np.array_equal(bvh._cells(ordered, per_cell), start)
+        assert np.array_equal(cells.morton_cells(ordered, per_cell), start)
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
@@ -801,17 +808,19 @@ def test_nearest_hits_by_leaf_slot_match_the_flat_paths(monkeypatch, dtype, sema
     paths, for rays with their own origins and rays from one point (the same roots), in
     both hit rules (the article's textbook roots) and precisions; and the two traversals
     agree for rays sharing an origin without per-sphere terms."""
-    monkeypatch.setattr(aggregate, "SHARED_TERMS_LIMIT", 0)
     scene = _scene(3000)
     settings = core.RenderSettings(semantics=semantics)
-    contexts = [make_context(scene, settings, dtype) for _ in range(2)]
+    no_terms = dataclasses.replace(DEFAULT_POLICY, shared_terms_limit=0)
+    # Sorted front to back and unsorted (``BVH.sorts_nearest``).
+    contexts = [make_context(scene, settings, dtype, geometry_policy=dataclasses.replace(
+        no_terms, sorted_from=sorted_from)) for sorted_from in (0, 10 ** 9)]
     slot_visits = []
     for ctx in contexts:
-        leaf_spheres = ctx.geometry._leaf_spheres
-        monkeypatch.setattr(ctx.geometry, "_leaf_spheres",
+        leaf_spheres = ctx.geometry.tree.leaf_spheres
+        monkeypatch.setattr(ctx.geometry.tree, "leaf_spheres",
                             lambda f=leaf_spheres: slot_visits.append(1) or f())
-    monkeypatch.setattr(aggregate, "BVH_MIN_SPHERES", 10 ** 9)
-    flat = make_context(scene, settings, dtype)
+    flat = make_context(scene, settings, dtype,
+                        geometry_policy=dataclasses.replace(FLAT, shared_terms_limit=0))
     rng = np.random.default_rng(4)
     for case in ("own origins", "one point", "shared origin"):
         origins, directions = _rays(rng, 4000, dtype, None if case == "own origins"
@@ -827,8 +836,7 @@ def test_nearest_hits_by_leaf_slot_match_the_flat_paths(monkeypatch, dtype, sema
         exclude[:2000] = first[:2000]
         assert (first[:2000] >= 1).sum() > 100
         results = []
-        for ctx, sorted_from in zip(contexts + [flat], (0, 10 ** 9, 0)):
-            monkeypatch.setattr(bvh, "SORTED_FROM", sorted_from)   # read on first traversal
+        for ctx in contexts + [flat]:
             origin = ctx.geometry.shared_origin(origins[:, 0]) if share else None
             assert origin is None or origin.tree_terms is None
             batch = RayBatch(origins, directions, 0.0, np.inf, origin, exclude)
@@ -838,8 +846,8 @@ def test_nearest_hits_by_leaf_slot_match_the_flat_paths(monkeypatch, dtype, sema
         if not share:       # (a shared origin's flat spheres take its extended terms)
             assert np.array_equal(p1, p3) and np.array_equal(t1, t3)
         assert ((p1 >= 1) & (p1 < 3001)).any() and (p1 == 0).any() and (p1 < 0).any()
-    assert contexts[0].geometry._tree.sorts_nearest
-    assert not contexts[1].geometry._tree.sorts_nearest
+    assert contexts[0].geometry.tree.bvh.sorts_nearest
+    assert not contexts[1].geometry.tree.bvh.sorts_nearest
     assert slot_visits
 
 
@@ -860,7 +868,6 @@ def test_a_binary_build_in_parts_is_the_tree_one_build_makes(monkeypatch, thread
     of one and of four, parked small nodes, coincident boxes (median splits) and a root
     split that leaves almost everything on one side (cut again)."""
     from concurrent.futures import ThreadPoolExecutor
-    monkeypatch.setattr(bvh, "PARALLEL_FROM", 500)
     rng = np.random.default_rng(7)
     low, high = _mixed_boxes(rng, 3000, 80)
     if case == "coincident":
@@ -869,15 +876,16 @@ def test_a_binary_build_in_parts_is_the_tree_one_build_makes(monkeypatch, thread
         low[0], high[0] = -1e4, 1e4
     low, high = np.ascontiguousarray(low.T), np.ascontiguousarray(high.T)
     joins = []
-    joined = bvh._joined
-    monkeypatch.setattr(bvh, "_joined", lambda *a: joins.append(1) or joined(*a))
+    joined = bvh_build._joined
+    monkeypatch.setattr(bvh_build, "_joined", lambda *a: joins.append(1) or joined(*a))
     fields = ("low", "high", "left", "start", "count", "depth", "order")
     for max_leaf, median_up_to in ((4, 1), (1, 16)):
-        one = bvh.build_binary_sah(low, high, max_leaf=max_leaf, median_up_to=median_up_to)
+        one = bvh_build.build_binary_sah(low, high, max_leaf=max_leaf,
+                                         median_up_to=median_up_to)
         with ThreadPoolExecutor(threads) as pool:
-            parts = bvh.build_binary_sah(low, high, max_leaf=max_leaf,
-                                         median_up_to=median_up_to, pool=pool,
-                                         threads=threads)
+            parts = bvh_build.build_binary_sah(low, high, max_leaf=max_leaf,
+                                               median_up_to=median_up_to, pool=pool,
+                                               threads=threads, parallel_from=500)
         _same_arrays(parts, one, fields)
     assert len(joins) >= 2 * (threads - 1)     # it was cut (twice a build at least)
 
@@ -887,17 +895,16 @@ def test_a_tree_built_on_threads_is_the_tree_one_thread_builds(monkeypatch, clus
     """``BVH.build`` on 2 threads (the primitives' planes and the leaves' beside the rest,
     the SAH build in parts) gives the one-thread tree, bit for bit, over primitives and over
     Morton clusters of mixed sizes."""
-    monkeypatch.setattr(bvh, "PARALLEL_FROM", 500)
-    monkeypatch.setattr(bvh, "CLUSTER_FROM", cluster_from)
+    policy = dataclasses.replace(DEFAULT_POLICY, parallel_from=500, cluster_from=cluster_from)
     rng = np.random.default_rng(8)
     low, high = _mixed_boxes(rng, 6000, 100)
     ids = rng.permutation(9000)[:6100]
     calls = []
-    parallel = bvh._parallel_sah
-    monkeypatch.setattr(bvh, "_parallel_sah", lambda *a: calls.append(1) or parallel(*a))
-    one = bvh.BVH.build(ids, low, high)
+    parallel = bvh_build._parallel_sah
+    monkeypatch.setattr(bvh_build, "_parallel_sah", lambda *a: calls.append(1) or parallel(*a))
+    one = bvh.BVH.build(ids, low, high, policy=policy)
     assert not calls
-    two = bvh.BVH.build(ids, low, high, threads=2)
+    two = bvh.BVH.build(ids, low, high, threads=2, policy=policy)
     assert calls
     _same_arrays(two, one, ("root_box", "blocks", "children", "leaves", "child_counts",
                             "depths", "leaf_boxes"))
@@ -907,14 +914,16 @@ def test_a_tree_built_on_threads_is_the_tree_one_thread_builds(monkeypatch, clus
 def test_a_render_builds_its_tree_on_its_threads(monkeypatch):
     """``core.render`` builds the tree on as many threads as it renders tiles with (the
     workers wait for the context meanwhile), one thread for threads=1; the same image."""
-    monkeypatch.setattr(bvh, "PARALLEL_FROM", 500)
+    policy = dataclasses.replace(DEFAULT_POLICY, parallel_from=500)
     calls = []
-    parallel = bvh._parallel_sah
-    monkeypatch.setattr(bvh, "_parallel_sah",
+    parallel = bvh_build._parallel_sah
+    monkeypatch.setattr(bvh_build, "_parallel_sah",
                         lambda *a: calls.append(a[-1]) or parallel(*a))
     scene = _scene(3000)
-    one = core.render(scene, core.RenderSettings(threads=1, tile_size=32))
+    one = core.render(scene, core.RenderSettings(threads=1, tile_size=32),
+                      geometry_policy=policy)
     assert calls == []
-    two = core.render(scene, core.RenderSettings(threads=2, tile_size=32))
+    two = core.render(scene, core.RenderSettings(threads=2, tile_size=32),
+                      geometry_policy=policy)
     assert calls == [2]
     assert np.array_equal(one.image, two.image)

@@ -11,14 +11,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import dataclasses
+
 import core
-from core import aggregate, bins
-from core.bins import OriginBins, ray_cells
 from core.context import RayStats, make_context
+from core.geometry import DEFAULT_POLICY, bins
+from core.geometry.bins import OriginBins
+from core.geometry.cells import direction_cells
 from core.rays import RayBatch
 from test_core_bins import MATERIALS, _silhouette_directions, _unit
 
-ROUNDS = bins.WALK_ROUNDS
+ROUNDS = DEFAULT_POLICY.walk_rounds
+#: Depth-ordered bins of as many entries a primitive as the cells make.
+UNCAPPED = dataclasses.replace(DEFAULT_POLICY, max_depth_entries_per_primitive=1000)
 
 
 def _dense_spheres(rng, count, duplicates=0):
@@ -50,17 +55,16 @@ def _directions(rng, origin, centres, radii, count):
                           axis=1)
 
 
-def test_every_hit_lies_beyond_its_entrys_near_in_its_cell(monkeypatch):
+def test_every_hit_lies_beyond_its_entrys_near_in_its_cell():
     """Rays from the origin into a dense slab: every sphere a ray enters at t is listed in
     the ray's cell with near <= t (the cone bound is a lower bound, the cone culling drops
     nothing a ray meets), and each cell's entries are nearest first."""
-    monkeypatch.setattr(bins, "MAX_DEPTH_ENTRIES_PER_PRIMITIVE", 1000)
     rng = np.random.default_rng(11)
     centres, radii = _dense_spheres(rng, 3000)
     origin = np.zeros(3)
     grid = OriginBins.build(origin, np.arange(len(radii)), centres - radii[:, None],
                             centres + radii[:, None], cells=32, by_depth=True,
-                            bounds=(centres, radii))
+                            bounds=(centres, radii), policy=UNCAPPED)
     assert grid.by_depth and grid.cells == 32
     # Random rays, rays grazing silhouettes, and rays through the cells' corners and edges
     # (on the face looking down -z, nudged into each neighbouring cell): the cones' extremes.
@@ -72,7 +76,7 @@ def test_every_hit_lies_beyond_its_entrys_near_in_its_cell(monkeypatch):
                                  *(_unit(d) for d in nudged)], axis=1)
     t = _sphere_hits(origin, directions, centres, radii)
     assert np.isfinite(t).sum() > 20000
-    for row, cell in enumerate(ray_cells(directions, grid.cells)):
+    for row, cell in enumerate(direction_cells(directions, grid.cells)):
         met = np.flatnonzero(np.isfinite(t[row]))
         face, rest = divmod(int(cell), grid.cells ** 2)
         listed = grid.cell_entries(cell)
@@ -92,19 +96,17 @@ def test_every_hit_lies_beyond_its_entrys_near_in_its_cell(monkeypatch):
 
 
 @pytest.mark.parametrize("rounds", [ROUNDS, (1,), (1, 2)])
-def test_the_walk_finds_the_nearest_hit_ties_to_the_lower_id(monkeypatch, rounds):
+def test_the_walk_finds_the_nearest_hit_ties_to_the_lower_id(rounds):
     """A walk over the slab, with duplicated spheres (exact ties), in the default rounds and
     cut short (one or two rounds: the rays still walking are handed back): every ray's
     answer is brute force's nearest hit, ties to the lower id, or it is handed back; t_max
     bounds the hits (a ray already stopped nearer by something else finds nothing)."""
-    monkeypatch.setattr(bins, "WALK_ROUNDS", rounds)
-    monkeypatch.setattr(bins, "MAX_DEPTH_ENTRIES_PER_PRIMITIVE", 1000)
     rng = np.random.default_rng(12)
     centres, radii = _dense_spheres(rng, 2000, duplicates=600)
     origin = np.zeros(3)
     ids = np.arange(len(radii))
     grid = OriginBins.build(origin, ids, centres - radii[:, None], centres + radii[:, None],
-                            cells=32, by_depth=True, bounds=(centres, radii))
+                            cells=32, by_depth=True, bounds=(centres, radii), policy=UNCAPPED)
     directions = _directions(rng, origin, centres, radii, 3000)
     # Aimed at the duplicated spheres' centres: hits that tie.
     aimed = _unit((centres[-600:] - origin).T)
@@ -128,7 +130,7 @@ def test_the_walk_finds_the_nearest_hit_ties_to_the_lower_id(monkeypatch, rounds
         return visit(r, prims, reach)
 
     reach = t_max.copy()
-    found, rest = grid.walk(grid.plan(directions), reach, visiting, accept)
+    found, rest = grid.walk(grid.plan(directions), reach, visiting, accept, rounds=rounds)
     masked = np.where(t_all < t_max[:, None], t_all, np.inf)
     nearest = masked.min(axis=1)
     lowest = np.where(np.isfinite(nearest),
@@ -164,30 +166,29 @@ def _slab_scene(count=4000, triangles=80, seed=13):
                       lights=(core.PointLight((3, 6, 4)),))
 
 
-def _depth_or_tree(monkeypatch, depth: bool):
-    """Depth-ordered bins for every origin of the frame, or none.  (Id-ordered bins are
-    refused, as in a field dense enough from every side: the slab is kept small.)"""
-    monkeypatch.setattr(bins, "MAX_MEAN_CANDIDATES", 0.0)
-    monkeypatch.setattr(aggregate, "DEPTH_RAYS_PER_PRIMITIVE", 0.0 if depth else np.inf)
-    monkeypatch.setattr(aggregate, "DEPTH_BINS_CROSSINGS", 0.0)
+def _depth_or_tree(depth: bool, rounds=ROUNDS):
+    """A policy of depth-ordered bins for every origin of the frame, or none.  (Id-ordered
+    bins are refused, as in a field dense enough from every side: the slab is kept small.)"""
+    return dataclasses.replace(DEFAULT_POLICY, max_mean_candidates=0.0,
+                               depth_rays_per_primitive=0.0 if depth else np.inf,
+                               depth_bins_crossings=0.0, walk_rounds=rounds)
 
 
 @pytest.mark.parametrize("semantics", ["default", "article"])
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 @pytest.mark.parametrize("rounds", [ROUNDS, (1,)])
-def test_depth_bins_answer_as_the_tree_does(monkeypatch, dtype, semantics, rounds):
+def test_depth_bins_answer_as_the_tree_does(dtype, semantics, rounds):
     """A dense slab of spheres (with duplicates) and triangles in the tree, a floor beside
     it: rays from the eye, random and grazing the spheres' silhouettes, and rays ignoring
     what they hit first, get the tree's nearest hits (distance, primitive, barycentrics)
     through depth-ordered bins, with a fraction of its box tests; cut to one round, the
     rays handed to the tree still get the tree's answer."""
-    monkeypatch.setattr(bins, "WALK_ROUNDS", rounds)
     scene = _slab_scene()
     settings = core.RenderSettings(semantics=semantics)
     answers = []
     for depth in (True, False):
-        _depth_or_tree(monkeypatch, depth)
-        geometry = make_context(scene, settings, dtype).geometry
+        geometry = make_context(scene, settings, dtype,
+                                geometry_policy=_depth_or_tree(depth, rounds)).geometry
         rng = np.random.default_rng(3)
         origin = np.array([0.0, 0.0, 2.0])
         sphere_set = scene.sphere_sets[0]
@@ -199,7 +200,7 @@ def test_depth_bins_answer_as_the_tree_does(monkeypatch, dtype, semantics, round
             RayBatch(origin[:, None], directions, 0.0, np.inf, shared), stats)
         behind = geometry.intersect(
             RayBatch(origin[:, None], directions, 0.0, np.inf, shared, primitive), stats)
-        used = [b for b in geometry._bins.values() if b is not None]
+        used = [b for b in geometry.bins.held.values() if b is not None]
         answers.append((t, primitive, bary, behind, stats.node_tests, used))
     (t1, p1, b1, e1, nodes1, used1), (t2, p2, b2, e2, nodes2, used2) = answers
     assert [b.by_depth for b in used1] == [True] and used2 == []
@@ -216,7 +217,7 @@ def test_depth_bins_answer_as_the_tree_does(monkeypatch, dtype, semantics, round
 @pytest.mark.parametrize("semantics,precision", [("default", "float32"),
                                                  ("default", "float64"),
                                                  ("article", "float64")])
-def test_renders_through_depth_bins_are_the_trees(monkeypatch, semantics, precision):
+def test_renders_through_depth_bins_are_the_trees(semantics, precision):
     """The slab rendered on two threads with the eye's rays through depth-ordered bins is
     the tree's image exactly, with fewer box tests; shadow segments keep to the tree."""
     scene = _slab_scene()
@@ -224,8 +225,7 @@ def test_renders_through_depth_bins_are_the_trees(monkeypatch, semantics, precis
                                    parallelism="threads")
     images = []
     for depth in (True, False):
-        _depth_or_tree(monkeypatch, depth)
-        result = core.render(scene, settings)
+        result = core.render(scene, settings, geometry_policy=_depth_or_tree(depth))
         images.append((result.image, result.stats.node_tests))
     (binned, nodes1), (tree, nodes2) = images
     assert np.array_equal(binned, tree)
@@ -237,30 +237,32 @@ def test_depth_bins_only_where_a_frame_has_rays_enough():
     more primitives than that gets no depth-ordered bins, and rays then go to the tree."""
     scene = _slab_scene()
     geometry = make_context(scene, core.RenderSettings(), np.float64).geometry
-    assert geometry.rays_per_origin == 64 * 40 < len(geometry._bins_boxes()[0])
+    assert geometry.bins.rays_per_origin == 64 * 40 < len(geometry.bins.boxes()[0])
     origin = np.array([0.0, 0.0, 2.0])
     directions = _unit(np.random.default_rng(4).normal(size=(3, 3000)))
     stats = RayStats()
     geometry.intersect(RayBatch(origin[:, None], directions, 0.0, np.inf,
                                 geometry.shared_origin(origin)), stats)
     assert stats.node_tests > 0
-    assert not any(b is not None and b.by_depth for b in geometry._bins.values())
+    assert not any(b is not None and b.by_depth for b in geometry.bins.held.values())
 
 
-def test_depth_bins_only_in_dense_fields(monkeypatch):
+def test_depth_bins_only_in_dense_fields():
     """With rays enough, a tree whose random lines cross few leaf boxes (a mesh's surface:
-    ``BVH.leaf_crossings`` under DEPTH_BINS_CROSSINGS) gets no depth-ordered bins, and a
+    ``BVH.leaf_crossings`` under ``depth_bins_crossings``) gets no depth-ordered bins, and a
     dense one does."""
-    monkeypatch.setattr(bins, "MAX_MEAN_CANDIDATES", 0.0)
-    monkeypatch.setattr(aggregate, "DEPTH_RAYS_PER_PRIMITIVE", 0.0)
+    policy = dataclasses.replace(DEFAULT_POLICY, max_mean_candidates=0.0,
+                                 depth_rays_per_primitive=0.0)
     scene = _slab_scene()
-    geometry = make_context(scene, core.RenderSettings(), np.float64).geometry
-    crossings = geometry._tree.leaf_crossings
+    geometry = make_context(scene, core.RenderSettings(), np.float64,
+                            geometry_policy=policy).geometry
+    crossings = geometry.tree.bvh.leaf_crossings
     origin = np.array([0.0, 0.0, 2.0])
     directions = _unit(np.random.default_rng(4).normal(size=(3, 3000)))
     for floor, expected in ((crossings * 1.01, False), (crossings * 0.99, True)):
-        monkeypatch.setattr(aggregate, "DEPTH_BINS_CROSSINGS", floor)
-        geometry = make_context(scene, core.RenderSettings(), np.float64).geometry
+        geometry = make_context(scene, core.RenderSettings(), np.float64,
+                                geometry_policy=dataclasses.replace(
+                                    policy, depth_bins_crossings=floor)).geometry
         geometry.intersect(RayBatch(origin[:, None], directions, 0.0, np.inf,
                                     geometry.shared_origin(origin)), RayStats())
-        assert any(b is not None and b.by_depth for b in geometry._bins.values()) == expected
+        assert any(b is not None and b.by_depth for b in geometry.bins.held.values()) == expected

@@ -1,5 +1,5 @@
-"""The few-sphere kernels (core.intersect.FewSpheres, the aggregate's path for bundles culled
-to a handful of spheres) against the (k, n) broadcast kernels they replace: the same roots
+"""The few-sphere kernels (core.geometry.spheres.FewSpheres, the flat culling's path for bundles
+culled to a handful of spheres) against the (k, n) broadcast kernels they replace: the same roots
 in the same order, so the same nearest hits and the same blocked segments, bit for bit, for
 every root formula and hit rule, shared and own origins, float64 and float32."""
 
@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.intersect import FewSpheres, OriginTerms, first_hit_distance, offset_roots, origin_roots
+from core.geometry.rules import ARTICLE_RULES, HIT_RULES
+from core.geometry.spheres import FewSpheres, OriginTerms, offset_roots, origin_roots
 
 
 def _scene(dtype, shared):
@@ -33,11 +34,11 @@ def _broadcast_roots(centers, radii, origins, directions, terms, textbook, spher
     if terms is not None:
         return origin_roots(terms.f[spheres].T[:, :, None], terms.c_prime[spheres][:, None],
                             terms.article_c[spheres][:, None], radii[spheres][:, None],
-                            directions[:, None, :], article=textbook)
+                            directions[:, None, :], textbook=textbook)
     dtype = directions.dtype
     return offset_roots(origins[:, None, :] - centers[spheres].T.astype(dtype)[:, :, None],
                         directions[:, None, :], radii[spheres].astype(dtype)[:, None],
-                        article=textbook)
+                        textbook=textbook)
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
@@ -56,8 +57,9 @@ def test_few_spheres_match_the_broadcast_kernels(dtype, shared, textbook, articl
 
     t_near, t_far, valid = _broadcast_roots(centers, radii, origins, directions, terms,
                                             textbook, spheres)
+    rules = ARTICLE_RULES if article else HIT_RULES
     with np.errstate(invalid="ignore"):
-        distances = first_hit_distance(t_near, t_far, valid, t_min, article=article)
+        distances = rules.first_hit(t_near, t_far, valid, t_min)
     distances[~(distances < t_max)] = np.inf
     if exclude is not None:
         distances[ids[spheres][:, None] == exclude[None, :]] = np.inf
@@ -66,7 +68,7 @@ def test_few_spheres_match_the_broadcast_kernels(dtype, shared, textbook, articl
     expected = np.where(np.isfinite(expected_t), ids[spheres][row], -1)
 
     few = FewSpheres(centers, radii, origins, directions, terms, textbook=textbook,
-                     article=article)
+                     rules=rules)
     best_t, best = np.full(n, np.inf, dtype), np.full(n, -1, np.intp)
     few.nearest(spheres, t_min, t_max, exclude, ids, best_t, best)
     assert (best >= 0).sum() > n // 10        # the case hits something

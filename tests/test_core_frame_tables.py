@@ -14,8 +14,12 @@ import numpy as np
 import pytest
 
 import core
-from core import aggregate, bins, bvh, workers
+from core import workers
 from core.context import make_context
+from core.progressive import ProgressiveFrame, WorkQueue
+from core.geometry import DEFAULT_POLICY, bins, bvh
+from core.geometry.spheres import Spheres
+from core.geometry.threads import thread_pool
 from core.render import _tiles, render_tile
 from core.shading import traces_from_points
 from core.trace import traces_bounces
@@ -65,20 +69,41 @@ def _counting(monkeypatch):
         cached = functools.cached_property(table)
         cached.__set_name__(bvh.BVH, name)
         monkeypatch.setattr(bvh.BVH, name, cached)
-    monkeypatch.setattr(aggregate.Aggregate, "_leaf_ordered_spheres",
-                        counted("leaf spheres", aggregate.Aggregate._leaf_ordered_spheres))
+    monkeypatch.setattr(Spheres, "by_slot", counted("leaf spheres", Spheres.by_slot))
     return counts
 
 
+def _frame_on(ctx, camera, settings, shape, dtype):
+    """The frame's image from ``render_tile`` on ``ctx`` alone, tile by tile in this thread:
+    the Whitted integrator's tiles once each, the path integrator's in its progressive passes
+    (``core.progressive``), as the render's workers run them."""
+    image = np.zeros(shape, dtype)
+    tiles = _tiles(camera.width, camera.height, settings.tile_size)
+    if settings.integrator == "whitted":
+        for tile in tiles:
+            rgba, _ = render_tile(ctx, camera, tile)
+            y0, y1, x0, x1 = tile
+            image[y0:y1, x0:x1] = rgba
+        return image
+    queue = WorkQueue(ProgressiveFrame(settings, tiles, image, guides=False))
+    while queue:
+        job = queue.popleft()
+        sums, _ = render_tile(ctx, camera, job)
+        queue.frame.land(job, sums)
+        queue.refill()
+    return image
+
+
+@pytest.mark.parametrize("integrator", ["path", "whitted"])
 def test_workers_get_the_frames_tables_and_build_none(small_renders_in_processes,
-                                                       monkeypatch):
+                                                       monkeypatch, integrator):
     """The render's shared payload, loaded as a worker loads it (``_shared_loads`` over a
     private mapping of its file), holds the eye's depth-ordered bins, the trails' tables and
     the leaf-ordered spheres as out-of-band arrays; every tile traced on it builds no table
     (the counts stay empty), and its image is the one the workers and threads made."""
     scene = _cloud_scene(SUN)
     settings = core.RenderSettings(threads=2, parallelism="processes", tile_size=32,
-                                   precision="float64")
+                                   precision="float64", integrator=integrator, samples=4)
     loaded = []
     real_payload = workers._SharedPayload
 
@@ -94,23 +119,19 @@ def test_workers_get_the_frames_tables_and_build_none(small_renders_in_processes
     result = core.render(scene, settings)
     assert result.parallelism == "processes"
     (ctx, camera), layout = loaded[0]
-    geometry, tree = ctx.geometry, ctx.geometry._tree
-    eye = [b for b in geometry._bins.values() if b is not None]
+    geometry, tree = ctx.geometry, ctx.geometry.tree.bvh
+    eye = [b for b in geometry.bins.held.values() if b is not None]
     assert [b.by_depth for b in eye] == [True]
     assert {"_trail_tables", "_sibling_tables", "_leaf_fill", "_nearest_levels"} \
         <= set(vars(tree))
-    assert geometry._leaf_rows is not None
+    assert geometry.tree.holds_leaf_spheres
     # The tables' large arrays travelled out of band, in the shared file.
     shipped = {size for _, size, _ in layout}
     assert eye[0].primitives.nbytes in shipped and tree._sibling_tables[0].nbytes in shipped
-    assert geometry._leaf_rows[0].nbytes in shipped
+    assert geometry.tree.leaf_spheres()[0].nbytes in shipped
 
     counts = _counting(monkeypatch)
-    image = np.zeros_like(result.image)
-    for tile in _tiles(camera.width, camera.height, settings.tile_size):
-        rgba, stats = render_tile(ctx, camera, tile)
-        y0, y1, x0, x1 = tile
-        image[y0:y1, x0:x1] = rgba
+    image = _frame_on(ctx, camera, settings, result.image.shape, result.image.dtype)
     assert counts == {}
     assert np.array_equal(image, result.image)
     threads = core.render(scene, dataclasses.replace(settings, parallelism="threads"))
@@ -146,31 +167,31 @@ def test_a_frame_builds_only_the_tables_its_rays_use(case):
     assert traces_bounces(ctx) == (case not in ("mirrors off", "matte"))
     geometry.build_frame_tables(ctx.camera_origin.position, bounces=traces_bounces(ctx),
                                 trails=traces_from_points(ctx), threads=2)
-    tree = vars(geometry._tree)
+    tree = vars(geometry.tree.bvh)
     assert ("_trail_tables" in tree) == ("_sibling_tables" in tree) == (case == "sun")
-    assert bool(geometry._bins) == (case != "few pixels")
-    assert (geometry._leaf_rows is not None) == (case not in ("mirrors off", "matte"))
+    assert bool(geometry.bins.held) == (case != "few pixels")
+    assert geometry.tree.holds_leaf_spheres == (case not in ("mirrors off", "matte"))
 
 
 def test_the_article_scene_builds_no_table():
     ctx = make_context(core.article_scene(64, 48), core.RenderSettings(semantics="article"),
                        np.float64)
     ctx.geometry.build_frame_tables(ctx.camera_origin.position, threads=2)
-    assert ctx.geometry._tree is None and ctx.geometry._bins == {}
+    assert ctx.geometry.tree is None and ctx.geometry.bins is None
 
 
 @pytest.mark.parametrize("count", [3000, 20_000])
-def test_depth_bins_built_on_threads_are_one_threads(monkeypatch, count):
+def test_depth_bins_built_on_threads_are_one_threads(count):
     """The eye's depth-ordered bins made on a pool of threads (faces and chunks of boxes a
-    job, ``DEPTH_CHUNK`` forced small) are one thread's, array for array."""
-    monkeypatch.setattr(bins, "DEPTH_CHUNK", 1000)
+    job, ``bins_chunk`` made small) are one thread's, array for array."""
     scene = _cloud_scene(POINT, count=count)
     geometry = make_context(scene, core.RenderSettings(), np.float64).geometry
-    ids, low, high = geometry._bins_boxes()
-    options = dict(by_depth=True, bounds=geometry._bounding_spheres(ids), rounding=2e-16)
+    ids, low, high = geometry.bins.boxes()
+    options = dict(by_depth=True, bounds=geometry.bins.bounding_spheres(ids), rounding=2e-16,
+                   policy=dataclasses.replace(DEFAULT_POLICY, bins_chunk=1000))
     made = []
     for threads in (1, 2):
-        with bvh.thread_pool(threads) as pool:
+        with thread_pool(threads) as pool:
             made.append(bins.OriginBins.build(np.array([0.0, 0.0, 2.0]), ids, low, high,
                                               pool=pool, **options))
     one, two = made
@@ -199,4 +220,4 @@ def test_blenders_look_bounces_only_off_mirrors_and_through_surfaces(surface, bo
     assert traces_bounces(ctx) == bounces
     ctx.geometry.build_frame_tables(ctx.camera_origin.position, bounces=traces_bounces(ctx),
                                     trails=False, threads=1)
-    assert (ctx.geometry._leaf_rows is not None) == bounces
+    assert ctx.geometry.tree.holds_leaf_spheres == bounces

@@ -14,9 +14,9 @@ import pytest
 
 import core
 from core.context import RayStats, make_context
-from core.intersect import OriginTerms
+from core.rays import RayBatch
+from core.geometry.spheres import OriginTerms
 from core.precision import choose_precision
-from core.trace import nearest_sphere
 from oracle import exact_hit, exact_roots
 
 DTYPES = [np.float64, np.float32]
@@ -33,10 +33,10 @@ def _shoot(ctx, origins, directions, exclude=None):
     dirs = np.asarray(directions, np.float64)
     dirs = (dirs / np.linalg.norm(dirs, axis=1, keepdims=True)).astype(ctx.dtype)
     origins = np.asarray(origins, np.float64)
-    terms = OriginTerms.at(origins[0], ctx.centers, ctx.radii) if len(origins) == 1 else None
+    shared = ctx.geometry.shared_origin(origins[0]) if len(origins) == 1 else None
     # The tracer's bundles are (3, n): one row per component.
-    return nearest_sphere(ctx, origins.T.astype(ctx.dtype), dirs.T.copy(), 0.0, np.inf,
-                          exclude, RayStats(), terms)
+    batch = RayBatch(origins.T.astype(ctx.dtype), dirs.T.copy(), 0.0, np.inf, shared, exclude)
+    return ctx.geometry.intersect(batch, RayStats())[:2]
 
 
 def _relative_error(t, exact):
@@ -73,7 +73,7 @@ def test_floor_needs_float64_and_shared_origin_terms_beat_the_textbook_form():
     """The article's c = |f|^2 - r^2 cancels ~8 digits on the floor.  In float32 every form is
     off by more than 1e-4 (why 'auto' picks float64 for the floor); in float64 the shared-origin
     form with its extended-precision c' is 100x closer to the oracle than the textbook one."""
-    from core.intersect import offset_roots, origin_roots
+    from core.geometry.spheres import offset_roots, origin_roots
     radius = 8999.3
     centers = np.array([[0.0, -9000.0, 0.0]])
     radii = np.array([radius])
@@ -83,9 +83,9 @@ def test_floor_needs_float64_and_shared_origin_terms_beat_the_textbook_form():
     origin = np.array([[0.0, 0.0, 1.0]])
     exact = np.array([float(exact_roots(origin[0], di, centers[0], radius)[0]) for di in d])
 
-    def error(dtype, article):
+    def error(dtype, textbook):
         f = (origin - centers).T.astype(dtype)                       # (3, 1): one ray per column
-        t = offset_roots(f, d.T.astype(dtype), radii.astype(dtype), article=article)[0]
+        t = offset_roots(f, d.T.astype(dtype), radii.astype(dtype), textbook=textbook)[0]
         return np.abs(t - exact).max()
 
     assert error(np.float32, True) > 1e-4 and error(np.float32, False) > 1e-4

@@ -21,6 +21,8 @@ def camera(size=16, lens=200.0):
 
 
 def centre(scene, **settings):
+    # A narrow pixel filter: every sample at the pixel's centre, so the units are exact.
+    settings = {"filter_type": "BOX", "filter_width": 0.01, **settings}
     image = core.render(scene, core.RenderSettings(**settings)).image
     h, w = image.shape[:2]
     return image[h // 2 - 1:h // 2 + 1, w // 2 - 1:w // 2 + 1, :3].mean(axis=(0, 1))
@@ -154,8 +156,10 @@ def test_world_light_is_occluded_by_other_spheres_unless_world_samples_is_0():
     side = core.BlenderCamera(((0, 0, 1, 10), (1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 0, 1)),
                               resolution_x=32, resolution_y=32, lens=60)   # from +X
     scene = core.Scene(side, spheres, background=(1, 1, 1), ambient=(1, 1, 1))
-    occluded = core.render(scene).image
-    open_sky = core.render(scene, core.RenderSettings(world_samples=0)).image
+    # (World Samples are the Whitted integrator's.)
+    occluded = core.render(scene, core.RenderSettings(integrator="whitted")).image
+    open_sky = core.render(scene, core.RenderSettings(integrator="whitted",
+                                                      world_samples=0)).image
     covered = open_sky[..., 3] == 1
     np.testing.assert_allclose(open_sky[covered, :3], 0.5)   # albedo x world, unoccluded
     assert (occluded[covered, :3] <= 0.5 + 1e-12).all()
@@ -191,7 +195,16 @@ def test_a_white_principled_ball_under_a_white_world_reflects_it_unchanged_to_it
     for material in (principled, core.SurfaceMaterial(diffuse=(1.0, 1.0, 1.0))):
         scene = core.Scene(camera(size=48, lens=120.0), grey_ball(material),
                            background=(1, 1, 1), ambient=(1, 1, 1))
-        image = core.render(scene).image
+        # Whitted integrates the world in closed form: exactly 1.
+        image = core.render(scene, core.RenderSettings(integrator="whitted")).image
         covered = image[..., 3] == 1
         assert covered.sum() > 300
         np.testing.assert_allclose(image[covered, :3], 1.0, atol=2e-3)
+        # Paths sample it: 1 within their noise, over the ball and over its rim.
+        image = core.render(scene, core.RenderSettings(samples=64, noise_threshold=0)).image
+        covered = image[..., 3] == 1
+        rim = covered & ~np.pad(covered[1:-1, 1:-1] & covered[2:, 1:-1] & covered[:-2, 1:-1]
+                                & covered[1:-1, 2:] & covered[1:-1, :-2], 1)
+        assert rim.sum() > 30
+        assert image[covered, :3].mean() == pytest.approx(1.0, abs=0.01)
+        assert image[rim, :3].mean() == pytest.approx(1.0, abs=0.03)

@@ -1,4 +1,4 @@
-"""A floor's reflections of the camera's rays (``Aggregate._mirror_groups``): their lines pass
+"""A floor's reflections of the camera's rays (``DirectionBins._mirror_groups``): their lines pass
 near the eye's mirror image, so direction bins around that image (boxes grown by the slack)
 answer them, with the tree's hits ray for ray and far fewer box tests; rays whose lines miss
 the image (a wrong ``arrived_from``, no ``arrived_from``) are the tree's as before."""
@@ -8,9 +8,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import dataclasses
+
 import core
-from core import aggregate
 from core.context import RayStats, make_context
+from core.geometry import DEFAULT_POLICY
 from core.rays import RayBatch
 
 MATERIALS = (core.Material(reflection=0.5), core.Material(diffuse=(0.8, 0.2, 0.1)))
@@ -65,16 +67,15 @@ def _floor_reflections(geometry, dtype, arrived_from):
 @pytest.mark.parametrize("floor", ["sphere", "plane"])
 @pytest.mark.parametrize("semantics", ["default", "article"])
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
-def test_a_floors_reflections_are_answered_as_the_tree_does(monkeypatch, floor, semantics,
-                                                            dtype):
+def test_a_floors_reflections_are_answered_as_the_tree_does(floor, semantics, dtype):
     """The floor's mirror rays get the tree's nearest hits (distance, primitive,
     barycentrics) bit for bit, with under a third of its box tests; given a wrong point or
     none, they go to the tree, with the same hits."""
     scene = _scene(floor)
     settings = core.RenderSettings(semantics=semantics)
     binned = make_context(scene, settings, dtype).geometry
-    monkeypatch.setattr(aggregate, "BINS_MAX_PRIMITIVES", -1)
-    tree = make_context(scene, settings, dtype).geometry
+    tree = make_context(scene, settings, dtype, geometry_policy=dataclasses.replace(
+        DEFAULT_POLICY, bins_max_primitives=-1)).geometry
     answers = []
     for geometry, arrived_from in ((binned, EYE), (tree, EYE), (binned, EYE + (0.0, 0.5, 0.0)),
                                    (binned, None)):
@@ -100,14 +101,14 @@ def test_mirror_bins_are_built_once_per_image():
     geometry = make_context(_scene("plane"), core.RenderSettings(), np.float64).geometry
     rays = _floor_reflections(geometry, np.float64, EYE)
     geometry.intersect(rays, RayStats())
-    mirror_bins = [key for key in geometry._bins if key[1]]
+    mirror_bins = [key for key in geometry.bins.held if key[1]]
     assert len(mirror_bins) == 1
     assert len({int(s) for s in rays.source}) == 2
 
 
 @pytest.mark.parametrize("semantics,precision", [("article", "float64"), ("default", "float32"),
                                                  ("default", "float64")])
-def test_renders_through_mirror_bins_are_the_trees(monkeypatch, semantics, precision):
+def test_renders_through_mirror_bins_are_the_trees(semantics, precision):
     """A mirror floor under 600 spheres (the article's reflection, or a Principled metal of
     roughness 0 for Blender's look, whose mirror rays come from ``core.bsdf``): the image is
     the one the tree alone gives, with fewer box tests (the first bounce's floor rays went
@@ -127,10 +128,12 @@ def test_renders_through_mirror_bins_are_the_trees(monkeypatch, semantics, preci
                        spheres=(core.Sphere((0, -9001.2, 0), 9000.0, floor_material,
                                             name="floor"),),
                        lights=(core.PointLight((2, 5, 3)),))
-    settings = core.RenderSettings(semantics=semantics, precision=precision, threads=1)
+    # (The Whitted integrator's bounces carry the eye's position to the floor's rays.)
+    settings = core.RenderSettings(semantics=semantics, precision=precision, threads=1,
+                                   integrator="whitted")
     mirrored = core.render(scene, settings)
-    monkeypatch.setattr(aggregate, "MIRROR_SLACK", 0.0)
-    tree = core.render(scene, settings)
+    tree = core.render(scene, settings,
+                       geometry_policy=dataclasses.replace(DEFAULT_POLICY, mirror_slack=0.0))
     assert np.array_equal(mirrored.image, tree.image)
     assert mirrored.stats.node_tests < 0.8 * tree.stats.node_tests
     assert mirrored.stats.reflection_rays > 10000

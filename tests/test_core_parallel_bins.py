@@ -1,5 +1,5 @@
-"""A sun's shadow rays through parallel bins (``core.bins.ParallelBins``): a tree of spheres
-answers rays that all leave along one direction, unbounded, from the spheres binned across
+"""A sun's shadow rays through parallel bins (``core.geometry.bins.ParallelBins``): a tree of
+spheres answers rays that all leave along one direction, unbounded, from the spheres binned across
 that direction, with exactly the blocked rays of the tree and of every sphere tested."""
 
 from __future__ import annotations
@@ -7,10 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import dataclasses
+
 import core
-from core import aggregate
-from core.bins import ParallelBins
 from core.context import RayStats, make_context
+from core.geometry import DEFAULT_POLICY
+from core.geometry.bins import ParallelBins
 from core.rays import RayBatch
 
 MATERIAL = core.SurfaceMaterial(diffuse=(0.6, 0.5, 0.4))
@@ -32,17 +34,17 @@ def _field(count=3000, seed=0):
                       background=(0.05, 0.05, 0.05), sphere_sets=(field,))
 
 
-def _contexts(monkeypatch, dtype):
+def _contexts(dtype):
     """(a tree whose sun rays go through parallel bins, the same tree without them, every
     sphere tested flat)."""
     scene = _field()
     binned = make_context(scene, core.RenderSettings(), dtype)
-    binned.geometry.rays_per_origin = 10 ** 9
+    binned.geometry.bins.rays_per_origin = 10 ** 9
     tree = make_context(scene, core.RenderSettings(), dtype)
-    tree.geometry.rays_per_origin = 0
-    monkeypatch.setattr(aggregate, "BVH_MIN_SPHERES", 10 ** 9)
-    flat = make_context(scene, core.RenderSettings(), dtype)
-    assert binned.geometry._tree is not None and flat.geometry._tree is None
+    tree.geometry.bins.rays_per_origin = 0
+    flat = make_context(scene, core.RenderSettings(), dtype, geometry_policy=dataclasses.replace(
+        DEFAULT_POLICY, tree_min_spheres=10 ** 9))
+    assert binned.geometry.tree is not None and flat.geometry.tree is None
     return binned, tree, flat
 
 
@@ -72,7 +74,7 @@ def _grazing(rays, geometry, rng, n):
     side /= np.linalg.norm(side, axis=1)[:, None]
     passing = spheres.radii[k] * (1 + rng.uniform(-3e-7, 3e-7, n))
     origins = spheres.centers[k] + side * passing[:, None] - SUN * rng.uniform(0.5, 3, n)[:, None]
-    bins = geometry._parallel_spheres(rays)[0]
+    bins = geometry.bins.parallel_spheres(rays)[0]
     corners = rng.integers(0, bins.shape, (n, 2)) * bins.cell + np.array(bins.corner)
     depth = rng.uniform(-3, 0, n)
     on_corners = corners[:, :1] * bins.u + corners[:, 1:] * bins.v + depth[:, None] * SUN
@@ -83,9 +85,8 @@ def _grazing(rays, geometry, rng, n):
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
-def test_sun_rays_through_parallel_bins_block_exactly_the_rays_every_sphere_does(
-        monkeypatch, dtype):
-    binned, tree, flat = _contexts(monkeypatch, dtype)
+def test_sun_rays_through_parallel_bins_block_exactly_the_rays_every_sphere_does(dtype):
+    binned, tree, flat = _contexts(dtype)
     rng = np.random.default_rng(4)
     rays = _sun_rays(binned, rng, 8000)
     assert len(rays) > 2000
@@ -131,11 +132,11 @@ def test_parallel_bins_list_each_sphere_in_every_cell_its_disc_meets():
     assert ParallelBins.build(SUN, centres, radii, 1e-6) is None
 
 
-def test_parallel_bins_serve_only_unbounded_rays_of_one_direction(monkeypatch):
-    binned, _, _ = _contexts(monkeypatch, np.float64)
+def test_parallel_bins_serve_only_unbounded_rays_of_one_direction():
+    binned, _, _ = _contexts(np.float64)
     geometry = binned.geometry
     rays = _sun_rays(binned, np.random.default_rng(5), 2000)
-    assert geometry._parallel_spheres(rays) is not None
+    assert geometry.bins.parallel_spheres(rays) is not None
     turned = rays.directions.copy()
     turned[:, 0] = turned[::-1, 0]
     bounded = np.full(len(rays), 5.0)
@@ -143,21 +144,21 @@ def test_parallel_bins_serve_only_unbounded_rays_of_one_direction(monkeypatch):
                            rays.source),
                   RayBatch(rays.origins, rays.directions, rays.t_min, bounded, None,
                            rays.exclude, rays.source)):
-        assert geometry._parallel_spheres(other) is None
+        assert geometry.bins.parallel_spheres(other) is None
         stats = RayStats()
         geometry.occluded(other, stats)
         assert stats.node_tests > 0
     # A frame of fewer rays than the tree has spheres builds none.
-    geometry.rays_per_origin = 100
-    geometry._parallel.clear()
-    assert geometry._parallel_spheres(rays) is None
+    geometry.bins.rays_per_origin = 100
+    geometry.bins.parallel.clear()
+    assert geometry.bins.parallel_spheres(rays) is None
 
 
 @pytest.mark.parametrize("precision", ["float64", "float32"])
 def test_a_render_through_parallel_bins_is_the_trees_image(monkeypatch, precision):
     """The field under a sun and a grey world (its occlusion rays go to the tree): the same
     image with the sun's rays through parallel bins (64 x 48 pixels for 3,000 spheres: the
-    frame builds them, PARALLEL_RAYS_PER_PRIMITIVE lowered) as through the tree."""
+    frame builds them, ``parallel_rays_per_primitive`` lowered) as through the tree."""
     scene = _field()
     settings = core.RenderSettings(precision=precision, threads=1, parallelism="threads")
     built = []
@@ -168,12 +169,12 @@ def test_a_render_through_parallel_bins_is_the_trees_image(monkeypatch, precisio
         return build(*args)
 
     monkeypatch.setattr(ParallelBins, "build", staticmethod(counted))
-    monkeypatch.setattr(aggregate, "PARALLEL_RAYS_PER_PRIMITIVE", 0.5)
-    binned = core.render(scene, settings).image
+    binned = core.render(scene, settings, geometry_policy=dataclasses.replace(
+        DEFAULT_POLICY, parallel_rays_per_primitive=0.5)).image
     assert built
-    monkeypatch.setattr(aggregate, "PARALLEL_RAYS_PER_PRIMITIVE", 10 ** 9)
     built.clear()
-    tree = core.render(scene, settings).image
+    tree = core.render(scene, settings, geometry_policy=dataclasses.replace(
+        DEFAULT_POLICY, parallel_rays_per_primitive=10 ** 9)).image
     assert not built
     assert np.array_equal(binned, tree)
     assert (binned[..., 3] > 0).mean() > 0.5

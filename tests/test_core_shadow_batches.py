@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 import core
-from core import aggregate, shading
+from core import shading
+from core.geometry import Aggregate
 from core.context import make_context
 
 
@@ -86,17 +87,18 @@ def test_batched_shadow_rays_give_the_images_of_batch_by_batch(monkeypatch, ligh
     smooth meshes (lifted shadow rays), with analytic spheres beside them or not: the same
     image, bit for bit, with the shading call's batches joined as with each traced alone,
     in fewer traces of the aggregate."""
-    settings = core.RenderSettings(anti_aliasing="adaptive", samples=16, threads=1,
-                                   parallelism="threads")
+    # (Shading calls and adaptive AA are the Whitted integrator's.)
+    settings = core.RenderSettings(integrator="whitted", anti_aliasing="adaptive", samples=16,
+                                   threads=1, parallelism="threads")
     scene = _scene(light, spheres)
     calls = []
-    occluded = aggregate.Aggregate.occluded
+    occluded = Aggregate.occluded
 
     def counted(self, segments, stats):
         calls.append(len(segments))
         return occluded(self, segments, stats)
 
-    monkeypatch.setattr(aggregate.Aggregate, "occluded", counted)
+    monkeypatch.setattr(Aggregate, "occluded", counted)
     joined = core.render(scene, settings)
     joined_calls = len(calls)
     calls.clear()
@@ -113,7 +115,7 @@ def test_batched_shadow_rays_give_the_images_of_batch_by_batch(monkeypatch, ligh
 def test_segments_need_their_origin_only_where_the_aggregate_uses_it():
     settings = core.RenderSettings()
     meshes = make_context(_scene("area"), settings, np.float64).geometry
-    assert meshes._tree is not None and meshes.sphere_count == 0
+    assert meshes.tree is not None and meshes.sphere_count == 0
     primitives = len(meshes)
     # Triangles in a tree: the origin pays only through its bins, for large batches.
     assert not meshes.segments_need_origin(primitives - 1)
@@ -124,7 +126,7 @@ def test_segments_need_their_origin_only_where_the_aggregate_uses_it():
     one_ball = _scene("area")
     one_ball = core.Scene(one_ball.camera, (), one_ball.lights, meshes=one_ball.meshes[-1:])
     flat = make_context(one_ball, settings, np.float64).geometry
-    assert flat._tree is None and flat.segments_need_origin(1)
+    assert flat.tree is None and flat.segments_need_origin(1)
 
 
 def test_segments_from_several_samples_are_each_samples_own():

@@ -44,7 +44,7 @@ def test_light_behind_a_translucent_plane_passes_through_and_light_in_front_does
 def test_adaptive_anti_aliasing_finds_a_shadow_edge_seen_through_a_translucent_plane():
     blocker = core.Sphere((0, 1.5, 0), 0.5, core.SurfaceMaterial(), "blocker")  # behind it
     lit = scene(core.SphereLight((0, 3.0, 0), power=1000.0), spheres=(blocker,))
-    settings = dict(anti_aliasing="adaptive", samples=16)
+    settings = dict(integrator="whitted", anti_aliasing="adaptive", samples=16)
     result = core.render(lit, core.RenderSettings(**settings))
     image = result.image[..., 0]
     # The blocker's shadow is a dark disc on the plane, its rim smoothed by supersampling.

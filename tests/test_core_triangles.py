@@ -144,7 +144,7 @@ def test_both_kernels_shear_as_the_papers_matrix_rows_do_bit_for_bit(dtype, shar
     sheared corner as p[kx] - Sx p[kz]; the paper's per-ray 3 x 3 shear, a dot product with
     each row (entries 1, 0 and -S), rounds alike, as its products by 1 and 0 are exact: the
     same t, barycentrics and verdicts from all three, for every axis permutation."""
-    from core.triangles import Shear, _hit, watertight_axes, watertight_pairs
+    from core.geometry.triangles import Shear, _hit, watertight_axes, watertight_pairs
 
     rng = np.random.default_rng(4)
     k, n = 9, 600
@@ -177,8 +177,8 @@ def test_both_kernels_shear_as_the_papers_matrix_rows_do_bit_for_bit(dtype, shar
         for store, part in zip(blocks, found):
             store[:, group] = part
     triangle, ray = (a.ravel() for a in np.meshgrid(np.arange(k), columns, indexing="ij"))
-    pairs = watertight_pairs(np.concatenate(corners), triangle, origins, shear, ray, 0.0,
-                             np.inf)
+    pairs = watertight_pairs(np.concatenate(corners), triangle, shear.for_pairs(origins, k),
+                             ray, 0.0, np.inf)
     valid = reference[4]
     for made in (blocks, [a.reshape(k, n) for a in pairs]):
         assert np.array_equal(made[4], valid)

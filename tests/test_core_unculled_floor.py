@@ -1,5 +1,6 @@
 """Huge spheres beside a tree (a floor: ``Aggregate`` keeps them out of the tree and tests
-them flat) are tested by every ray without the bundle's cone (``UNCULLED_BESIDE_TREE``),
+them flat) are tested by every ray without the bundle's cone
+(``GeometryPolicy.unculled_beside_tree``),
 which nearly every bundle reaches: the hits and blocked segments are the culled path's."""
 
 from __future__ import annotations
@@ -7,9 +8,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import dataclasses
+
 import core
-from core import aggregate
 from core.context import RayStats, make_context
+from core.geometry import DEFAULT_POLICY
 from core.rays import RayBatch
 
 
@@ -48,18 +51,17 @@ def _batches(geometry, dtype):
 @pytest.mark.parametrize("floors", [1, 2])
 @pytest.mark.parametrize("semantics", ["default", "article"])
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
-def test_huge_spheres_beside_a_tree_are_tested_by_every_ray(monkeypatch, floors, semantics,
-                                                           dtype):
+def test_huge_spheres_beside_a_tree_are_tested_by_every_ray(floors, semantics, dtype):
     scene = _scene(floors)
     settings = core.RenderSettings(semantics=semantics)
-    geometry = make_context(scene, settings, dtype).geometry
-    assert geometry._tree is not None and geometry._flat_count == floors
     answers = {}
-    for unculled in (aggregate.UNCULLED_BESIDE_TREE, 0):
-        monkeypatch.setattr(aggregate, "UNCULLED_BESIDE_TREE", unculled)
+    for unculled in (DEFAULT_POLICY.unculled_beside_tree, 0):
+        policy = dataclasses.replace(DEFAULT_POLICY, unculled_beside_tree=unculled)
+        geometry = make_context(scene, settings, dtype, geometry_policy=policy).geometry
+        assert geometry.tree is not None and geometry.flat_spheres.count == floors
         answers[unculled] = []
         for rays in _batches(geometry, dtype):
-            candidates = geometry._bundle_candidates(rays)
+            candidates = geometry.flat_spheres.candidates(rays)
             if unculled:
                 # Every floor, even for the rays going up, away from all of them.
                 assert list(candidates) == list(range(floors))
@@ -67,7 +69,7 @@ def test_huge_spheres_beside_a_tree_are_tested_by_every_ray(monkeypatch, floors,
             segments = RayBatch(rays.origins, rays.directions, 0.0, 3.0, rays.shared)
             answers[unculled].append((hits.rays, hits.primitive_per_ray, hits.t,
                                       geometry.occluded(segments, RayStats())))
-    culled_up = geometry._bundle_candidates(_batches(geometry, dtype)[1])
+    culled_up = geometry.flat_spheres.candidates(_batches(geometry, dtype)[1])
     assert len(culled_up) == 0          # the cone leaves the floors out of the upward rays
     for new, old in zip(*answers.values()):
         for a, b in zip(new, old):

@@ -16,7 +16,7 @@ import core
 from core import workers
 from core.render import RenderCancelled, render_tile
 from core.scene import SceneError
-from process_support import all_ended
+from process_support import all_ended, sigint_disposition
 
 REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -216,8 +216,7 @@ def test_ctrl_c_to_the_process_group_stops_parent_and_workers(tmp_path):
          "--anti-aliasing", "fixed", "--samples", "64", "--parallelism", "processes",
          "--threads", "2", "--output", str(output)],
         cwd=REPOSITORY, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        start_new_session=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+        start_new_session=True, preexec_fn=sigint_disposition())
     deadline = time.monotonic() + 30
     children = []
     while len(children) < 2 and time.monotonic() < deadline:   # the 2 workers

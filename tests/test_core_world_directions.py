@@ -16,6 +16,8 @@ import core
 from core.lights import cosine_directions, pixel_shifts, shifted_cosine_direction
 
 WHITE_WORLD = dict(background=(1, 1, 1), ambient=(1, 1, 1))
+#: World Samples and adaptive AA are the Whitted integrator's.
+WHITTED = dict(integrator="whitted")
 
 
 def test_an_unshifted_grid_is_the_cell_centres_and_any_shift_keeps_the_cosine_spread():
@@ -100,10 +102,11 @@ def test_a_ball_on_a_floor_darkens_it_with_noise_not_with_copies_of_its_shadow()
     shadow, whole shapes wrong), and the means of floor and ball agree within 0.1 and 1 %
     (the fixed grid: 1.0 and 3.7 % too bright).  The image does not depend on the tiles."""
     scene = _ball_on_a_floor()
-    nine, converged = (core.render(scene, core.RenderSettings(world_samples=count,
+    nine, converged = (core.render(scene, core.RenderSettings(**WHITTED, world_samples=count,
                                                                anti_aliasing="off"))
                        .image[..., :3] for count in (9, 256))
-    primitive = core.render(scene, core.RenderSettings(world_samples=0, anti_aliasing="off"),
+    primitive = core.render(scene, core.RenderSettings(**WHITTED, world_samples=0,
+                                                       anti_aliasing="off"),
                             passes=True).passes.primitive
     floor, ball = primitive >= 1, primitive == 0
     error = (nine - converged).sum(axis=-1)
@@ -115,7 +118,8 @@ def test_a_ball_on_a_floor_darkens_it_with_noise_not_with_copies_of_its_shadow()
     assert np.sqrt(np.mean(box_error ** 2)) < 0.3 * per_pixel
     for where, tolerance in ((floor, 0.01), (ball, 0.02)):
         assert abs(nine[where].mean() / converged[where].mean() - 1) < tolerance
-    tiled = core.render(scene, core.RenderSettings(world_samples=9, anti_aliasing="off",
+    tiled = core.render(scene, core.RenderSettings(**WHITTED, world_samples=9,
+                                                   anti_aliasing="off",
                                                    tile_size=16)).image[..., :3]
     np.testing.assert_array_equal(tiled, nine)
 
@@ -156,12 +160,13 @@ def test_adaptive_aa_allows_for_the_worlds_noise_and_still_finds_silhouettes(mon
     render_module = importlib.import_module("core.render")   # (core.render: the function)
     scene = _faceted_ball_on_a_floor()
     # (threads: the patched constant must reach the tiles)
-    adaptive = core.RenderSettings(anti_aliasing="adaptive", samples=16, parallelism="threads")
+    adaptive = core.RenderSettings(**WHITTED, anti_aliasing="adaptive", samples=16,
+                                   parallelism="threads")
     allowed = core.render(scene, adaptive)
     monkeypatch.setattr(render_module, "NOISE_ALLOWANCE", 0.0)
     bare = core.render(scene, adaptive)
     assert allowed.stats.supersampled_pixels * 2 <= bare.stats.supersampled_pixels
-    fixed = core.render(scene, core.RenderSettings(anti_aliasing="fixed", samples=16))
+    fixed = core.render(scene, core.RenderSettings(**WHITTED, anti_aliasing="fixed", samples=16))
     silhouette = (fixed.image[..., 3] > 0.05) & (fixed.image[..., 3] < 0.95)
     assert silhouette.sum() > 40
     np.testing.assert_allclose(allowed.image[silhouette, 3], fixed.image[silhouette, 3],

@@ -24,7 +24,7 @@ import bpy
 import numpy as np
 import pytest
 
-from addon_support import REPOSITORY, glint, read_image, simple_scene
+from addon_support import REPOSITORY, glint, invert_compositor, read_image, simple_scene
 
 import glint.addon.engine.final as final  # noqa: E402
 import glint.addon.engine.job as job  # noqa: E402
@@ -150,20 +150,44 @@ def run_with_fault(stage, entry, *arguments):
 STAGES = ["export", "tile", "hand-over", "write"]
 
 
-@pytest.mark.parametrize("stage", STAGES)
-def test_render_script_keeps_the_previous_file(tmp_path, stage):
-    output = tmp_path / "out.png"
-    output.write_bytes(b"the user's previous render")
+def script_source(tmp_path, source):
+    """render.py's arguments for a 40 x 30 frame and the file they write: the article's
+    scene to --output (the engine's frame saved by render.py), a .blend with a compositor
+    (Blender's render result after compositing), or a .blend's own output path and format
+    (no --output)."""
+    if source == "article":
+        output = tmp_path / "out.png"
+        return output, ["--output", output, "--width", 40, "--height", 30]
+    scene = simple_scene()
+    scene.render.resolution_x, scene.render.resolution_y = 40, 30
+    output = tmp_path / "out_1.png"
+    if source == "compositor":
+        invert_compositor(scene)
+        arguments = ["--output", output]
+    else:
+        scene.render.filepath = str(tmp_path / "out_#")
+        scene.render.image_settings.file_format = 'PNG'
+        arguments = ["--frame", 1]
+    blend = tmp_path / "scene.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    return output, [blend, *arguments]
 
-    result = run_with_fault(stage, "render.py", "--output", output, "--width", 40,
-                            "--height", 30)
+
+@pytest.mark.parametrize("source", ["article", "compositor", "scene output"])
+@pytest.mark.parametrize("stage", STAGES)
+def test_render_script_keeps_the_previous_file(tmp_path, stage, source):
+    output, arguments = script_source(tmp_path, source)
+    output.write_bytes(b"the user's previous render")
+    before = sorted(os.listdir(tmp_path))
+
+    result = run_with_fault(stage, "render.py", *arguments)
 
     assert result.returncode == 1, result.stderr
     (line,) = result.stderr.strip().splitlines()
     assert line.startswith("render.py: error:") and "injected fault" in line or \
         "ran out of memory" in line
     assert output.read_bytes() == b"the user's previous render"
-    assert os.listdir(tmp_path) == ["out.png"]
+    assert sorted(os.listdir(tmp_path)) == before
 
 
 # (The .npy writer is NumPy's np.save into core.png.atomic_file; the write stage injected

@@ -15,6 +15,8 @@ import time
 
 import pytest
 
+from process_support import sigint_disposition
+
 REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 #: Enough for the child to import bpy and be rendering (bpy's import takes ~1-2 s here).
 SETTLE_SECONDS = 4.0
@@ -30,12 +32,10 @@ COMMANDS = {
 
 
 def start(command, output, ignore_sigint=False):
-    def prepare():
-        if ignore_sigint:  # what a shell does for 'command &' without job control
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # ignore_sigint: what a shell does for 'command &' without job control.
     return subprocess.Popen([sys.executable, *COMMANDS[command], "--output", str(output)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            cwd=REPOSITORY, preexec_fn=prepare)
+                            cwd=REPOSITORY, preexec_fn=sigint_disposition(ignore_sigint))
 
 
 def stop_within(process, seconds):

@@ -171,6 +171,7 @@ def test_render_py_hands_its_frame_to_blender_in_place():
     import render as render_script
 
     render_script.import_glint()   # the package the add-on's colour helpers live in
+    from glint.addon.cli.output import _to_blender_rows
 
     class Job:  # RenderJob.scene_linear for the article semantics
         @staticmethod
@@ -184,7 +185,7 @@ def test_render_py_hands_its_frame_to_blender_in_place():
         image = rng.random((height, 512, 4)).astype(np.float32)
         image[..., :3] *= image[..., 3:]   # premultiplied
         expected = Job.scene_linear(image)[::-1]
-        result, peak = traced_peak(lambda: render_script._to_blender_rows(image, Job))
+        result, peak = traced_peak(lambda: _to_blender_rows(image, Job))
         assert np.shares_memory(result, image)
         np.testing.assert_array_equal(result, expected)
         return peak, image.nbytes

@@ -174,3 +174,55 @@ def test_a_product_shot_lit_by_an_hdri_matches_cycles():
     sky[: cs.HEIGHT // 3] = True
     relative = (np.abs(glint[sky, :3] - cycles[sky, :3]) / np.maximum(cycles[sky, :3], 1e-3))
     assert np.percentile(relative.max(axis=1), 90) < 0.01
+
+
+def test_light_path_rays_see_the_world_and_shadows_as_in_cycles():
+    # Two tricks Blender users build with the Light Path node: a world lighting the scene
+    # warm while the camera sees it blue (Is Camera Ray), and a ball that casts no shadow
+    # (Is Shadow Ray turns it Transparent for shadow rays).  With one bounce, light that
+    # bounced off the floor sees the world as light, not as the camera does.
+    scene = cs.cycles_scene(bounces=1, samples=1024)
+    scene.glint.samples = 256
+    world = scene.world.node_tree
+    light_path = world.nodes.new("ShaderNodeLightPath")
+    lighting, backdrop = world.nodes["Background"], world.nodes.new("ShaderNodeBackground")
+    lighting.inputs["Color"].default_value = (1.0, 0.7, 0.4, 1.0)
+    lighting.inputs["Strength"].default_value = 1.0
+    backdrop.inputs["Color"].default_value = (0.1, 0.2, 0.8, 1.0)
+    mix = world.nodes.new("ShaderNodeMixShader")
+    world.links.new(light_path.outputs["Is Camera Ray"], mix.inputs["Fac"])
+    world.links.new(lighting.outputs["Background"], mix.inputs[1])
+    world.links.new(backdrop.outputs["Background"], mix.inputs[2])
+    world.links.new(mix.outputs["Shader"], world.nodes["World Output"].inputs["Surface"])
+    material = bpy.data.materials.new("no shadow")
+    tree = material.node_tree
+    shadow = tree.nodes.new("ShaderNodeLightPath")
+    transparent = tree.nodes.new("ShaderNodeBsdfTransparent")
+    solid = tree.nodes["Principled BSDF"]
+    solid.inputs["Base Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    pick = tree.nodes.new("ShaderNodeMixShader")
+    tree.links.new(shadow.outputs["Is Shadow Ray"], pick.inputs["Fac"])
+    tree.links.new(solid.outputs["BSDF"], pick.inputs[1])
+    tree.links.new(transparent.outputs["BSDF"], pick.inputs[2])
+    tree.links.new(pick.outputs["Shader"], tree.nodes["Material Output"].inputs["Surface"])
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, radius=1.0)
+    bpy.ops.object.shade_smooth()
+    ball = bpy.context.object
+    ball.data.materials.append(material)
+    bpy.ops.mesh.primitive_plane_add(size=10, location=(0, 0, -1.0))
+    bpy.context.object.data.materials.append(cs.diffuse("floor", (0.5, 0.5, 0.5)))
+    cs.add_light('SUN', (0, -5, 5), (math.radians(30), 0, math.radians(20)), energy=3.0)
+    glint, cycles = core_image(), cs.render_cycles()
+    on_ball = cs.sphere_mask(ball)
+    floor = (cycles[..., 3] > 0.99) & ~on_ball
+    floor[: cs.HEIGHT // 2] = False
+    sky = np.zeros_like(on_ball)
+    sky[: cs.HEIGHT // 4] = True
+    sky &= ~on_ball
+    for name, region in (("ball", on_ball), ("floor", floor), ("sky", sky)):
+        np.testing.assert_allclose(glint[region, :3].mean(axis=0),
+                                   cycles[region, :3].mean(axis=0), rtol=MEAN_TOLERANCE,
+                                   err_msg=name)
+    # The camera sees the blue backdrop; the ball and the floor are lit warm.
+    assert glint[sky, 2].mean() > 3 * glint[sky, 0].mean()
+    assert glint[on_ball, 0].mean() > glint[on_ball, 2].mean()

@@ -139,6 +139,60 @@ def test_sobol_samples_are_stratified_in_one_and_two_dimensions_per_pixel():
             assert len(np.unique(cells)) == 16
 
 
+def test_bit_reversal_reverses_every_bit():
+    values = np.random.default_rng(3).integers(0, 2 ** 32, 1000, dtype=np.uint64).astype(np.uint32)
+    expected = [int(f"{int(v):032b}"[::-1], 2) for v in values]
+    assert sampler.reverse_bits(values).tolist() == expected
+    assert sampler.reverse_bits(np.array([[1]], np.uint32)).tolist() == [[2 ** 31]]
+
+
+def test_ggx_albedo_is_bilinear_in_its_table():
+    from core import bsdf
+    cosines, alphas, table = bsdf._ALBEDO_COSINES, bsdf._ALBEDO_ALPHAS, bsdf._ALBEDO_TABLE
+    # On the grid's nodes the table's own values; halfway, the mean of the four corners;
+    # outside it, the edge's values.
+    c, a = np.meshgrid(cosines, alphas)
+    assert np.allclose(bsdf.directional_albedo(c.ravel(), a.ravel()), table.ravel())
+    mid_c, mid_a = (cosines[3] + cosines[4]) / 2, (alphas[7] + alphas[8]) / 2
+    assert bsdf.directional_albedo(np.array([mid_c]), np.array([mid_a]))[0] == pytest.approx(
+        table[7:9, 3:5].mean())
+    assert bsdf.directional_albedo(np.array([0.0, 2.0]), np.array([-1.0, 5.0])).tolist() == (
+        pytest.approx([table[0, 0], table[-1, -1]]))
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_a_rectangle_light_is_sampled_uniformly_in_its_solid_angle(dtype):
+    from core.emitters import light_hit, prepare_lights, sample_light
+    light, = prepare_lights([AreaLight((0.3, 0.2, 2.0), (0, 0, -1), (1, 0, 0), (0, 1, 0),
+                                       size_x=1.5, size_y=0.7, shape="RECTANGLE",
+                                       power=100.0)], 1.0)
+    n = 100000
+    rng = np.random.default_rng(1)
+    points = np.tile(np.array([[0.1], [-0.4], [0.0]], dtype), n)
+    drawn = sample_light(light, points, rng.random(n).astype(dtype), rng.random(n).astype(dtype))
+    on_light = points + drawn.towards * drawn.distance - light.position[:, None]
+    assert np.abs(on_light[2]).max() < 1e-5
+    assert np.abs(on_light[0]).max() <= 0.75 + 1e-5 and np.abs(on_light[1]).max() <= 0.35 + 1e-5
+    # The density is 1 / solid angle, the solid angle being the integral of cos / d^2 over
+    # the rectangle (a midpoint sum here), and BSDF rays finding the light see the same.
+    x, y = np.meshgrid((np.arange(300) + 0.5) / 300 - 0.5, (np.arange(140) + 0.5) / 140 - 0.5)
+    offset = np.stack([0.2 + 1.5 * x.ravel(), 0.6 + 0.7 * y.ravel(), np.full(x.size, 2.0)])
+    distance = np.linalg.norm(offset, axis=0)
+    solid_angle = (offset[2] / distance ** 3).mean() * 1.5 * 0.7
+    np.testing.assert_allclose(drawn.pdf, 1 / solid_angle, rtol=1e-4)
+    found = light_hit(light, points, drawn.towards, np.full(n, np.inf, dtype))
+    assert found[0].all()
+    np.testing.assert_allclose(found[3], drawn.pdf, rtol=1e-4)
+    # Irradiance: the estimate of the integral of L cos over the solid angle.
+    irradiance = light.radiance[0] * (offset[2] ** 2 / distance ** 4).mean() * 1.5 * 0.7
+    estimate = (drawn.over_pdf[0] * drawn.towards[2]).mean()
+    assert estimate == pytest.approx(irradiance, rel=3e-3)
+    # Behind its emitting side: nothing.
+    behind = sample_light(light, np.tile(np.array([[0.0], [0.0], [3.0]], dtype), 4),
+                          np.full(4, 0.5, dtype), np.full(4, 0.5, dtype))
+    assert (behind.over_pdf == 0).all() and (behind.pdf == 0).all()
+
+
 def test_pixels_draw_different_samples():
     points = sampler.sample_group(sampler.pixel_seeds(np.arange(1000), np.zeros(1000, int)),
                                   np.zeros(1000, int), 1, bits=4)
@@ -155,8 +209,10 @@ def test_pixel_filter_offsets_follow_the_filter():
     wide = filter_offsets(u, "BLACKMAN_HARRIS", 1.5)
     assert abs(wide.mean()) < 1e-3 and 0.75 < wide.max() <= 1.5 and 0.38 < wide.std() < 0.45
     assert np.abs(filter_offsets(u, "BLACKMAN_HARRIS", 0.01)).max() <= 0.01
+    # Cycles' Gaussian spans three times its width with a standard deviation of a quarter
+    # of it (exp(-2 (6 x / 3 w)^2)).
     gaussian = filter_offsets(u, "GAUSSIAN", 1.5)
-    assert abs(gaussian.std() - 1.5 / 12) < 0.01
+    assert 1.5 < gaussian.max() <= 2.25 and abs(gaussian.std() - 1.5 / 4) < 0.01
 
 
 def test_adaptive_sampling_converges_where_the_halves_agree():
@@ -190,3 +246,37 @@ def test_bad_settings_give_one_line_naming_the_field(field, value):
         RenderSettings(**{field: value})
     message = str(error.value)
     assert f"settings.{field}" in message and "\n" not in message
+
+
+def test_nested_glass_at_any_depth_keeps_the_memory_of_a_shallow_render_and_cancels():
+    # A path follows one branch at glass, so its cost grows with the bounces it takes, never
+    # as 2^depth, and its memory is its tile's arrays at any depth.
+    import threading
+    import tracemalloc
+
+    from bench.nested_glass import nested_glass_scene, settings_at
+    scene = nested_glass_scene(48, 27, layers=5)
+    peaks, rays = {}, {}
+    for bounces in (4, 256):
+        core.render(scene, settings_at(bounces, 2))
+        tracemalloc.start()
+        try:
+            result = core.render(scene, settings_at(bounces, 2))
+            peaks[bounces] = tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+        rays[bounces] = result.stats.reflection_rays
+    assert peaks[256] < 1.5 * peaks[4]
+    assert rays[4] < rays[256] < 4 * rays[4]
+    # A cancel asked during a deep render ends it within seconds (a generous bound: the
+    # machine may be shared; bench.nested_glass reports the figure).
+    import time
+    asked_at = []
+    timer = threading.Timer(0.5, lambda: asked_at.append(time.perf_counter()))
+    timer.start()
+    try:
+        with pytest.raises(core.RenderCancelled):
+            core.render(scene, settings_at(256, 4096), should_cancel=lambda: bool(asked_at))
+        assert time.perf_counter() - asked_at[0] < 10.0
+    finally:
+        timer.cancel()

@@ -1,4 +1,5 @@
-"""Glint in Blender's engine list: F12, animation renders and ``blender -b file -f/-a``.
+"""Final renders: F12, animation renders, ``blender -b file -f/-a`` and render.py, handed over
+by the engine (``base.GlintRenderEngine``) to ``render_final``.
 
 A thin layer over ``RenderJob``: progress through update_progress, cancel through test_break,
 warnings through report.  Whatever goes wrong (an export error, an invalid value, a
@@ -22,8 +23,9 @@ Render results have row 0 at the bottom.  Tiles are handed over as they land
 (``TileHandOver``), so a frame costs the job's float32 image and Blender's own buffer, plus a
 tile.
 
-Scripts that want the core's numbers rather than Blender's colour-managed result (render.py)
-ask for them explicitly with ``FrameRequest`` (below).
+Scripts that render through the engine (render.py) make a ``FrameRequest`` (below): it gives
+them the core's numbers as well as (or instead of) Blender's render result, their own
+cancel, and the failure to report themselves.
 """
 
 from __future__ import annotations
@@ -40,10 +42,8 @@ from ..utils.colour import render_result_pixels
 from ..export import ExportError
 from .job import failure_message, prepare_job
 from ...core.passes import PrimaryPasses, primitive_sources
-from .passes import enabled_passes, pass_pixels, pass_warning, register_passes, \
-    scene_pass_indices
-from .preview import prepare_preview_job
-from .viewport import ViewportEngine
+from .passes import (denoising_passes, enabled_passes, pass_pixels, pass_warning,
+                     scene_pass_indices)
 
 
 @dataclass
@@ -59,12 +59,17 @@ class FrameRequest:
     fill_render_result: False when the script writes the frame itself: the engine then
         leaves Blender's render result empty, which spares a frame-sized copy.
     progress: called as (RenderJob, fraction done) as tiles land (render.py's progress line).
+    failure: the one line about the failure that ended the render, for the script to report
+        once: with a request the engine makes no ERROR report (which Blender prints besides
+        raising it), and renders no view layer after a failed one (the frame is lost;
+        Blender would go on rendering the others).
     """
 
     should_cancel: Callable[[], bool] = lambda: False
     fill_render_result: bool = True
     frames: list = field(default_factory=list)
     progress: Optional[Callable] = None
+    failure: Optional[str] = None
 
 
 _active_request: Optional[FrameRequest] = None
@@ -83,117 +88,101 @@ def requesting_frames(request: FrameRequest):
         _active_request = None
 
 
-class GlintRenderEngine(bpy.types.RenderEngine):
-    bl_idname = "GLINT"
-    bl_label = "Glint"
-    # Material, light and world previews: addon.engine.preview.
-    bl_use_preview = True
-    # The viewport's Rendered (and Material Preview) shading is Glint's own, through
-    # view_update / view_draw (addon.engine.viewport), not EEVEE's.
-    bl_use_eevee_viewport = False
-    # Glint reads the materials' shader nodes (``addon.export.materials``): the Shader Editor
-    # must be available to edit them.
-    bl_use_shading_nodes_custom = False
-
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        self._viewport = None
-
-    def __del__(self):
-        # Blender frees a viewport's engine when Rendered shading ends: stop its worker.  An
-        # engine whose Blender data is already gone (a finished F12) raises ReferenceError on
-        # any attribute, and has no viewport to stop.
-        try:
-            viewport = self._viewport
-        except (AttributeError, ReferenceError):
-            return
-        if viewport is not None:
-            viewport.free()
-
-    def _viewport_engine(self):
-        if self._viewport is None:
-            self._viewport = ViewportEngine()
-        return self._viewport
-
-    def view_update(self, context, depsgraph):
-        self._viewport_engine().view_update(self, context, depsgraph)
-
-    def view_draw(self, context, depsgraph):
-        self._viewport_engine().view_draw(self, context, depsgraph)
-
-    def render(self, depsgraph):
-        request = _active_request
-        try:
-            self._render(depsgraph, request)
-        except RenderCancelled:
-            # The tiles that finished stay in the render result, as with Blender's own
-            # engines; Blender writes no file for a cancelled frame.
-            return
-        except BaseException as error:  # noqa: B036 - every failure must reach the user
-            self._fail(failure_message(error))
-
-    def _render(self, depsgraph, request: Optional[FrameRequest]) -> None:
-        prepare = prepare_preview_job if self.is_preview else prepare_job
-        job = prepare(depsgraph, camera_override=self.camera_override)
-        for warning in job.warnings:
-            self.report({'WARNING'}, warning)
-        width, height = job.size
-        if (width, height) != (self.resolution_x, self.resolution_y):
-            raise RenderSetupError(f"Glint exported a {width}x{height} frame but Blender "
-                                   f"renders {self.resolution_x}x{self.resolution_y}")
-        region = render_region(depsgraph.scene_eval.render, width, height)
-        if region is None:
-            raise RenderSetupError("the render region (border) covers no whole pixel")
-        summary = f"{len(job.scene.spheres)} spheres, {len(job.scene.lights)} lights, " \
-                  f"{width}x{height}"
-        self.update_stats("Glint", summary)
-
-        def should_cancel():
-            return self.test_break() or (request is not None and request.should_cancel())
-
-        def progress(fraction):
-            self.update_progress(fraction)
-            if request is not None and request.progress is not None:
-                request.progress(job, fraction)
-
+def render_final(engine, depsgraph) -> None:
+    """F12's render of one view layer (``GlintRenderEngine.render``): export, trace, and hand
+    the tiles and passes to Blender's render result; any failure ends in one line
+    (``failures_reported``)."""
+    request = _active_request
+    if request is not None and request.failure is not None:
+        return  # an earlier view layer failed: the frame is lost already
+    with failures_reported(engine, request):
+        job = prepare_job(depsgraph, camera_override=engine.camera_override)
         view_layer = depsgraph.view_layer
-        passes = [] if self.is_preview else enabled_passes(view_layer)
-        missing_passes = None if self.is_preview else pass_warning(view_layer)
+        missing_passes = pass_warning(view_layer)
         if missing_passes:
-            self.report({'WARNING'}, missing_passes)
-        # Tiles go to Blender as they land (F12 fills in tile by tile, and a cancel keeps
-        # them), unless the script asking for the frames writes it itself.
-        fill = request is None or request.fill_render_result
-        # The passes, when enabled, are filled tile by tile and handed over with each tile.
-        primary = PrimaryPasses.empty(
-            width, height, emission=any(spec.name == "Emission" for spec in passes)
-        ) if passes and fill else None
-        tiles = TileHandOver(self, region, height, view_layer.name, job.settings.semantics,
-                             TilePasses.of(job.scene, passes, primary)) if fill else None
-        result = job.run(progress=progress, should_cancel=should_cancel,
-                         on_tile=tiles.hand_over if tiles is not None else None,
-                         passes=primary if primary is not None else False,
-                         # Beside the job's frame, Blender holds a float32 frame (the
-                         # render result, or render.py's colour-managed Image) and, while it
-                         # saves, its display buffers: measured, render.py peaks at 3.35
-                         # frames at 16K (14.36 GB for 4.29 GB), so 2.5 frames more.
-                         reserve_bytes=5 * job.frame_bytes // 2)
-        if result.denoised and tiles is not None:
-            # The tiles Blender holds are the noisy ones: the denoised frame replaces them.
-            tiles.hand_over((0, height, 0, width), result.image)
-        self.update_stats("Glint", f"{summary}, {result.precision}")
-        if result.fallback is not None:
-            self.report({'WARNING'}, f"Glint: {result.fallback}")
+            job.warnings.append(missing_passes)
+        render_job(engine, depsgraph, job, enabled_passes(view_layer), request,
+                   guides=bool(denoising_passes(view_layer)))
+
+
+def render_job(engine, depsgraph, job, passes=(),
+               request: Optional[FrameRequest] = None, guides: bool = False) -> None:
+    """Trace a prepared job for ``engine`` (a final render's or a preview's): its warnings
+    reported, progress, cancel and stats through the engine, and each tile handed to
+    Blender's render result as it lands, with the enabled ``passes`` (``passes.PassSpec``)
+    and, with ``guides``, the denoising guides once the frame is done."""
+    for warning in job.warnings:
+        engine.report({'WARNING'}, warning)
+    width, height = job.size
+    if (width, height) != (engine.resolution_x, engine.resolution_y):
+        raise RenderSetupError(f"Glint exported a {width}x{height} frame but Blender "
+                               f"renders {engine.resolution_x}x{engine.resolution_y}")
+    region = render_region(depsgraph.scene_eval.render, width, height)
+    if region is None:
+        raise RenderSetupError("the render region (border) covers no whole pixel")
+    summary = f"{len(job.scene.spheres)} spheres, {len(job.scene.lights)} lights, " \
+              f"{width}x{height}"
+    engine.update_stats("Glint", summary)
+
+    def should_cancel():
+        return engine.test_break() or (request is not None and request.should_cancel())
+
+    def progress(fraction):
+        engine.update_progress(fraction)
+        if request is not None and request.progress is not None:
+            request.progress(job, fraction)
+
+    view_layer = depsgraph.view_layer
+    # Tiles go to Blender as they land (F12 fills in tile by tile, and a cancel keeps
+    # them), unless the script asking for the frames writes it itself.
+    fill = request is None or request.fill_render_result
+    # The passes, when enabled, are filled tile by tile and handed over with each tile.
+    primary = PrimaryPasses.empty(
+        width, height, emission=any(spec.name == "Emission" for spec in passes)
+    ) if passes and fill else None
+    tiles = TileHandOver(engine, region, height, view_layer.name, job.settings.semantics,
+                         TilePasses.of(job.scene, passes, primary)) if fill else None
+    guides = guides and fill
+    result = job.run(progress=progress, should_cancel=should_cancel,
+                     on_tile=tiles.hand_over if tiles is not None else None,
+                     passes=primary if primary is not None else False, guides=guides,
+                     # Beside the job's frame, Blender holds a float32 frame (the
+                     # render result, or render.py's colour-managed Image) and, while it
+                     # saves, its display buffers: measured, render.py peaks at 3.35
+                     # frames at 16K (14.36 GB for 4.29 GB), so 2.5 frames more.
+                     reserve_bytes=5 * job.frame_bytes // 2)
+    whole = {}
+    if guides and result.albedo is not None:
+        whole = {"Denoising Albedo": result.albedo, "Denoising Normal": result.normal}
+    if (result.denoised or whole) and tiles is not None:
+        # The tiles Blender holds are the noisy ones: the denoised frame replaces them
+        # (with the denoising guides, known once the frame is done).
+        tiles.hand_over((0, height, 0, width), result.image, whole)
+    engine.update_stats("Glint", f"{summary}, {result.precision}")
+    if result.fallback is not None:
+        engine.report({'WARNING'}, f"Glint: {result.fallback}")
+    if request is not None:
+        request.frames.append((job, result))
+
+
+@contextmanager
+def failures_reported(engine, request: Optional[FrameRequest] = None):
+    """Whatever goes wrong inside ends in one ERROR report naming it (``failure_message``,
+    module docstring), or with a ``request`` in its ``failure``; a cancel ends quietly: the
+    tiles that finished stay in the render result, as with Blender's own engines, and Blender
+    writes no file for a cancelled frame."""
+    try:
+        yield
+    except RenderCancelled:
+        return
+    except BaseException as error:  # noqa: B036 - every failure must reach the user
+        message = failure_message(error)
         if request is not None:
-            request.frames.append((job, result))
-
-    def update_render_passes(self, scene=None, renderlayer=None):
-        register_passes(self, scene, renderlayer)
-
-    def _fail(self, message: str) -> None:
-        self.report({'ERROR'}, message)
+            request.failure = message
+            return
+        engine.report({'ERROR'}, message)
         if not bpy.app.background:
-            self.error_set(message)
+            engine.error_set(message)
 
 
 @dataclass
@@ -230,7 +219,10 @@ class TileHandOver:
         self.semantics = semantics
         self.passes = passes
 
-    def hand_over(self, tile, rgba: np.ndarray) -> None:
+    def hand_over(self, tile, rgba: np.ndarray, whole: Optional[dict] = None) -> None:
+        """Hand a tile over; whole: {pass name: (H, W, C) frame-sized array, rows from the
+        top} of passes to write beside it (the denoising guides, known once the frame is
+        done)."""
         y0, y1, x0, x1 = tile
         # Rows from the bottom of the frame, intersected with the region.
         bottom, top = self.frame_height - y1, self.frame_height - y0
@@ -242,6 +234,9 @@ class TileHandOver:
         pixels = blender_pixels(rgba[top - high:top - low, left - x0:right - x0],
                                 self.semantics)
         extra = self.passes.pixels((left, low, right, high)) if self.passes else {}
+        for name, frame in (whole or {}).items():
+            rows = frame[self.frame_height - high:self.frame_height - low, left:right][::-1]
+            extra[name] = np.ascontiguousarray(rows, np.float32).reshape(-1)
         result = self.engine.begin_result(left - rx0, low - ry0, right - left, high - low,
                                           layer=self.layer)
         try:
@@ -278,59 +273,3 @@ def render_region(render, width: int, height: int):
     size = np.array([width, height, width, height], np.float32)
     x0, y0, x1, y1 = (int(value) for value in border * size)
     return (x0, y0, x1, y1) if x1 > x0 and y1 > y0 else None
-
-
-#: Panels marked for every engine that Glint does not show: Blender's type-only light panel
-#: and its node variant (Glint shows one Light panel, EEVEE's, which edits what Glint
-#: exports: type, colour, power, radius), the spot cone (Glint renders no spot lights) and
-#: light probes (Glint does not use them).
-EXCLUDED_PANEL_PREFIXES = ('DATA_PT_lightprobe', 'DATA_PT_context_lightprobe')
-EXCLUDED_PANELS = {'DATA_PT_light', 'NODE_DATA_PT_light', 'DATA_PT_spot'}
-
-
-def _excluded(name: str) -> bool:
-    return (name in EXCLUDED_PANELS or name.startswith(EXCLUDED_PANEL_PREFIXES)
-            or 'FREESTYLE' in name.upper())
-
-
-def compatible_panels():
-    """Blender's panels Glint's users need, as other engines choose them: every panel marked
-    for all engines ('BLENDER_RENDER': output, format, colour management, camera, ...), minus
-    those that do not apply to Glint (EXCLUDED_PANELS), plus the EEVEE panels that edit what
-    Glint exports (material slots and surface, world surface, the light)."""
-    included = {'EEVEE_MATERIAL_PT_context_material', 'EEVEE_MATERIAL_PT_surface',
-                'EEVEE_WORLD_PT_surface', 'DATA_PT_EEVEE_light'}
-    panels = []
-    for panel in bpy.types.Panel.__subclasses__():
-        engines = getattr(panel, "COMPAT_ENGINES", None)
-        if engines is None:
-            continue
-        name = panel.__name__
-        if name in included or ('BLENDER_RENDER' in engines and not _excluded(name)):
-            panels.append(panel)
-    return panels
-
-
-def _own_engine_sets(panels) -> None:
-    """A panel subclass shares its parent's COMPAT_ENGINES set object unless it defines its
-    own (NODE_DATA_PT_light shares DATA_PT_light's): give each panel Glint adds itself to a
-    set of its own where that set is shared with a panel Glint leaves out, so adding Glint to
-    one does not show the other."""
-    chosen = {id(panel) for panel in panels}
-    others = {id(panel.COMPAT_ENGINES) for panel in bpy.types.Panel.__subclasses__()
-              if id(panel) not in chosen and getattr(panel, "COMPAT_ENGINES", None) is not None}
-    for panel in panels:
-        if id(panel.COMPAT_ENGINES) in others:
-            panel.COMPAT_ENGINES = set(panel.COMPAT_ENGINES)
-
-
-def register_panels():
-    panels = compatible_panels()
-    _own_engine_sets(panels)
-    for panel in panels:
-        panel.COMPAT_ENGINES.add(GlintRenderEngine.bl_idname)
-
-
-def unregister_panels():
-    for panel in compatible_panels():
-        panel.COMPAT_ENGINES.discard(GlintRenderEngine.bl_idname)

@@ -24,6 +24,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import threading
+import time
 import traceback
 from dataclasses import dataclass, field
 from typing import Callable, Optional
@@ -117,6 +118,10 @@ class JobResult:
     parallelism: str = "threads"
     fallback: Optional[str] = None
     denoised: bool = False   # the image was denoised after its tiles landed
+    #: (H, W, 3) float32 the first hits' albedo and normal (denoising's guides, the
+    #: Denoising Albedo and Normal passes), when the job asked for them; else None.
+    albedo: Optional[np.ndarray] = None
+    normal: Optional[np.ndarray] = None
 
 
 @dataclass
@@ -150,19 +155,20 @@ class RenderJob:
             should_cancel: Optional[Callable[[], bool]] = None,
             reserve_bytes: int = 0,
             on_tile: Optional[Callable[[tuple, np.ndarray], None]] = None,
-            passes=False) -> JobResult:
+            passes=False, guides: bool = False) -> JobResult:
         """The finished frame (module docstring).  Raises core.RenderCancelled if
         should_cancel() answers True, core.SceneError for settings the core rejects or a
         render that cannot fit in memory with ``reserve_bytes`` more (the caller's copies).
         on_tile(tile, rgba): each tile as it lands (``core.render``'s tile, rows from the top),
         its pixels finished as the frame's will be (a copy the callee may keep).
         passes: also compute the render passes (``core.passes``) into JobResult.passes (a
-        ``PrimaryPasses`` given here is filled in place, tile by tile, before on_tile)."""
+        ``PrimaryPasses`` given here is filled in place, tile by tile, before on_tile).
+        guides: also return the denoising guides (JobResult.albedo and .normal)."""
         def finished_tile(tile, rgba):
             on_tile(tile, np.array(rgba, np.float32, copy=True))
 
         denoising = self.denoise and denoise_available()
-        settings = (dataclasses.replace(self.settings, guides=True) if denoising
+        settings = (dataclasses.replace(self.settings, guides=True) if denoising or guides
                     else self.settings)
         result = render(self.scene, settings, progress=progress,
                         should_cancel=should_cancel, image_dtype=np.float32,
@@ -174,8 +180,10 @@ class RenderJob:
         if denoised:
             image = np.array(image, np.float32, copy=True)
             image[..., :3] = denoise(image[..., :3], result.albedo, result.normal)
+        copy = (lambda a: None if a is None else np.array(a, np.float32, copy=True))  # noqa: E731
         return JobResult(image, result.precision, result.stats, result.passes,
-                         result.parallelism, result.fallback, denoised)
+                         result.parallelism, result.fallback, denoised,
+                         copy(result.albedo), copy(result.normal))
 
 
 def failure_message(error: BaseException) -> str:
@@ -211,41 +219,82 @@ def prepare_job(depsgraph, camera_override=None) -> RenderJob:
 
 
 class ThreadedRender:
-    """A RenderJob running on a worker thread, for the Render button's modal operator.
+    """Renders on a worker thread, pass after pass, while the main thread stays free: the
+    Render button's job (``of_job``: one pass) and the viewport's refinement
+    (``viewport.ProgressiveRender``: coarse to final).
 
-    The thread runs only ``RenderJob.run`` (NumPy, no Blender data); the operator polls
-    ``fraction`` and ``done`` from timer events on the main thread and asks for a stop with
-    ``cancel``, which the core honours between tiles.
+    The thread runs only the passes (NumPy, no Blender data).  The main thread polls
+    ``fraction`` (of the pass running), ``result`` (the latest finished pass's, None before
+    the first) and ``done``, and asks for a stop with ``cancel``, which the core honours
+    between tiles; after it no later pass replaces ``result``.  ``cancelled``: a stop was
+    asked for; ``error``: what ended the passes otherwise (reported by the caller);
+    ``result_times``: seconds from the start to each finished pass.
+
+    passes: callables ``(progress, should_cancel) -> result``.  on_result (called on the
+    worker thread, so it must not touch Blender data) is told of each finished pass's result.
     """
 
-    def __init__(self, job: RenderJob):
-        self.job = job
+    def __init__(self, passes, on_result: Optional[Callable] = None,
+                 name: str = "glint-render"):
+        self.passes = list(passes)
         self.fraction = 0.0
-        self.result: Optional[JobResult] = None
+        self.result = None
         self.error: Optional[BaseException] = None
-        self.cancelled = False
+        self.started = time.perf_counter()
+        self.result_times: list[float] = []
+        self._on_result = on_result
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="glint-render", daemon=True)
+        self._lock = threading.Lock()
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self._thread.start()
+
+    @classmethod
+    def of_job(cls, job: RenderJob) -> "ThreadedRender":
+        """The Render button's render: the job in one pass, with room kept for the Image it
+        is stored in."""
+        def run(progress, should_cancel) -> JobResult:
+            return job.run(progress=progress, should_cancel=should_cancel,
+                           reserve_bytes=job.frame_bytes)
+        return cls([run])
 
     def _progress(self, fraction: float) -> None:
         self.fraction = fraction
 
     def _run(self) -> None:
-        try:
-            self.result = self.job.run(progress=self._progress, should_cancel=self._stop.is_set,
-                                       reserve_bytes=self.job.frame_bytes)  # the Image
-        except RenderCancelled:
-            self.cancelled = True
-        except BaseException as error:  # reported to the user by the operator
-            self.error = error
+        for run_pass in self.passes:
+            try:
+                result = run_pass(self._progress, self._stop.is_set)
+            except RenderCancelled:
+                return
+            except BaseException as error:  # reported to the user by the caller
+                self.error = error
+                return
+            if not self._publish(result):
+                return
+
+    def _publish(self, result) -> bool:
+        """Make ``result`` the latest (a pass's, or a picture a pass shows on its way) and
+        tell on_result; False, and nothing shown, once a stop was asked for."""
+        with self._lock:
+            if self._stop.is_set():
+                return False
+            self.result = result
+            self.result_times.append(time.perf_counter() - self.started)
+        if self._on_result is not None:
+            self._on_result(result)
+        return True
 
     @property
     def done(self) -> bool:
         return not self._thread.is_alive()
 
+    @property
+    def cancelled(self) -> bool:
+        return self._stop.is_set()
+
     def cancel(self) -> None:
-        self._stop.set()
+        with self._lock:
+            self._stop.set()
 
     def wait(self, timeout: Optional[float] = None) -> bool:
         self._thread.join(timeout)

@@ -60,15 +60,27 @@ UNSUPPORTED_PASSES = {
 }
 
 
+#: The denoising guides, enabled by Cycles' own View Layer > Passes > Data > Denoising Data
+#: (``view_layer.cycles.denoising_store_passes``), which the compositor's Denoise node reads.
+DENOISING_PASSES = (PassSpec("denoising_store_passes", "Denoising Albedo", "RGB", 'COLOR'),
+                    PassSpec("denoising_store_passes", "Denoising Normal", "XYZ", 'VECTOR'))
+
+
 def enabled_passes(view_layer) -> list[PassSpec]:
     return [spec for spec in SUPPORTED_PASSES if getattr(view_layer, spec.flag, False)]
+
+
+def denoising_passes(view_layer) -> list[PassSpec]:
+    """The denoising guides' passes, when the view layer stores denoising data."""
+    cycles = getattr(view_layer, "cycles", None)
+    return list(DENOISING_PASSES) if getattr(cycles, "denoising_store_passes", False) else []
 
 
 def register_passes(engine, scene, view_layer) -> None:
     """``RenderEngine.update_render_passes``: the Combined pass and the enabled ones Glint
     writes, so the compositor and multilayer EXRs see them."""
     engine.register_pass(scene, view_layer, "Combined", 4, "RGBA", 'COLOR')
-    for spec in enabled_passes(view_layer):
+    for spec in enabled_passes(view_layer) + denoising_passes(view_layer):
         engine.register_pass(scene, view_layer, spec.name, len(spec.channel_ids),
                              spec.channel_ids, spec.kind)
 

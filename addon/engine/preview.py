@@ -27,6 +27,7 @@ import numpy as np
 from ...core import PointLight, Sphere, SphereLight
 from ...core.camera import camera_to_world
 from ..export.geometry import MAX_FACE_SAGITTA, fit_sphere, uniform_scales
+from .final import failures_reported, render_job
 from .job import RenderJob, prepare_job
 
 #: Where the preview's key light comes from, in camera space (x right, y up, -z ahead): up
@@ -82,3 +83,11 @@ def prepare_preview_job(depsgraph, camera_override=None) -> RenderJob:
     job.warnings = []
     job.settings = dataclasses.replace(job.settings, cluster="")   # (small: rendered here)
     return job
+
+
+def render_preview(engine, depsgraph) -> None:
+    """A preview's render (``GlintRenderEngine.render`` with ``is_preview``): its job traced
+    and handed to Blender as a final render's is, without passes."""
+    with failures_reported(engine):
+        render_job(engine, depsgraph,
+                   prepare_preview_job(depsgraph, camera_override=engine.camera_override))

@@ -3,7 +3,7 @@ reads Blender data and changes nothing.  One module per kind of data, as in Blen
 export/ and mitsuba-blender's io/exporter/, sharing one ``context.ExportContext``:
 ``scene`` (the depsgraph walk), ``meshes``, ``geometry`` (sphere or triangles),
 ``pointclouds``, ``instances`` (Geometry Nodes instances in bulk), ``lights``, ``materials``,
-``camera``."""
+``camera``; and ``view``, a 3D View's region exported as a core camera (Rendered shading)."""
 
 from .errors import ExportError
 from .scene import export_scene

@@ -161,8 +161,14 @@ def blackbody(node) -> dict:
     return dict(rec709_to_scene=tuple(_floats(row) for row in matrix))
 
 
+def xyz_to_scene() -> tuple:
+    """The 3 x 3 matrix (rows) taking CIE XYZ to the working space's RGB, as Cycles converts
+    the XYZ colours of Wavelength and the Sky Texture."""
+    return _matrix_of(lambda c: c.from_xyz_d65_to_scene_linear())
+
+
 def wavelength(node) -> dict:
-    return dict(xyz_to_scene=_matrix_of(lambda c: c.from_xyz_d65_to_scene_linear()))
+    return dict(xyz_to_scene=xyz_to_scene())
 
 
 def owner_name(node, context=None) -> str:
@@ -199,6 +205,19 @@ def environment_texture_options(node, context) -> dict:
                 projection=node.projection)
 
 
+def sky_texture(node) -> dict:
+    """Sky Texture: its properties (Sun Direction as a tuple), Texture Mapping and the working
+    space's XYZ -> RGB matrix."""
+    options = {name: getattr(node, name) for name in (
+        "sky_type", "sun_disc", "sun_size", "sun_intensity", "sun_elevation", "sun_rotation",
+        "altitude", "air_density", "aerosol_density", "ozone_density", "turbidity",
+        "ground_albedo")}
+    options["sun_direction"] = _floats(node.sun_direction)
+    options["xyz_to_scene"] = xyz_to_scene()
+    options.update(texture_mapping(node))
+    return options
+
+
 def texture_mapping(node) -> dict:
     """{'texture_mapping': {translation, rotation, scale (3-tuples of floats), vector_type,
     mapping_x, mapping_y, mapping_z (enum identifiers)}}."""
@@ -224,6 +243,7 @@ OPTION_READERS = {
     "ShaderNodeRGBToBW": rgb_to_bw,
     "ShaderNodeBlackbody": blackbody,
     "ShaderNodeWavelength": wavelength,
+    "ShaderNodeTexSky": sky_texture,
 }
 OPTION_READERS.update({node_type: texture_mapping for node_type in (
     "ShaderNodeTexNoise", "ShaderNodeTexVoronoi", "ShaderNodeTexWave", "ShaderNodeTexMagic",

@@ -106,6 +106,27 @@ def _read_option(node, name):
         return value
 
 
+def node_options(node, spec, context=None) -> dict:
+    """A node's options: each of ``spec.options`` Blender's node has, read as it is, then
+    what its reader in ``node_options.OPTION_READERS`` adds or replaces (a Texture
+    Mapping, a Color Ramp's stops, an image)."""
+    from .node_options import OPTION_READERS   # (the readers import the node modules)
+
+    values = {name: _read_option(node, name) for name in spec.options if hasattr(node, name)}
+    reader = OPTION_READERS.get(node.bl_idname)
+    if reader is not None:
+        takes_context = "context" in inspect.signature(reader).parameters
+        values.update(reader(node, context) if takes_context else reader(node))
+    return values
+
+
+def _followed(socket) -> bool:
+    """Whether a link into ``socket`` counts: Blender keeps links into sockets a node hides
+    (a physical Sky Texture's Vector) or that are muted, and Cycles drops them, so that the
+    socket reads its coordinate as if unlinked."""
+    return socket.is_linked and socket.links[0].is_valid and not socket.links[0].is_muted
+
+
 class ShaderCompiler:
     """Compiles one node tree (``compile``); owner names it in notes ("material 'Wood'")."""
 
@@ -170,7 +191,7 @@ class ShaderCompiler:
         if output is None:
             if implicit == "normal" and closures_only:
                 return None     # a shader's own normal: the hit's (and foldable)
-            if implicit is not None and not where.is_linked:
+            if implicit is not None and not _followed(where):
                 self.coordinates.add(implicit)
                 return Coordinate(implicit)
             return self._default(where, kind)
@@ -251,6 +272,8 @@ class ShaderCompiler:
             arguments.append(self.argument(socket, groups, kind, spec.implicit.get(identifier),
                                            shader))
         options = self._options(node, spec)
+        if spec.stand_in:
+            self.note(f"{self.owner}: node '{node.name}' ({node.bl_label}) is {spec.note}")
         reads = NODE_COORDINATES.get(node.bl_idname)
         if reads is not None:
             self.coordinates |= reads(node)
@@ -280,14 +303,7 @@ class ShaderCompiler:
     def _options(self, node, spec) -> tuple:
         from .node_options import OPTION_READERS   # (the readers import the node modules)
 
-        reader = OPTION_READERS.get(node.bl_idname)
-        if reader is not None:
-            takes_context = "context" in inspect.signature(reader).parameters
-            values = reader(node, self.context) if takes_context else reader(node)
-        else:
-            values = {name: _read_option(node, name) for name in spec.options
-                  if hasattr(node, name)}
-        return tuple(sorted(values.items()))
+        return tuple(sorted(node_options(node, spec, self.context).items()))
 
     def _emit(self, name: str, arguments: tuple, options: tuple, outputs: int) -> list:
         """The outputs of node ``name`` on ``arguments``: folded to constants where every

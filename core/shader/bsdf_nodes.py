@@ -210,11 +210,12 @@ def _approximated_diffuse(points, colour, normal):
     return (_normal(points, lobes, normal),)
 
 
-for _kind, _why in (("ShaderNodeSubsurfaceScattering", "a Diffuse BSDF of its colour"),
-                    ("ShaderNodeBsdfSheen", "a Diffuse BSDF of its colour"),
-                    ("ShaderNodeBsdfToon", "a Diffuse BSDF of its colour")):
-    node(_kind, inputs=(("Color", COLOR), ("Normal", VECTOR)), outputs=(("BSDF", CLOSURE),),
-         implicit=_NORMAL, note=f"approximated by {_why}")(_approximated_diffuse)
+for _kind, _output in (("ShaderNodeSubsurfaceScattering", "BSSRDF"),
+                       ("ShaderNodeBsdfSheen", "BSDF"), ("ShaderNodeBsdfToon", "BSDF")):
+    node(_kind, inputs=(("Color", COLOR), ("Normal", VECTOR)), outputs=((_output, CLOSURE),),
+         implicit=_NORMAL, note="approximated by a Diffuse BSDF of its colour",
+         stand_in=True)(
+        _approximated_diffuse)
 
 
 @node("ShaderNodeBsdfGlossy", inputs=(("Color", COLOR), ("Roughness", FLOAT),
@@ -245,7 +246,8 @@ def metallic_bsdf(points, base, edge, roughness, normal):
 @node("ShaderNodeBsdfGlass", inputs=(("Color", COLOR), ("Roughness", FLOAT), ("IOR", FLOAT),
                                      ("Normal", VECTOR)),
       outputs=(("BSDF", CLOSURE),), implicit=_NORMAL,
-      note="rough refraction is traced sharp (the reflection is rough)")
+      note="rough refraction goes through GGX microfacets by BSDF samples only (light "
+           "samples do not reach through it)")
 def glass_bsdf(points, colour, roughness, ior, normal):
     ior = np.maximum(ior, 1e-3)
     lobes = _glossy(colour * dielectric_f0(ior), colour, roughness) + _refraction(colour, ior,
@@ -255,7 +257,8 @@ def glass_bsdf(points, colour, roughness, ior, normal):
 
 @node("ShaderNodeBsdfRefraction", inputs=(("Color", COLOR), ("Roughness", FLOAT),
                                           ("IOR", FLOAT), ("Normal", VECTOR)),
-      outputs=(("BSDF", CLOSURE),), implicit=_NORMAL, note="rough refraction is traced sharp")
+      outputs=(("BSDF", CLOSURE),), implicit=_NORMAL,
+      note="rough refraction goes through GGX microfacets by BSDF samples only")
 def refraction_bsdf(points, colour, roughness, ior, normal):
     return (_normal(points, _refraction(colour, np.maximum(ior, 1e-3), 0.0), normal),)
 

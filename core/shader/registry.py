@@ -51,6 +51,8 @@ class NodeSpec:
     reads_points: whether the node reads the shading points' geometry (coordinates,
         normals, the ray), so that its value varies over a surface even where every input
         is a constant: the compiler folds only nodes that do not.
+    stand_in: the node is rendered as another (its note says which), so the export names it
+        in a warning: its look differs from Cycles' as a whole, not in a detail.
     """
 
     bl_idname: str
@@ -61,13 +63,14 @@ class NodeSpec:
     implicit: dict = field(default_factory=dict)
     note: str = ""
     reads_points: bool = False
+    stand_in: bool = False
 
 
 NODES: dict[str, NodeSpec] = {}
 
 
 def node(bl_idname: str, *, inputs=(), outputs=(), options=(), implicit=None, note: str = "",
-         reads_points: bool = False):
+         reads_points: bool = False, stand_in: bool = False):
     """Register the decorated function as the evaluation of ``bl_idname`` (``NodeSpec``).
     inputs and outputs: ((identifier, type), ...)."""
     for identifier, kind in tuple(inputs) + tuple(outputs):
@@ -82,6 +85,7 @@ def node(bl_idname: str, *, inputs=(), outputs=(), options=(), implicit=None, no
         if bl_idname in NODES:
             raise ValueError(f"{bl_idname} is registered twice")
         NODES[bl_idname] = NodeSpec(bl_idname, function, tuple(inputs), tuple(outputs),
-                                    tuple(options), dict(implicit or {}), note, reads_points)
+                                    tuple(options), dict(implicit or {}), note, reads_points,
+                                    stand_in)
         return function
     return register

@@ -6,7 +6,7 @@ Each node function takes its inputs by Blender's socket identifiers and its opti
 property name, as the registry describes, and computes in float32 as Cycles does, so that
 the same coordinates give the same values as Blender's renders (to float32 rounding: Cycles
 builds its kernels with fused multiply-adds and fast-math).  Points are evaluated in blocks
-(``_blockwise``) that keep each block's temporaries small.
+(``blockwise``) that keep each block's temporaries small.
 
 A texture's unlinked Vector is the Generated coordinate, except White Noise's, which is its
 socket value (Cycles links no coordinate to it).  Every texture but White Noise takes the
@@ -58,7 +58,7 @@ def _floats(*values) -> list[np.ndarray]:
     return [np.asarray(value, dtype=_F32) for value in values]
 
 
-def _vector(value) -> np.ndarray:
+def float32_vector(value) -> np.ndarray:
     vector = np.asarray(value, dtype=_F32)
     return vector.reshape(3, -1) if vector.ndim < 2 else vector
 
@@ -67,7 +67,7 @@ def _point_count(arrays) -> int:
     return max([array.shape[-1] for array in arrays if array.ndim] + [1])
 
 
-def _blockwise(kernel, arrays, outputs, cost: int = 1):
+def blockwise(kernel, arrays, outputs, cost: int = 1):
     """kernel(*arrays) over blocks of points: each array whose last axis is the points'
     (the longest last axis) is sliced, the others (constants) passed whole.  outputs: the
     socket types of the kernel's results, which are broadcast to (n,) or (3, n).  cost:
@@ -150,7 +150,7 @@ def texture_mapping_transform(mapping) -> np.ndarray | None:
     return np.concatenate([linear @ projection, offset[:, None]], axis=1).astype(_F32)
 
 
-def _mapped(vector, mapping):
+def mapped(vector, mapping):
     """The (3, m) vector through the node's texture mapping (Cycles' transform_point, with its
     fused multiply-adds; NORMAL then normalizes)."""
     matrix = texture_mapping_transform(mapping)
@@ -209,10 +209,10 @@ def noise_texture_node(points, vector, w, scale, detail, roughness, lacunarity, 
 
     coloured = needed is None or "Color" in needed
 
-    return _blockwise(kernel, [_mapped(_vector(vector), texture_mapping)]
-                      + _floats(w, scale, detail, roughness, lacunarity, offset, gain,
-                                distortion),
-                      (FLOAT, COLOR), cost=2 ** (dimensions + 1))
+    return blockwise(kernel, [mapped(float32_vector(vector), texture_mapping)]
+                     + _floats(w, scale, detail, roughness, lacunarity, offset, gain,
+                               distortion),
+                     (FLOAT, COLOR), cost=2 ** (dimensions + 1))
 
 
 # ---- Voronoi -----------------------------------------------------------------------------
@@ -258,10 +258,10 @@ def voronoi_texture_node(points, vector, w, scale, detail, roughness, lacunarity
         found, colour, position = fractal_voronoi(params, coord)
         return found, colour, position[:3], position[3], zero
 
-    return _blockwise(kernel, [_mapped(_vector(vector), texture_mapping)]
-                      + _floats(w, scale, detail, roughness, lacunarity, smoothness, exponent,
-                                randomness),
-                      (FLOAT, COLOR, VECTOR, FLOAT, FLOAT), cost=4 * cells)
+    return blockwise(kernel, [mapped(float32_vector(vector), texture_mapping)]
+                     + _floats(w, scale, detail, roughness, lacunarity, smoothness, exponent,
+                               randomness),
+                     (FLOAT, COLOR, VECTOR, FLOAT, FLOAT), cost=4 * cells)
 
 
 # ---- Wave --------------------------------------------------------------------------------
@@ -327,10 +327,10 @@ def wave_texture_node(points, vector, scale, distortion, detail, detail_scale, d
                    distortion, detail, detail_scale, detail_roughness, phase)
         return _grey(fac), fac
 
-    return _blockwise(kernel, [_mapped(_vector(vector), texture_mapping)]
-                      + _floats(scale, distortion, detail, detail_scale, detail_roughness,
-                                phase_offset),
-                      (COLOR, FLOAT), cost=16)
+    return blockwise(kernel, [mapped(float32_vector(vector), texture_mapping)]
+                     + _floats(scale, distortion, detail, detail_scale, detail_roughness,
+                               phase_offset),
+                     (COLOR, FLOAT), cost=16)
 
 
 # ---- Magic -------------------------------------------------------------------------------
@@ -349,8 +349,8 @@ def magic_texture_node(points, vector, scale, distortion, *, turbulence_depth=2,
         colour = magic(vector, scale, depth, distortion)
         return colour, (colour[0] + colour[1] + colour[2]) * _F32(1.0 / 3.0)
 
-    return _blockwise(kernel, [_mapped(_vector(vector), texture_mapping)]
-                      + _floats(scale, distortion), (COLOR, FLOAT))
+    return blockwise(kernel, [mapped(float32_vector(vector), texture_mapping)]
+                     + _floats(scale, distortion), (COLOR, FLOAT))
 
 
 def magic(p, scale, depth: int, distortion):
@@ -430,7 +430,7 @@ def gradient_texture_node(points, vector, *, gradient_type="LINEAR", texture_map
     """A ramp along x, its variants and spheres (Cycles' svm_node_tex_gradient); Color is
     Fac in grey."""
     _option("ShaderNodeTexGradient", "gradient_type", gradient_type, GRADIENT_TYPES)
-    fac = gradient(_mapped(_vector(vector), texture_mapping), gradient_type)
+    fac = gradient(mapped(float32_vector(vector), texture_mapping), gradient_type)
     return _grey(fac), fac
 
 
@@ -451,8 +451,8 @@ def checker(p):
       implicit={"Vector": "generated"})
 def checker_texture_node(points, vector, color1, color2, scale, *, texture_mapping=None):
     """Checkerboard (Cycles' svm_node_tex_checker)."""
-    vector = _mapped(_vector(vector), texture_mapping)
-    color1, color2 = _vector(color1), _vector(color2)
+    vector = mapped(float32_vector(vector), texture_mapping)
+    color1, color2 = float32_vector(color1), float32_vector(color2)
     fac = checker(vector * np.asarray(scale, _F32))
     return np.where(fac == 1, color1, color2), fac
 
@@ -522,11 +522,12 @@ def brick_texture_node(points, vector, color1, color2, mortar, scale, mortar_siz
         brick_colour = np.where(fac != 1, tinted, color1)
         return fused_multiply_add(mortar_colour, fac, brick_colour * (_F32(1.0) - fac)), fac
 
-    return _blockwise(kernel, [_mapped(_vector(vector), texture_mapping), _vector(color1),
-                               _vector(color2), _vector(mortar)]
-                      + _floats(scale, mortar_size, mortar_smooth, bias, brick_width,
-                                row_height),
-                      (COLOR, FLOAT))
+    return blockwise(kernel, [mapped(float32_vector(vector), texture_mapping),
+                              float32_vector(color1), float32_vector(color2),
+                              float32_vector(mortar)]
+                     + _floats(scale, mortar_size, mortar_smooth, bias, brick_width,
+                               row_height),
+                     (COLOR, FLOAT))
 
 
 # ---- White Noise -------------------------------------------------------------------------
@@ -539,7 +540,7 @@ def white_noise_texture_node(points, vector, w, *, noise_dimensions="3D"):
     """A random value and colour per input coordinate (Cycles' svm_node_tex_white_noise):
     the coordinate's float32 bits hashed."""
     dimensions = _dimensions("ShaderNodeTexWhiteNoise", "noise_dimensions", noise_dimensions)
-    p = _coordinates(dimensions, _vector(vector), np.asarray(w, _F32))
+    p = _coordinates(dimensions, float32_vector(vector), np.asarray(w, _F32))
     value = (hash_float_to_float, hash_float2_to_float, hash_float3_to_float,
              hash_float4_to_float)[dimensions - 1](*p)
     colour = (hash_float_to_float3, hash_float2_to_float3, hash_float3_to_float3,

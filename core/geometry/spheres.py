@@ -1,11 +1,12 @@
-"""Ray/sphere intersection kernels, shape-generic.
+"""Spheres: the ray/sphere kernels, shape-generic, and the scene's spheres as a shape that
+answers its own batch tests (``Spheres``).
 
 Vectors are (3, ...) arrays (``core.vectors``): a kernel broadcasts rays against spheres in
 whatever layout the caller gives, (3, k, n) for k spheres by n rays or (3, E) for E explicit
 pairs, and returns the pair roots ``(t_near, t_far, valid)`` in the broadcast shape: the two
 distances along the (unit) ray where it crosses the sphere, and whether it crosses at all
 (discriminant > 0, strictly, so tangent rays miss as in the article).  Callers pick what
-they need: the nearest hit (``core.trace``) or whether a segment is blocked (``core.shading``).
+they need through the hit rules (``rules``): the nearest hit, or whether a segment is blocked.
 
 Numerics (docs/article.md, "Numerics worth knowing").  With f = o - c and b' = f.d:
 
@@ -23,7 +24,7 @@ computed once, c' in extended precision.  The discriminant is then ``b'^2 - c'``
 is about eps * c' against a scale of r^2: accurate while c' <= CHEAP_DISCRIMINANT_RATIO * r^2
 (spheres near the origin, or large); the rest (small and far) take the vector form.
 
-``article=True`` computes the article's textbook form instead (b = 2 d.(o - c),
+``textbook=True`` computes the article's textbook form instead (b = 2 d.(o - c),
 c = |o - c|^2 - r^2, delta = b^2 - 4c), so that its rounding, and the reference image, are
 reproduced; a test shows the stable kernels give the same reference image within 1e-9.
 """
@@ -35,7 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .vectors import dot, length
+from ..arrays import SphereArrays
+from ..vectors import dot, length, take
 
 #: Largest c' / r^2 for which ``b'^2 - c'`` is used (relative discriminant error ~ eps * ratio).
 CHEAP_DISCRIMINANT_RATIO = {np.dtype(np.float64): 1e4, np.dtype(np.float32): 1e1}
@@ -67,11 +69,11 @@ def _textbook_roots(b, c):
     return low, high, valid
 
 
-def offset_roots(f, rays, radii, *, article=False):
+def offset_roots(f, rays, radii, *, textbook=False):
     """Roots for rays with their own origins, any broadcast shape: f = origins - centres and
     rays (unit directions) are (3, ...) arrays, radii (...).  Returns arrays of the broadcast
     shape (...)."""
-    if article:
+    if textbook:
         return _textbook_roots(2.0 * dot(f, rays), dot(f, f) - radii ** 2)
     b, disc = offset_discriminants(f, rays, radii)
     t_near, t_far = offset_press_roots(f, radii, b, disc)
@@ -122,13 +124,13 @@ class OriginTerms:
         return cls(f, c_wide.astype(np.float64), np.linalg.norm(f, axis=1) ** 2 - radii ** 2)
 
 
-def origin_roots(f, c_prime, article_c, radii, rays, *, article=False):
+def origin_roots(f, c_prime, article_c, radii, rays, *, textbook=False):
     """Roots for rays from one origin, any broadcast shape: f = origin - centres (3, ...) and
     c_prime, article_c, radii (...) as ``OriginTerms`` gives them (float64), rays (3, ...) unit
     directions in the render precision."""
     dtype = rays.dtype
     f = f.astype(dtype, copy=False)     # (read, never written)
-    if article:
+    if textbook:
         return _textbook_roots(2.0 * dot(f, rays), article_c.astype(dtype, copy=False))
     b = dot(f, rays)
     c_cast = c_prime.astype(dtype)
@@ -142,23 +144,10 @@ def origin_roots(f, c_prime, article_c, radii, rays, *, article=False):
     return t_near, t_far, disc > 0
 
 
-def first_hit_distance(t_near, t_far, valid, t_min, *, article=False):
-    """Distance (k, n) of the hit each pair counts, inf where none.
-
-    Article: a hit needs both roots > 0, and is the nearer one (a ray never hits a sphere it
-    starts inside).  Default: the nearest root beyond t_min (so from inside, the far side).
-    t_min: scalar or (n,).
-    """
-    if article:
-        return np.where(valid & (t_near > 0) & (t_far > 0), t_near, np.inf)
-    return np.where(valid & (t_near > t_min), t_near,
-                    np.where(valid & (t_far > t_min), t_far, np.inf))
-
-
 class FewSpheres:
     """Every ray of a batch against each of k candidate spheres in turn, one (n,) row at a
-    time: the aggregate's path for bundles culled to a few spheres (``core.cull``'s
-    ``DENSE_CANDIDATES``).
+    time: the flat culling's path for batches culled to a few spheres
+    (``GeometryPolicy.dense_candidates``).
 
     The same roots as ``origin_roots`` / ``offset_roots`` (every product and sum in the same
     order, so the same values), without their (k, n) temporaries: a sphere's terms are
@@ -170,17 +159,16 @@ class FewSpheres:
 
     origins: (3, 1) with ``terms`` (``OriginTerms``) when every ray leaves one point, else
     (3, n); directions (3, n) unit, in the render precision; centers (N, 3) and radii (N,)
-    float64.  textbook: the article's root formula, else the stable one; article: the
-    article's hit rules (``first_hit_distance``), else the nearest root beyond t_min and
-    any root inside a segment.
+    float64.  textbook: the article's root formula, else the stable one; rules: the hit rules
+    (``rules``), which read the rows' terms.
     """
 
     def __init__(self, centers, radii, origins, directions, terms=None, *, textbook: bool,
-                 article: bool):
+                 rules):
         self.dtype = directions.dtype
         self.directions = directions
         self.textbook = textbook
-        self.article = article
+        self.rules = rules
         self.centers = centers
         self.radii = radii
         self.terms = terms
@@ -260,7 +248,7 @@ class FewSpheres:
         disc -= perp
         return b, disc, c
 
-    def _roots(self, b, disc, c):
+    def roots(self, b, disc, c):
         """(t_near, t_far) (n,) new arrays: Press et al.'s roots (``_press_roots``), or the
         textbook ones (``_textbook_roots``), from ``_terms``."""
         # NaN where disc < 0 (the callers run under errstate): no root is read where
@@ -291,24 +279,7 @@ class FewSpheres:
     def _nearest_one(self, sphere, t_min, t_max, bounded, exclude, ids, best_t, best):
         gid = sphere if ids is None else ids[sphere]
         b, disc, c = self._terms(sphere)
-        if self.article and self.textbook:
-            # t_near = (-b - sqrt(disc)) / 2: NaN where disc < 0, which no test passes.
-            t = np.sqrt(disc, out=self.root)
-            t += b
-            t *= self.dtype.type(-0.5)
-            better = t > 0
-            better &= disc > 0
-        elif self.article:
-            t, t_far = self._roots(b, disc, c)
-            better = t > 0
-            better &= t_far > 0
-            better &= disc > 0
-        else:
-            # The near root if beyond t_min, else the far one (never below the near one).
-            t_near, t_far = self._roots(b, disc, c)
-            better = t_far > t_min
-            better &= disc > 0
-            t = np.where(t_near > t_min, t_near, t_far)
+        t, better = self.rules.few_nearest(self, b, disc, c, t_min)
         if bounded:
             better &= t < t_max
         better &= t < best_t
@@ -318,8 +289,8 @@ class FewSpheres:
         np.copyto(best, gid, where=better)
 
     def blocked(self, spheres, low, high, exclude, ids, blocked):
-        """blocked (n,) |= whether a candidate sphere blocks each segment: the article's far
-        root in (low, high), else either root there; ``exclude`` as in ``nearest``."""
+        """blocked (n,) |= whether a candidate sphere blocks each segment (low, high) under
+        the hit rules; ``exclude`` as in ``nearest``."""
         with np.errstate(invalid="ignore", divide="ignore"):
             for sphere in spheres:
                 self._blocked_one(sphere, low, high, exclude, ids, blocked)
@@ -327,23 +298,130 @@ class FewSpheres:
     def _blocked_one(self, sphere, low, high, exclude, ids, blocked):
         gid = sphere if ids is None else ids[sphere]
         b, disc, c = self._terms(sphere)
-        if self.article:
-            if self.textbook:   # t_far = (-b + sqrt(disc)) / 2
-                t = np.sqrt(disc, out=self.root)
-                t -= b
-                t *= self.dtype.type(0.5)
-            else:
-                t = self._roots(b, disc, c)[1]
-            hit = t < high
-            hit &= t > low
-        else:
-            t_near, t_far = self._roots(b, disc, c)
-            hit = t_near > low
-            hit &= t_near < high
-            far = t_far > low
-            far &= t_far < high
-            hit |= far
+        hit = self.rules.few_blocked(self, b, disc, c, low, high)
         hit &= disc > 0
         if exclude is not None:
             hit &= exclude != gid
         blocked |= hit
+
+
+class Spheres:
+    """The scene's spheres as a shape: their arrays (``core.arrays.SphereArrays``, float64)
+    and their centres and radii in the render precision ``dtype``, answering the batch tests
+    of (ray, sphere) pairs that the accelerators hand them: by global id (``pair_roots``,
+    ``pairs_nearest``, ``pairs_blocked``), or by slot of a table of spheres laid out in an
+    accelerator's order (``by_slot``: a tree's leaves), whose pairs read short stretches of
+    the table instead of scattered elements of scene-long arrays.  textbook: the article's
+    root formula (``ROOT_FORMULAS``), else the stable one."""
+
+    def __init__(self, arrays: SphereArrays, dtype, textbook: bool):
+        self.arrays = arrays
+        self.dtype = np.dtype(dtype)
+        self.textbook = textbook
+        self.count = len(arrays)
+        self.centers_t = np.ascontiguousarray(arrays.centers.T, self.dtype)
+        self.radii = np.ascontiguousarray(arrays.radii, self.dtype)
+        self.material = arrays.material
+
+    def boxes(self, ids):
+        """(low, high) (3, k) float64 bounding boxes of spheres ``ids`` (k,) (None: all)."""
+        c = self.arrays.centers.T if ids is None else self.arrays.centers[ids].T
+        r = self.arrays.radii if ids is None else self.arrays.radii[ids]
+        return np.subtract(c, r, out=np.empty(c.shape)), np.add(c, r, out=np.empty(c.shape))
+
+    def pair_roots(self, rays, r, sphere):
+        """(t_near, t_far, valid) (E,) of pairs (ray r, sphere) of a batch (``RayBatch``),
+        with the batch's shared terms when it has them for every sphere."""
+        directions = take(rays.directions, r)
+        terms = rays.shared.tree_terms if rays.shared is not None else None
+        if terms is not None:
+            return origin_roots(take(terms.rows, sphere), terms.c_prime.take(sphere),
+                                terms.article_c.take(sphere), self.arrays.radii.take(sphere),
+                                directions, textbook=self.textbook)
+        origins = rays.origins if rays.origins.shape[1] == 1 else take(rays.origins, r)
+        return offset_roots(origins - take(self.centers_t, sphere), directions,
+                            self.radii[sphere], textbook=self.textbook)
+
+    def pairs_nearest(self, rays, r, sphere, t_min, limit, rules):
+        """(E,) the hit distance (inf: none) of pairs (ray r, sphere) under the hit rules,
+        beyond the rays' t_min (E,) and nearer than ``limit`` (E,)."""
+        d = rules.first_hit(*self.pair_roots(rays, r, sphere), t_min)
+        return np.where(d < limit, d, np.inf)
+
+    def pairs_blocked(self, rays, r, sphere, low, high, rules):
+        """(E,) whether pairs (ray r, sphere) are blocked: a root within (low, high) (n,) of
+        the ray (``HitRules.blocks``).  With the stable roots and no shared terms, the roots
+        are computed only for the pairs whose ray meets the sphere (most of a leaf's miss):
+        the same flags, 4-5 % faster on the occlusion rays of dense sphere fields."""
+        terms = rays.shared.tree_terms if rays.shared is not None else None
+        if terms is not None or self.textbook:
+            t_near, t_far, valid = self.pair_roots(rays, r, sphere)
+            return valid & rules.blocks(t_near, t_far, low[r], high[r])
+        origins = rays.origins if rays.origins.shape[1] == 1 else take(rays.origins, r)
+        f = origins - take(self.centers_t, sphere)
+        radii = self.radii.take(sphere)
+        b, disc = offset_discriminants(f, take(rays.directions, r), radii)
+        blocked = disc > 0
+        meet = np.flatnonzero(blocked)
+        t_near, t_far = offset_press_roots(take(f, meet), radii.take(meet), b.take(meet),
+                                           disc.take(meet))
+        rows = r.take(meet)
+        blocked[meet] = rules.blocks(t_near, t_far, low.take(rows), high.take(rows))
+        return blocked
+
+    # ---- by slot ------------------------------------------------------------------------
+
+    def by_slot(self, ids):
+        """(x, y, z, radii) (S,) the spheres of slots ``ids`` (S,) (global ids, -1: an empty
+        slot) in the render precision, NaN in an empty slot: a table for the slot kernels
+        (about 40 bytes a sphere in float64, 24 in float32)."""
+        pad = ids < 0
+        safe = np.where(pad, 0, ids)
+        columns = [self.centers_t[k].take(safe) for k in range(3)]
+        columns.append(self.radii.take(safe))
+        for column in columns:
+            column[pad] = np.nan
+        return tuple(columns)
+
+    def _slot_offsets(self, rays, r, slots, table, stats):
+        """(3, k) each pair's ray origin less its sphere's centre, for pairs (ray ``r``, slot
+        ``slots``) (k,) of a table (``by_slot``: (x, y, z, radii, ids)); counts the k sphere
+        tests."""
+        if stats is not None:
+            stats.sphere_tests += len(slots)
+        origins = rays.origins if rays.origins.shape[1] == 1 else take(rays.origins, r)
+        f = np.empty((3, len(slots)), np.result_type(origins.dtype, self.dtype))
+        for k, column in enumerate(table[:3]):
+            np.subtract(origins[k], column.take(slots), out=f[k])
+        return f
+
+    def slots_nearest(self, rays, r, slots, table, t_min, limit, rules, stats):
+        """(E,) ``pairs_nearest`` of pairs (ray r, slot) of a table (``_slot_offsets``):
+        the same operations on the same values, so the same distances; t_min, limit (E,)."""
+        f = self._slot_offsets(rays, r, slots, table, stats)
+        roots = offset_roots(f, take(rays.directions, r), table[3].take(slots),
+                             textbook=self.textbook)
+        d = rules.first_hit(*roots, t_min)
+        return np.where(d < limit.astype(self.dtype), d, np.inf).astype(self.dtype, copy=False)
+
+    def slots_blocked(self, rays, r, slots, table, low, high, rules, stats):
+        """The rays (k,) of pairs (ray r, slot) (E,) of a table (``_slot_offsets``; ids None:
+        the slots are the sphere ids themselves) whose sphere blocks them, with the stable
+        roots and no shared terms (``pairs_blocked``: the same flags), less the pairs of the
+        sphere each ray excludes (``RayBatch.exclude``), which are dropped before their
+        roots (its own slot's box holds the ray's origin: 22 % of the pairs in dense
+        fields)."""
+        ids = table[4]
+        if rays.exclude is not None:
+            other = np.flatnonzero((slots if ids is None else ids.take(slots))
+                                   != rays.exclude.take(r))
+            r, slots = r.take(other), slots.take(other)
+        f = self._slot_offsets(rays, r, slots, table, stats)
+        radius = table[3].take(slots)
+        b, disc = offset_discriminants(f, take(rays.directions, r), radius)
+        meet = np.flatnonzero(disc > 0)
+        t_near, t_far = offset_press_roots(take(f, meet), radius.take(meet), b.take(meet),
+                                           disc.take(meet))
+        met = r.take(meet)
+        blocked = rules.blocks(t_near, t_far, low.take(met), high.take(met))
+        return met[blocked]

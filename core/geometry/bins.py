@@ -1,8 +1,9 @@
-"""Rays that share one origin, answered by binning instead of the tree (a light buffer).
+"""Direction bins: rays that share one origin, answered by binning instead of the tree (a
+light buffer).
 
 Haines and Greenberg's light buffer (1986), a rasterizer's binning: around one origin (the
-camera's eye, a light sample) the directions are cut into cube-map cells (``cull
-.direction_cells``: CELLS x CELLS cells on each of six faces), and every primitive of the
+camera's eye, a light sample) the directions are cut into cube-map cells (``cells
+.face_cells``: CELLS x CELLS cells on each of six faces), and every primitive of the
 tree is listed in each cell its bounding box may be seen through.  A ray from that origin
 can then hit only the primitives of its own cell, so a batch is answered by pairing each ray
 with its cell's primitives and intersecting those pairs exactly: no box tests at all, where
@@ -25,12 +26,13 @@ primitive id, as ``BVH._visit_leaves`` picks them.
 
 Whether bins pay is decided twice.  Per origin, before anything is listed: the entries the
 boxes would make are counted from their cell ranges (each cell's count by 2-D difference
-arrays); an origin whose bins would exceed ``MAX_ENTRIES`` even with a quarter of the cells
+arrays); an origin whose bins would exceed ``GeometryPolicy.max_entries`` even with a
+quarter of the cells
 a side (boxes near the origin), or whose occupied cells list more than
-``MAX_MEAN_CANDIDATES`` on average (a dense field, whose cells hold columns of primitives
+``max_mean_candidates`` on average (a dense field, whose cells hold columns of primitives
 along depth, which the tree, front to back, stops short of), is left to the tree.  Per
 batch: its rays' candidates are counted from the cell offsets, and a batch with more than
-``MAX_PAIRS_PER_RAY`` on average goes to the tree.  (``core.aggregate`` adds when to try:
+``max_pairs_per_ray`` on average goes to the tree.  (``binning`` adds when to try:
 batches large enough, trees small enough, a bound on the bytes held.)
 
 Depth-ordered bins (``by_depth``, ``walk``) serve the dense fields refused above: each entry
@@ -55,8 +57,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bvh import keep_nearest, map_on
-from .runs import rank_within_runs, value_run_starts
+from ..runs import rank_within_runs
+from .cells import face_cells
+from .pairs import keep_nearest
+from .policy import DEFAULT_POLICY, GeometryPolicy
+from .threads import map_on
 
 #: Cells per cube-face side: 512 makes cells of about 3.75 pixels at 1920 pixels across a
 #: 90-degree view (one face).
@@ -67,61 +72,11 @@ MARGIN = 4e-6
 #: A box's distance from the origin is scaled by this before it bounds its pairs' hits
 #: (directions are unit vectors only to within their precision's rounding).
 NEAR_SLACK = 1 - 1e-6
-#: Upper bound on (cell, primitive) entries of one origin's bins (12 bytes each).
-MAX_ENTRIES = 1 << 21
-#: Upper bound on the entries of one origin's depth-ordered bins (``walk``; 12 bytes each),
-#: and on their entries per primitive: listing costs about half a microsecond an entry,
-#: and cells of about a primitive's size already stop most rays within a few entries.
-MAX_DEPTH_ENTRIES = 1 << 23
-MAX_DEPTH_ENTRIES_PER_PRIMITIVE = 8
-#: How many of its cell's entries a ray of depth-ordered bins meets in each round of
-#: ``walk``; a ray still walking after them goes to the tree.
-WALK_ROUNDS = (1, 1, 2, 2, 4, 4, 8, 8)
-#: Bins whose occupied cells hold more primitives than this on average are not built: the
-#: tree, which stops at a ray's first hit front to back, is cheaper there.
-MAX_MEAN_CANDIDATES = 16.0
-#: A batch whose rays average more candidate pairs than this goes to the tree.
-MAX_PAIRS_PER_RAY = 16.0
 #: Cells are stored in square blocks of BLOCK x BLOCK, only where a block lists something.
 BLOCK_BITS = 4
 BLOCK = 1 << BLOCK_BITS
-#: Boxes whose terms and face ranges, or depth-ordered entries, are made at once (a job of
-#: ``OriginBins.build``, ``OriginBins._by_depth``).
-DEPTH_CHUNK = 1 << 17
 #: Upper bound on pairs intersected at once; bounds the per-pair temporaries.
 BLOCK_PAIRS = 1 << 18
-
-
-def face_cells(directions, cells: int):
-    """(face, u, v) (n,) each: the cube-map cell of each unit direction (3, n), in
-    ``cull.direction_cells``' layout (face 2 axis + (negative), u along the next axis, v along
-    the one after), with the major axis picked by comparisons (a tie between two axes may pick
-    either face: both list the boxes seen on their shared edge).  Whole-array selections
-    rather than an argmax and a fancy gather: half the time."""
-    d = directions
-    size = np.abs(d)
-    x = (size[0] >= size[1]) & (size[0] >= size[2])
-    y = ~x & (size[1] >= size[2])
-    along = np.where(x, d[0], np.where(y, d[1], d[2]))
-    first = np.where(x, d[1], np.where(y, d[2], d[0]))
-    second = np.where(x, d[2], np.where(y, d[0], d[1]))
-    half = d.dtype.type(cells / 2)
-    scale = np.abs(along)
-    np.divide(half, scale, out=scale)
-    face = np.where(x, 0, np.where(y, 2, 4)) + (along < 0)
-    first *= scale
-    first += half
-    second *= scale
-    second += half
-    u = np.minimum(first.astype(np.intp), cells - 1)
-    v = np.minimum(second.astype(np.intp), cells - 1)
-    return face, u, v
-
-
-def ray_cells(directions, cells: int) -> np.ndarray:
-    """(n,) ``cull.direction_cells`` of unit directions (3, n), from ``face_cells``."""
-    face, u, v = face_cells(directions, cells)
-    return (face * cells + u) * cells + v
 
 
 def _face_ranges(relative_low, relative_high, axis: int, negative: bool):
@@ -155,7 +110,7 @@ def _face_ranges(relative_low, relative_high, axis: int, negative: bool):
 
 
 def _face_cells(ranges, cells: int):
-    """(first u, last u, first v, last v) (k,) int cell ranges (``direction_cells``' layout,
+    """(first u, last u, first v, last v) (k,) int cell ranges (``cells.face_cells``' layout,
     ``cells`` a side) of face coordinate ranges from ``_face_ranges``."""
     return tuple(np.clip(np.floor((r + 1) * (cells / 2)), 0, cells - 1).astype(np.intp)
                  for r in ranges)
@@ -303,31 +258,34 @@ class OriginBins:
     @classmethod
     def build(cls, position, ids, low, high, cells: int = None, max_entries: int = None,
               max_mean: float = None, by_depth: bool = False, bounds=None,
-              rounding: float = 0.0, pool=None) -> "OriginBins | None":
+              rounding: float = 0.0, pool=None,
+              policy: GeometryPolicy = DEFAULT_POLICY) -> "OriginBins | None":
         """Bins around ``position`` (3,) of primitives ``ids`` (K,) ascending, with bounding
         boxes low, high (K, 3), with ``cells`` cells per face side, or half or a quarter as
         many when boxes near the origin would make more than ``max_entries`` entries; None
         where they do not pay (module docstring): still too many entries, or more than
-        ``max_mean`` per occupied cell.  (Defaults: CELLS, MAX_ENTRIES and
-        MAX_MEAN_CANDIDATES.)  by_depth: each cell's entries by distance from the origin
+        ``max_mean`` per occupied cell.  (Defaults: CELLS and the policy's max_entries and
+        max_mean_candidates.)  by_depth: each cell's entries by distance from the origin
         (``walk``), with down to 1/16 of ``cells`` a side to fit ``max_entries`` (default
-        MAX_DEPTH_ENTRIES, and MAX_DEPTH_ENTRIES_PER_PRIMITIVE a primitive) and no bound on
+        max_depth_entries, and max_depth_entries_per_primitive a primitive) and no bound on
         the mean.  bounds: (centres (K, 3), radii (K,))
         float64 bounding spheres of the primitives (needed by_depth), or None: a
         primitive's ``near`` is the larger of its box's and its sphere's distance, and a
         depth-ordered entry's its cell's (``_cone_near``).  rounding: the machine epsilon
         of the kernels that will intersect the pairs: the spheres are grown by what their
         roots' rounding may add (``_rounding_slack``).  pool: a thread pool the boxes'
-        terms and face ranges and the depth-ordered entries are made on, DEPTH_CHUNK boxes
+        terms and face ranges and the depth-ordered entries are made on, bins_chunk boxes
         (of a face) a job (None: this thread), joined in the boxes' order: the same bins."""
         cells = CELLS if cells is None else cells
         if max_entries is None:
-            max_entries = MAX_DEPTH_ENTRIES if by_depth else MAX_ENTRIES
-        # (Depth-ordered: the finest cells within MAX_DEPTH_ENTRIES_PER_PRIMITIVE, else the
+            max_entries = policy.max_depth_entries if by_depth else policy.max_entries
+        # (Depth-ordered: the finest cells within max_depth_entries_per_primitive, else the
         # coarsest, within max_entries.)
-        enough = min(max_entries, MAX_DEPTH_ENTRIES_PER_PRIMITIVE * len(ids)) if by_depth \
+        enough = min(max_entries, policy.max_depth_entries_per_primitive * len(ids)) \
+            if by_depth \
             else max_entries
-        max_mean = MAX_MEAN_CANDIDATES if max_mean is None else max_mean
+        max_mean = policy.max_mean_candidates if max_mean is None else max_mean
+        chunk = policy.bins_chunk
         position = np.asarray(position, np.float64)
         low, high, ids = np.asarray(low, np.float64), np.asarray(high, np.float64), np.asarray(ids)
         if by_depth and bounds is None:
@@ -358,8 +316,8 @@ class OriginBins:
                 _face_ranges(relative_low, relative_high, face // 2, bool(face % 2))
                 for face in range(6)]
 
-        firsts = range(0, max(len(ids), 1), DEPTH_CHUNK)
-        parts = map_on(pool, boxes, [slice(at, at + DEPTH_CHUNK) for at in firsts])
+        firsts = range(0, max(len(ids), 1), chunk)
+        parts = map_on(pool, boxes, [slice(at, at + chunk) for at in firsts])
         distance = np.concatenate([part[0] for part in parts])
         if bounds is not None:
             reach, radii = (np.concatenate([part[k] for part in parts]) for k in (1, 2))
@@ -395,7 +353,8 @@ class OriginBins:
         np.cumsum(by_block[stored].ravel(), out=starts[1:-1])
         starts[-1] = starts[-2]
         if by_depth:
-            return cls._by_depth(cells, slots, starts, faces, ids, unit, reach, radii, pool)
+            return cls._by_depth(cells, slots, starts, faces, ids, unit, reach, radii, pool,
+                                 chunk)
         places, owners = [], []
         for face, shown, cell_ranges in faces:
             u, v, owner = _entries(shown, *cell_ranges)
@@ -408,21 +367,21 @@ class OriginBins:
                    by_depth)
 
     @classmethod
-    def _by_depth(cls, cells, slots, starts, faces, ids, unit, reach, radii, pool=None):
+    def _by_depth(cls, cells, slots, starts, faces, ids, unit, reach, radii, pool, size):
         """``build``'s depth-ordered entries: each entry's near is its own cell's
         (``_cone_near``), rounded down to 2^-30 of the farthest centre, entries whose cone
         misses the sphere are dropped (the offsets are counted again), and the rest sorted
-        by (cell, near).  Made DEPTH_CHUNK boxes at a time, so that the temporaries stay a
+        by (cell, near).  Made ``size`` boxes at a time, so that the temporaries stay a
         few tens of MB while the entries run to millions (a chunk a job on ``pool``)."""
         blocks = cells // BLOCK
         step = max(float(reach.max(initial=0.0)), 1e-300) / 2 ** 30
         _cell_cones(cells)      # (made once, before the jobs ask for it)
 
         def chunk(job):
-            """(place, owner, level) (e,) int32: the entries of DEPTH_CHUNK of a face's boxes
+            """(place, owner, level) (e,) int32: the entries of ``size`` of a face's boxes
             from the ``at``-th, each with its cell's place, its box and its near level."""
             face, shown, (first_u, last_u, first_v, last_v), at = job
-            part = slice(at, at + DEPTH_CHUNK)
+            part = slice(at, at + size)
             u, v, owner = _entries(shown[part], first_u[part], last_u[part],
                                    first_v[part], last_v[part])
             near, seen = _cone_near(face, u, v, cells, unit.take(owner, axis=1),
@@ -434,7 +393,7 @@ class OriginBins:
                     owner.astype(np.int32), np.floor(near, out=near).astype(np.int32))
 
         parts = map_on(pool, chunk, [(*face, at) for face in faces
-                                     for at in range(0, len(face[1]), DEPTH_CHUNK)])
+                                     for at in range(0, len(face[1]), size)])
         place = np.concatenate([p[0] for p in parts])
         level = np.concatenate([p[2] for p in parts])
         owners = [p[1] for p in parts]
@@ -458,22 +417,22 @@ class OriginBins:
         return sum(a.nbytes for a in (self.slots, self.starts, self.primitives, self.near))
 
     def cell_entries(self, cell: int) -> np.ndarray:
-        """The primitives (k,) listed in one cell (``cull.direction_cells``' numbering)."""
+        """The primitives (k,) listed in one cell (``cells.direction_cells``' numbering)."""
         face, rest = divmod(int(cell), self.cells * self.cells)
         u, v = divmod(rest, self.cells)
         place = int(_place(self.slots, face, np.array([u]), np.array([v]),
                            self.cells // BLOCK, len(self.starts) - 2)[0])
         return self.primitives[self.starts[place]:self.starts[place + 1]]
 
-    def plan(self, directions):
+    def plan(self, directions, max_pairs_per_ray: float = DEFAULT_POLICY.max_pairs_per_ray):
         """(cell start (n,), candidates (n,)) of rays along unit ``directions`` (3, n), or
-        None when the batch averages more than MAX_PAIRS_PER_RAY candidates (the tree's
+        None when the batch averages more than ``max_pairs_per_ray`` candidates (the tree's
         then)."""
         place = _place(self.slots, *face_cells(directions, self.cells), self.cells // BLOCK,
                        len(self.starts) - 2)
         start = self.starts.take(place)
         count = self.starts.take(place + 1) - start
-        if not self.by_depth and count.sum() > MAX_PAIRS_PER_RAY * len(count):
+        if not self.by_depth and count.sum() > max_pairs_per_ray * len(count):
             return None
         return start, count
 
@@ -488,7 +447,7 @@ class OriginBins:
         exclude: (n,) the primitive each ray ignores (-1: none), or None; a ray's pair with
         it is not visited at all (``visit`` would find no hit there).  reach_shift: (n,)
         how much further than its t_max each ray may be from the bins' origin at its t_max
-        (rays that do not leave the origin itself: ``Aggregate._mirror_groups``), or None.
+        (rays that do not leave the origin itself: ``DirectionBins._mirror_groups``), or None.
         Returns (n,) bool: whether a hit (any_hit: a blocker) was found for each ray."""
         start, count = plan
         n = len(count)
@@ -524,18 +483,20 @@ class OriginBins:
             keep_nearest(ray, prims, visit(ray, prims), t_max, found, accept, any_hit)
         return found
 
-    def walk(self, plan, t_max, visit, accept=None, *, exclude=None):
+    def walk(self, plan, t_max, visit, accept=None, *, exclude=None,
+             rounds=DEFAULT_POLICY.walk_rounds):
         """Depth-ordered bins' (``by_depth``) answer to ``traverse``'s nearest-hit question
         (shadow segments keep to the tree: module docstring), walking each ray's cell front
-        to back: round k meets the next WALK_ROUNDS[k] entries of every ray still walking,
-        and a ray stops at the end of its cell, or once its next entry's ``near`` is beyond its nearest hit so far (a hit
-        there could at best tie: walked on while equal, for the lower id) or beyond its
-        t_max.  plan, t_max (lowered in place), accept, exclude: as ``traverse``'s;
-        ``visit(rays, prims, reach)`` as ``traverse``'s visit with each pair's reach (E,)
-        float64: hits nearer than it count (inf where a ray has a hit already: its ties are
-        settled here, by id).  Returns (found (n,) bool, rest (k,) ascending): the rays
-        still walking after the last round, cleared in found; their t_max and what accept
-        recorded for them are the caller's to reset: the tree answers them afresh."""
+        to back: round k meets the next rounds[k] entries of every ray still walking, and a
+        ray stops at the end of its cell, or once its next entry's ``near`` is beyond its
+        nearest hit so far (a hit there could at best tie: walked on while equal, for the
+        lower id) or beyond its t_max.  plan, t_max (lowered in place), accept, exclude: as
+        ``traverse``'s; ``visit(rays, prims, reach)`` as ``traverse``'s visit with each
+        pair's reach (E,) float64: hits nearer than it count (inf where a ray has a hit
+        already: its ties are settled here, by id).  Returns (found (n,) bool, rest (k,)
+        ascending): the rays still walking after the last round, cleared in found; their
+        t_max and what accept recorded for them are the caller's to reset: the tree answers
+        them afresh."""
         start, count = plan
         n = len(count)
         found = np.zeros(n, bool)
@@ -543,7 +504,7 @@ class OriginBins:
         live = np.flatnonzero(count > 0)
         position = start.take(live).astype(np.intp)
         end = position + count.take(live)
-        for size in WALK_ROUNDS:
+        for size in rounds:
             live, position, end = self._walking(live, position, end, t_max, found)
             if len(live) == 0:
                 break
@@ -561,7 +522,7 @@ class OriginBins:
                 continue
             ray, prims = ray.take(keep), self.primitives.take(entry.take(keep)).astype(np.intp)
             t = visit(ray, prims, np.where(settled.take(keep), np.inf, reach.take(keep)))
-            _settle(ray, prims, t, t_max, found, best, accept)
+            keep_nearest(ray, prims, t, t_max, found, accept, best=best)
         live, position, end = self._walking(live, position, end, t_max, found)
         found[live] = False
         return found, live
@@ -575,47 +536,6 @@ class OriginBins:
         go &= np.where(settled, near <= reach, near < reach)
         go = np.flatnonzero(go)
         return live.take(go), position.take(go), end.take(go)
-
-
-def _settle(rays, prims, t, t_max, found, best, accept):
-    """``keep_nearest`` for ``OriginBins.walk``'s rounds, whose pairs (E,) (grouped by ray)
-    may tie with a ray's hit of an earlier round: a ray improves on a nearer hit, or on an
-    equal one (when it has one) of a lower primitive id; t_max, found, best (n,) are
-    updated and ``accept`` told the winners."""
-    group = value_run_starts(rays)
-    nearest = np.minimum.reduceat(t, group)
-    owner = rays.take(group)
-    before = t_max.take(owner)
-    candidate = (nearest < before) | ((nearest == before) & found.take(owner))
-    candidate &= nearest < np.inf
-    if not candidate.any():
-        return
-    lengths = np.diff(group, append=len(t))
-    at_min = np.flatnonzero((t == np.repeat(nearest, lengths)) & np.repeat(candidate, lengths))
-    first = value_run_starts(rays.take(at_min))
-    tied = prims.take(at_min)
-    lowest = np.minimum.reduceat(tied, first)
-    winner = at_min.take(first)
-    if len(first) < len(at_min):
-        winner = at_min[tied == np.repeat(lowest, np.diff(first, append=len(at_min)))]
-    owner, nearest, before = owner[candidate], nearest[candidate], before[candidate]
-    better = (nearest < before) | (lowest < best.take(owner))
-    owner, winner = owner[better], winner[better]
-    t_max[owner] = nearest[better]
-    found[owner] = True
-    best[owner] = lowest[better]
-    if accept is not None and len(owner):
-        accept(owner, winner)
-
-
-#: Parallel bins' cells, in diameters of the median sphere (grown by the padding): the
-#: 10^5 GN instances' sun rays (one thread, replayed) took 0.19-0.20x the tree's time at 0.5
-#: and 0.7 (2.9 and 3.7 candidates a ray, 9 and 5.9 entries a sphere), 0.26x at 1 (5.2, 4),
-#: 0.50x at 2; the listing 0.09, 0.065, 0.044 and 0.030 s.
-PARALLEL_CELL_DIAMETERS = 0.7
-#: Parallel bins listing more than this many entries per sphere (spheres of very different
-#: sizes) are not built.
-PARALLEL_MAX_ENTRIES_PER_PRIMITIVE = 16
 
 
 @dataclass(frozen=True)
@@ -650,10 +570,12 @@ class ParallelBins:
     far: np.ndarray
 
     @classmethod
-    def build(cls, direction, centres, radii, pad: float):
+    def build(cls, direction, centres, radii, pad: float,
+              policy: GeometryPolicy = DEFAULT_POLICY):
         """Bins of spheres centres (3, P), radii (P,) (float64) across ``direction`` (3,),
-        or None where they would list more than PARALLEL_MAX_ENTRIES_PER_PRIMITIVE
-        entries a sphere."""
+        with cells of ``policy.parallel_cell_diameters`` median spheres, or None where they
+        would list more than ``policy.parallel_max_entries_per_primitive`` entries a
+        sphere."""
         d = np.asarray(direction, np.float64)
         # (The rays' own direction, unnormalised: they are parallel to it exactly.)
         axis = np.zeros(3)
@@ -664,14 +586,14 @@ class ParallelBins:
         v /= np.linalg.norm(v)
         reach = radii + pad
         cu, cv = u @ centres, v @ centres
-        cell = PARALLEL_CELL_DIAMETERS * 2 * float(np.median(reach))
+        cell = policy.parallel_cell_diameters * 2 * float(np.median(reach))
         corner = (float((cu - reach).min()), float((cv - reach).min()))
         first_u = np.floor((cu - reach - corner[0]) / cell).astype(np.intp)
         first_v = np.floor((cv - reach - corner[1]) / cell).astype(np.intp)
         span_u = np.floor((cu + reach - corner[0]) / cell).astype(np.intp) - first_u + 1
         span_v = np.floor((cv + reach - corner[1]) / cell).astype(np.intp) - first_v + 1
         count = span_u * span_v
-        if count.sum() > PARALLEL_MAX_ENTRIES_PER_PRIMITIVE * len(radii):
+        if count.sum() > policy.parallel_max_entries_per_primitive * len(radii):
             return None
         shape = (int((first_u + span_u).max()), int((first_v + span_v).max()))
         cell_u, cell_v, sphere = _entries(np.arange(len(radii)), first_u,

@@ -1,0 +1,16 @@
+"""The geometry: every shape of a scene behind one interface (``Aggregate``), which the
+integrators call (``nearest``, ``occluded``, ``spawn``, ``exclusions``, ``shared_origin``,
+``segments_need_origin``, ``surface_keys``, ``build_frame_tables``) with ``core.rays``' types.
+
+Modules: ``aggregate`` (the facade), ``policy`` (every threshold that picks a strategy),
+``rules`` (the hit rules), shapes (``spheres``, ``triangles``), accelerators (``tree`` over
+``bvh`` and ``bvh_build``; ``cull``, flat culling; ``binning`` over ``bins``, direction
+bins), the pair kernels they hand their pairs to (``kernels``, ``pairs``), hit
+construction (``hits``), and what they share (``cells``: cube-map cells and Morton codes;
+``threads``).
+"""
+
+from .aggregate import ROOT_FORMULAS, Aggregate
+from .policy import DEFAULT_POLICY, GeometryPolicy
+
+__all__ = ["Aggregate", "DEFAULT_POLICY", "GeometryPolicy", "ROOT_FORMULAS"]

@@ -1,0 +1,346 @@
+"""Direction bins as an accelerator: which batches bins answer instead of the tree, the bins
+an aggregate holds (built on first use, once per origin, within a bound on their bytes),
+and their glue to the pair kernels (``kernels``).
+
+Three kinds (``bins``): id-ordered bins around a shared origin (the eye, a light sample),
+where a batch's candidate pairs are few; depth-ordered ones, walked front to back, for
+dense fields seen by many rays; and a sun's parallel bins, for its shadow rays through a
+tree of spheres.  A floor's reflections of the camera's rays are answered by bins around
+the eye's mirror image (``_mirror_groups``)."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+
+from ..rays import RayBatch
+from ..vectors import dot, take
+from .bins import OriginBins, ParallelBins
+from .bvh_build import SLAB_PADDING_32
+from .kernels import NearestPairs, OcclusionPairs
+
+
+class DirectionBins:
+    """The direction bins of an aggregate's tree (``tree.TreeAccelerator``): spheres,
+    triangles the scene's shapes; tree_spheres (k,) the spheres the tree holds (ascending);
+    rays_per_origin: how many rays a frame traces from one shared origin (the eye, a light
+    sample), as far as the caller knows (0: unknown), which decides whether depth-ordered
+    or parallel bins pay; policy: the ``GeometryPolicy``."""
+
+    def __init__(self, tree, spheres, triangles, tree_spheres, rays_per_origin: int, policy):
+        self.tree, self.spheres, self.triangles = tree, spheres, triangles
+        self.tree_spheres = tree_spheres
+        self.rays_per_origin = int(rays_per_origin)
+        self.policy = policy
+        self.held = {}       # (origin bytes, mirror, depth) -> OriginBins, or None: the tree's
+        self.parallel = {}   # a sun's direction (bytes) -> (ParallelBins, ids), or None
+        self.bytes = 0
+        self._lock = threading.Lock()   # (tiles run in threads)
+        # How far from a common point mirror images' lines may pass (``_mirror_groups``): a
+        # fraction of the boxes' typical half side, so grown boxes list few more rays.
+        self.mirror_slack = 0.0
+        if tree.boxes is not None:
+            _, low, high = tree.boxes
+            half_side = float(np.median((high - low).max(axis=1))) / 2
+            self.mirror_slack = policy.mirror_slack * half_side
+
+    def __getstate__(self):
+        """Pickled (for worker processes) without its lock, with the bins built so far (the
+        frame's, built once for every worker; bins a worker builds on first use are its
+        own)."""
+        state = dict(self.__dict__)
+        del state["_lock"]
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._lock = threading.Lock()
+
+    # ---- which batches --------------------------------------------------------------------
+
+    def too_few(self, count: int) -> bool:
+        """Whether a batch of ``count`` rays from one origin is too small for id-ordered
+        bins (``policy.bins_primitives_per_ray``), or the tree too large for any."""
+        return (self.tree.boxes is None
+                or count * self.policy.bins_primitives_per_ray < len(self.tree.boxes[0]))
+
+    def depth_pays(self) -> bool:
+        """Whether an origin whose id-ordered bins do not pay gets depth-ordered ones
+        (``policy.depth_rays_per_primitive``, ``depth_bins_crossings``)."""
+        return (self.rays_per_origin >= self.policy.depth_rays_per_primitive * len(self.tree)
+                and self.tree.bvh.leaf_crossings >= self.policy.depth_bins_crossings)
+
+    # ---- queries ----------------------------------------------------------------------------
+
+    def nearest(self, kernel: NearestPairs):
+        """Answer what bins answer of the kernel's batch: None where they answer nothing (the
+        tree answers every ray), else (k,) the rays left to the tree, ascending."""
+        rays = kernel.rays
+        n = len(rays)
+        bins, plan = self._origin_plan(rays)
+        if plan is not None and not bins.by_depth:
+            bins.traverse(plan, kernel.reach, kernel.visit, kernel.accept, exclude=kernel.exclude)
+            return np.zeros(0, np.intp)
+        rest = None     # the rays the tree answers (None: all of them)
+        if plan is not None:
+            # Front to back through the cells; the rays still walking after the last round
+            # are the tree's, from what they had before (``OriginBins.walk``).
+            before = kernel.state()
+            _, walking = bins.walk(plan, kernel.reach, kernel.visit, kernel.accept,
+                                   exclude=kernel.exclude, rounds=self.policy.walk_rounds)
+            kernel.restore(before, walking)
+            return walking
+        exclude = kernel.exclude
+        for members, bins, plan, shift in self._mirror_groups(rays):
+            local = kernel.reach.take(members)
+            visit, accept, _ = kernel.of(members, local)
+            bins.traverse(plan, local, visit, accept,
+                          exclude=None if exclude is None else exclude.take(members),
+                          reach_shift=shift)
+            rest = np.ones(n, bool) if rest is None else rest
+            rest[members] = False
+        return None if rest is None else np.flatnonzero(rest)
+
+    def occluded(self, kernel: OcclusionPairs, by_slot: bool):
+        """(n,) whether each segment of the kernel's batch is blocked, where bins answer it,
+        else None: id-ordered bins around a shared origin, or (with ``by_slot``: a tree of
+        spheres visited by slot) a sun's parallel bins."""
+        segments = kernel.rays
+        bins, plan = self._origin_plan(segments, depth=False)
+        if plan is not None:
+            return bins.traverse(plan, kernel.reach, kernel.visit, any_hit=True,
+                                 exclude=kernel.exclude)
+        if not by_slot:
+            return None
+        parallel = self.parallel_spheres(segments)
+        if parallel is None:
+            return None
+        bins, listed = parallel
+        blocked = np.zeros(len(segments), bool)
+        r, entries = bins.pairs(segments.origins)
+        table = (*self.spheres.centers_t, self.spheres.radii, None)
+        blocked[kernel.slot_blocks(r, listed.take(entries), table)] = True
+        return blocked
+
+    def frame_bins(self, eye, pool=None) -> None:
+        """The eye's depth-ordered bins, where a camera batch of the frame gets them."""
+        if self.depth_pays():
+            self.bins_at(eye, depth=True, pool=pool)
+
+    # ---- the bins held ------------------------------------------------------------------------
+
+    def _origin_plan(self, rays: RayBatch, depth: bool = True):
+        """(bins, plan): the direction bins of the batch's shared origin and the batch's
+        plan over them (``OriginBins.plan``), or (None, None) where the tree answers instead
+        (no shared origin, too few rays to pay for bins, bins that would not pay there, or
+        too many candidates for this batch)."""
+        if rays.shared is None:
+            return None, None
+        depth = depth and self.depth_pays()
+        few = self.too_few(len(rays))
+        if few and not depth:
+            return None, None
+        bins = self.bins_at(rays.shared.position, depth=depth)
+        if bins is None or (few and not bins.by_depth):
+            return None, None
+        plan = bins.plan(rays.directions, self.policy.max_pairs_per_ray)
+        return (bins, plan) if plan is not None else (None, None)
+
+    def bins_at(self, position, mirror: bool = False, depth: bool = False, pool=None):
+        """The direction bins around ``position`` (3,) of the tree's boxes (mirror: grown by
+        ``mirror_slack``, ``_mirror_groups``), or None where they do not pay or the bins
+        held are at their bound; with ``depth``, depth-ordered bins (``OriginBins.walk``)
+        where id-ordered ones do not pay.  Built on first use, once per origin, under a
+        lock (tiles run in threads); pool: a thread pool to build them on (``OriginBins
+        .build``), or None."""
+        position = np.asarray(position, np.float64)
+        policy = self.policy
+
+        def make():
+            bins = None
+            if self.bytes < policy.bins_max_bytes and self.tree.boxes is not None:
+                ids, low, high = self.tree.boxes
+                if mirror:
+                    low, high = low - self.mirror_slack, high + self.mirror_slack
+                bins = OriginBins.build(position, ids, low, high, pool=pool, policy=policy)
+            if bins is None and depth and self.bytes < self._max_bytes():
+                ids, low, high = self.boxes()
+                bins = OriginBins.build(position, ids, low, high, by_depth=True,
+                                        bounds=self.bounding_spheres(ids),
+                                        rounding=float(np.finfo(self.spheres.dtype).eps),
+                                        pool=pool, policy=policy)
+            return None if bins is None else (bins, bins.nbytes)
+
+        return self._held(self.held, (position.tobytes(), mirror, depth), make)
+
+    def _held(self, store, key, make):
+        """The bins held in ``store`` under ``key``, made on first use by ``make()``
+        ((bins, bytes), or None where there are none), once, under a lock (tiles run in
+        threads)."""
+        held = store.get(key, False)
+        if held is False:
+            with self._lock:
+                held = store.get(key, False)
+                if held is False:
+                    made = make()
+                    held = store[key] = None if made is None else made[0]
+                    self.bytes += 0 if made is None else made[1]
+        return held
+
+    def _max_bytes(self) -> int:
+        return self.policy.bins_max_bytes + self.policy.bins_bytes_per_primitive * len(self.tree)
+
+    def parallel_spheres(self, segments: RayBatch):
+        """(bins, listed): the parallel bins (``bins.ParallelBins``) of segments that all
+        leave along one direction unbounded from t_min >= 0 (a sun's shadow rays), with the
+        sphere (global id) of each entry; or None where the tree answers (other segments,
+        a frame of too few rays per tree sphere, ``policy.parallel_rays_per_primitive``,
+        bins that would not pay or not fit).  Built on first use, once per direction."""
+        d = segments.directions
+        if (self.rays_per_origin < self.policy.parallel_rays_per_primitive * len(self.tree)
+                or len(segments) == 0 or not np.isposinf(segments.t_max).all()
+                or np.min(segments.t_min) < 0 or not (d == d[:, :1]).all()):
+            return None
+
+        def make():
+            if self.bytes >= self._max_bytes():
+                return None
+            ids = self.tree.bvh.primitives()
+            # The tree's own padding of its boxes, which covers the kernels' rounding (twice,
+            # and the projections' own).
+            pad = 2 * SLAB_PADDING_32 * self.tree.bvh.origin_reach
+            arrays = self.spheres.arrays
+            bins = ParallelBins.build(d[:, 0], arrays.centers[ids].T, arrays.radii[ids], pad,
+                                      self.policy)
+            if bins is None:
+                return None
+            # (Each entry's sphere id: its centre is read from the scene's arrays, as fast
+            # as from copies in entry order.)
+            listed = ids.take(bins.entries)
+            return (bins, listed), bins.nbytes + listed.nbytes
+
+        return self._held(self.parallel, d[:, 0].astype(np.float64).tobytes(), make)
+
+    def boxes(self):
+        """(ids (P,), low, high (P, 3) float64) of the tree's primitives, for bins: the ones
+        the tree kept (``TreeAccelerator.boxes``), or made again from the scene's arrays
+        (trees of more than ``policy.bins_max_primitives`` keep none)."""
+        if self.tree.boxes is not None:
+            return self.tree.boxes
+        lows, highs, ids = [], [], []
+        if self.tree.sphere_count:
+            spheres = self.tree_spheres
+            c, r = self.spheres.arrays.centers[spheres], self.spheres.arrays.radii[spheres, None]
+            lows.append(c - r)
+            highs.append(c + r)
+            ids.append(spheres)
+        if self.tree.triangle_count:
+            low, high = self.triangles.boxes()
+            lows.append(low.T)
+            highs.append(high.T)
+            ids.append(np.arange(self.triangles.count) + self.spheres.count)
+        return np.concatenate(ids), np.concatenate(lows), np.concatenate(highs)
+
+    def bounding_spheres(self, ids):
+        """(centres (k, 3), radii (k,)) float64 bounding spheres of primitives ``ids`` (k,)
+        ascending, spheres before triangles (``boxes``' order): the spheres themselves, the
+        triangles' (``Triangles.centers``, ``radii``)."""
+        arrays = self.spheres.arrays
+        spheres = ids[:np.searchsorted(ids, self.spheres.count)]
+        triangles = ids[len(spheres):] - self.spheres.count
+        centres = np.concatenate([arrays.centers[spheres],
+                                  self.triangles.centers.T[triangles] if len(triangles)
+                                  else np.zeros((0, 3))])
+        radii = np.concatenate([arrays.radii[spheres],
+                                self.triangles.radii[triangles] if len(triangles) else []])
+        return centres, radii
+
+    # ---- mirror images ------------------------------------------------------------------------
+
+    def _mirror_groups(self, rays: RayBatch):
+        """[(members (k,), bins, plan, reach shift (k,))]: groups of the batch's rays whose
+        lines pass within ``mirror_slack`` (per axis) of one point q behind their origins,
+        enough of them to pay for bins (``policy.bins_primitives_per_ray``), and the
+        direction bins around q of the tree's boxes grown by that much.
+
+        A flat mirror's reflections of rays from one point E (``RayBatch.arrived_from``: a
+        camera's eye) all pass through E's mirror image in its plane, and a large sphere's
+        (the article's floor) near the image of E in its tangent plane nearest to E: the
+        first bounce's rays off a floor, which cross the whole field, are answered as if
+        they left q, as camera rays are.  q is that image for each ray's source primitive
+        (rounded to a grid of a quarter of the slack, so that the triangles of one plane
+        share it), and each ray is checked.  Exact: a ray o + t d (t >= 0) whose line passes
+        within e of q, with q behind o (tau = (q - o).d / |d|^2 <= 0), is q + e + s d with
+        s = t - tau >= 0, so every box it meets, grown by |e| per axis, is met by the ray
+        from q along d, and listed in d's cell; and a grown box at a distance D from q is
+        met by the ray at t >= D + tau (so ``reach_shift`` = -tau)."""
+        eye = rays.arrived_from
+        if (eye is None or rays.source is None or self.tree.boxes is None
+                or not self.mirror_slack > 0):
+            return []
+        need = len(self.tree.boxes[0]) * self.policy.bins_primitives_per_ray
+        if len(rays) < need:
+            return []
+        grid = self.mirror_slack / 4
+        images = self._mirror_images(np.asarray(eye, np.float64), rays.source, grid, need)
+        if images is None:
+            return []
+        cell, points = images
+        groups = []
+        for key in np.flatnonzero(np.bincount(cell + 1)[1:] >= need):
+            members = np.flatnonzero(cell == key)
+            point = points[key]
+            towards = point[:, None] - take(rays.origins, members)
+            directions = take(rays.directions, members).astype(np.float64)
+            tau = dot(towards, directions) / dot(directions, directions)
+            towards -= tau * directions
+            miss = np.abs(towards).max(axis=0)
+            near = np.flatnonzero((miss <= self.mirror_slack * (1 - 1e-6)) & (tau <= 0))
+            if len(near) < need:
+                continue
+            members = members.take(near)
+            bins = self.bins_at(point, mirror=True)
+            plan = None if bins is None else bins.plan(take(rays.directions, members),
+                                                       self.policy.max_pairs_per_ray)
+            if plan is not None:
+                groups.append((members, bins, plan, -tau.take(near)))
+        return groups
+
+    def _mirror_images(self, eye, source, grid, need):
+        """(image (n,) index into points or -1, points (G, 3)): the mirror image of ``eye``
+        (3,) in the tangent plane of each ray's source primitive (``source`` (n,), -1:
+        none) nearest to it (a sphere's) or in its plane (a triangle's), rounded to
+        multiples of ``grid``; None when no ray has a source.  Only for the spheres that
+        ``need`` rays or more leave (no two spheres share an image) and every triangle
+        (the triangles of a plane do); -1 for the rest."""
+        sphere_count = self.spheres.count
+        counts = np.bincount(source + 1)[1:]
+        ids = np.arange(len(counts))
+        prims = np.flatnonzero((counts >= need) | ((ids >= sphere_count) & (counts > 0)))
+        if len(prims) == 0:
+            return None
+        normal = np.empty((len(prims), 3))
+        plane = np.empty(len(prims))        # the image is eye - 2 plane * normal
+        spheres = prims < sphere_count
+        # (An eye at a sphere's centre has no image: NaN, dropped below.)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            if spheres.any():
+                k = prims[spheres]
+                away = eye - self.spheres.arrays.centers[k]
+                size = np.sqrt((away * away).sum(axis=1))
+                normal[spheres] = away / size[:, None]
+                plane[spheres] = size - self.spheres.arrays.radii[k]
+            if not spheres.all():
+                k = prims[~spheres] - sphere_count
+                triangles = self.triangles.arrays
+                n = triangles.normals[:, k].T
+                normal[~spheres] = n
+                plane[~spheres] = ((eye - triangles.v0[:, k].T) * n).sum(axis=1)
+            images = np.round((eye - 2 * plane[:, None] * normal) / grid)
+        points, which = np.unique(images, axis=0, return_inverse=True)
+        which = which.ravel()   # (numpy 2.x keeps the axis's shape)
+        # Per primitive id (and -1 for none, the last entry): its image or -1.
+        image = np.full(len(counts) + 1, -1, np.intp)
+        image[prims] = np.where(np.isfinite(points).all(axis=1)[which], which, -1)
+        return image.take(source), points * grid
