@@ -85,6 +85,12 @@ def test_the_installed_core_is_this_checkout_under_its_own_name(worker_site):
     installed = os.path.join(worker_site, cluster.WORKER_PACKAGE)
     assert os.path.isfile(os.path.join(installed, "cluster.py"))
     assert not os.path.exists(os.path.join(worker_site, "core"))   # no top-level 'core'
+    # Every subpackage of the checkout's core is installed (the package list is explicit).
+    core_folder = os.path.join(REPOSITORY, "core")
+    for folder, _, files in os.walk(core_folder):
+        if "__init__.py" in files:
+            relative = os.path.relpath(folder, core_folder)
+            assert os.path.isfile(os.path.join(installed, relative, "__init__.py")), relative
     with open(os.path.join(REPOSITORY, "blender_manifest.toml")) as manifest:
         assert f'version = "{cluster.VERSION}"' in manifest.read()
     names = sorted(os.listdir(worker_site))
