@@ -62,4 +62,7 @@ def unregister():
     # disabled or reloaded extension leaves no process behind (the next render starts new
     # ones).
     workers.shutdown()
+    from ..core import cluster
+
+    cluster.close_clients()    # (a Dask cluster's connections likewise; its workers stay)
 

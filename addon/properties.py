@@ -79,6 +79,11 @@ class GlintRenderSettings(bpy.types.PropertyGroup):
         name="Parallelism", default=RenderSettings.parallelism.upper(),
         items=enum_items(PARALLELISM_CHOICES),
         description="How tiles render at once (as many as Performance > Threads says)")
+    cluster_address: StringProperty(
+        name="Cluster", default="",
+        description="Address of a Dask scheduler (tcp://HOST:8786 or tls://HOST:8786) whose "
+                    "workers render F12's and animations' tiles; empty: this computer. Needs "
+                    "dask[distributed] in Blender's Python and Glint's core on the workers")
     image_name: StringProperty(
         name="Image", default=DEFAULT_IMAGE_NAME,
         description="Image datablock the Render button writes (created if missing)")

@@ -44,6 +44,7 @@ def draw_performance(layout, scene) -> None:
     layout.use_property_split = True
     layout.use_property_decorate = False
     layout.prop(scene.glint, "parallelism")
+    layout.prop(scene.glint, "cluster_address")
     render = scene.render
     column = layout.column()
     column.prop(render, "threads_mode")

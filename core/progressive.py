@@ -169,11 +169,13 @@ class ProgressiveFrame:
 
     def land(self, job: TileJob, sums: np.ndarray) -> np.ndarray:
         """Add a job's sums (h, w, channels) into the totals; the tile's view of the image,
-        refreshed with its pixels' new means."""
+        refreshed with its pixels' new means.  The sums are rounded to float32 first, as
+        they travel from worker processes and clusters, so that the image does not depend
+        on where a tile ran (rounding twice is not rounding once)."""
         self.outstanding -= 1
         y0, y1, x0, x1 = job[:4]
         totals = self.totals[y0:y1, x0:x1]
-        totals += sums
+        totals += np.asarray(sums, np.float32).astype(np.float64)
         count = np.maximum(totals[..., 7:8], 1)
         view = self.image[y0:y1, x0:x1]
         view[..., 0:3] = totals[..., 0:3] / count

@@ -42,7 +42,7 @@ from .precision import choose_precision
 from .scene import RenderSettings, Scene, SceneError
 from .shading import shares_matter, traces_from_points, traces_world_occlusion
 from .trace import trace_bundle, traces_bounces
-from . import allocator, workers
+from . import allocator, cluster, workers
 
 
 #: Tiles are traced in BLOCK x BLOCK pixel blocks: one culling packet each.
@@ -117,9 +117,9 @@ class RenderResult:
     (the background in default semantics, black in the article's and with film
     'transparent').
     semantics: the semantics rendered.
-    parallelism: how the tiles ran: 'threads' (the calling thread or a thread pool) or
+    parallelism: how the tiles ran: 'threads' (the calling thread or a thread pool),
     'processes' (``core.workers``), which can differ from the setting's (small renders, or
-    processes unavailable)."""
+    processes unavailable), or 'cluster' (a Dask cluster, ``RenderSettings.cluster``)."""
 
     image: np.ndarray
     stats: RayStats
@@ -132,8 +132,9 @@ class RenderResult:
     #: integrator), denoising's guides; None otherwise.
     albedo: Optional[np.ndarray] = None
     normal: Optional[np.ndarray] = None
-    #: Why tiles that were to go to worker processes ran on threads (they cannot start
-    #: here: ``core.workers.unavailable_reason``), else None; the front ends show it.
+    #: Why tiles that were to go to worker processes or a cluster ran on threads (they
+    #: cannot start here: ``core.workers.unavailable_reason``; the Emission pass, which
+    #: stays here), else None; the front ends show it.
     fallback: Optional[str] = None
 
     def display(self) -> np.ndarray:
@@ -571,10 +572,12 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     # a small part of a tile's work.  The Emission pass follows whole camera paths, so it
     # keeps the tiles here.
     emission_pass = isinstance(passes, PrimaryPasses) and passes.emission is not None
+    on_cluster = bool(settings.cluster) and not emission_pass
+    kept_here = (f"the Emission pass is rendered on this machine, not on the cluster at "
+                 f"{settings.cluster}") if settings.cluster and emission_pass else None
     tree = geometry_policy.builds_tree(scene.sphere_count, scene.triangle_count)
-    in_processes = not emission_pass and _in_processes(settings, width * height, len(tiles),
-                                                       threads, tree,
-                                                       path_traced(scene, settings))
+    in_processes = not emission_pass and not on_cluster and _in_processes(
+        settings, width * height, len(tiles), threads, tree, path_traced(scene, settings))
     memory_plan = memory.plan(scene, settings, image_dtype, threads, reserve_bytes)
     if in_processes:  # plus the workers' interpreters and the scene's shared copy
         memory_plan = dataclasses.replace(memory_plan, other=memory_plan.other + workers.
@@ -612,7 +615,7 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     if tracing_paths:
         return _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype,
                                    threads, in_processes, fill_passes, primary, on_tile,
-                                   progress, should_cancel, on_pass)
+                                   progress, should_cancel, on_pass, on_cluster, kept_here)
 
     def work(ctx, camera, tile, stop=None):
         rgba, tile_stats = render_tile(ctx, camera, tile, stop)
@@ -647,7 +650,13 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     def cancelled():
         return should_cancel is not None and should_cancel()
 
-    fallback = None
+    if on_cluster:   # (tiles land as worker processes' do: their passes filled here)
+        image = cluster.render_tiles(settings.cluster, ctx, scene.camera, tiles, shape,
+                                     image_dtype, functools.partial(land, worker_tile=True),
+                                     should_cancel)
+        return _result(image, stats, dtype, scene, settings, parallelism="cluster",
+                       passes=primary)
+    fallback = kept_here
     if in_processes:
         try:
             # The workers write their tiles straight into the image they share with this
@@ -713,9 +722,10 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
 
 def _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype, threads,
                         in_processes, fill_passes, primary, on_tile, progress,
-                        should_cancel, on_pass=None) -> RenderResult:
+                        should_cancel, on_pass=None, on_cluster=False,
+                        fallback=None) -> RenderResult:
     """A path-traced frame, pass by pass (``core.progressive``), its tiles' passes on
-    worker processes or threads like any frame's tiles."""
+    worker processes, a cluster or threads like any frame's tiles."""
     image = np.zeros(shape, image_dtype)
     # The passes of what each pixel's first sample hit come with the tiles' sums; the
     # Emission pass follows whole camera paths of its own (``fill_passes``).
@@ -752,12 +762,17 @@ def _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype, 
     def cancelled():
         return should_cancel is not None and should_cancel()
 
-    fallback = None
-    if in_processes:
-        def finish(job, sums, tile_stats, done, finite):
-            landed(job, np.array(sums, np.float64), tile_stats, job.first == 0)
+    def finish(job, sums, tile_stats, done, finite):
+        """A job from worker processes or a cluster: its sums as they arrived (float32)."""
+        landed(job, np.array(sums, np.float64), tile_stats, job.first == 0)
 
-        sums_shape = (shape[0], shape[1], frame.channels + (PASS_CHANNELS if carried else 0))
+    sums_shape = (shape[0], shape[1], frame.channels + (PASS_CHANNELS if carried else 0))
+    if on_cluster:
+        cluster.render_tiles(settings.cluster, ctx, scene.camera, queue, sums_shape,
+                             np.float32, finish, should_cancel)
+        return _result(image, stats, dtype, scene, settings, passes=primary,
+                       parallelism="cluster")
+    if in_processes:
         try:
             _, unavailable = workers.render_tiles(ctx, scene.camera, queue, sums_shape,
                                                   np.float32, threads, finish, should_cancel)

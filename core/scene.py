@@ -28,6 +28,7 @@ from typing import Literal, Union
 
 import numpy as np
 
+from .cluster import check_address
 from .choices import (ANTI_ALIASING, FILMS, INTEGRATORS, PARALLELISM,  # noqa: F401
                       PIXEL_FILTERS, PRECISIONS, SEMANTICS)   # (defined once there)
 from .reflectance import (MIN_ALPHA, blinn_exponent, dielectric_f0,  # noqa: F401
@@ -930,6 +931,10 @@ class RenderSettings:
         Measured on 2 cores, two threads render the article's 1080p frame 0.91x as fast as
         one (the GIL), two warm processes 1.75x (README: "Worker processes and malloc
         settings").  Results never depend on it.
+    cluster: '' (render on this machine, as ``parallelism`` says), or the address of a Dask
+        scheduler ('tcp://HOST:PORT' or 'tls://HOST:PORT') whose workers render the tiles
+        (``core.cluster``; needs ``dask[distributed]`` here and Glint's core on the workers).
+        The image is the same bit for bit.
     film: the image's alpha and background (default semantics; ``core.choices.FILM_CHOICES``):
         'coverage' (the core's own image): the background where camera rays escape, alpha =
         1 - transparency, the share of the pixel's samples that escaped (directly or straight
@@ -969,12 +974,14 @@ class RenderSettings:
     filter_width: float = 1.5
     seed: int = 0
     guides: bool = False
+    cluster: str = ""
 
     def __post_init__(self):
         _choice("settings.semantics", self.semantics, SEMANTICS)
         _choice("settings.precision", self.precision, PRECISIONS)
         _choice("settings.anti_aliasing", self.anti_aliasing, ANTI_ALIASING)
         _choice("settings.parallelism", self.parallelism, PARALLELISM)
+        _set(self, "cluster", check_address("settings.cluster", self.cluster))
         _choice("settings.film", self.film, FILMS)
         _count("settings.max_depth", self.max_depth, maximum=MAX_DEPTH)
         _count("settings.samples", self.samples, maximum=MAX_SAMPLES)

@@ -199,15 +199,7 @@ class _SharedPayload:
     workers' mappings keep the memory)."""
 
     def __init__(self, obj):
-        buffers = []
-
-        def in_band(buffer: pickle.PickleBuffer) -> bool:
-            if buffer.raw().nbytes < SHARED_ARRAY_BYTES:
-                return True
-            buffers.append(buffer)
-            return False
-
-        self.payload = pickle.dumps(obj, protocol=5, buffer_callback=in_band)
+        self.payload, buffers = pickle_out_of_band(obj)
         self.layout, offset = [], 0
         for buffer in buffers:
             self.layout.append((offset, buffer.raw().nbytes, buffer.raw().readonly))
@@ -227,6 +219,22 @@ class _SharedPayload:
         if self.descriptor is not None:
             os.close(self.descriptor)
             self.descriptor = None
+
+
+def pickle_out_of_band(obj, min_bytes: int = SHARED_ARRAY_BYTES
+                       ) -> tuple[bytes, list[pickle.PickleBuffer]]:
+    """(pickle, buffers): ``obj`` pickled with protocol 5, its buffers (arrays' data) of at
+    least ``min_bytes`` left out of the pickle, to travel beside it without a copy into it;
+    ``pickle.loads(pickle, buffers=...)`` takes them back in the same order."""
+    buffers = []
+
+    def in_band(buffer: pickle.PickleBuffer) -> bool:
+        if buffer.raw().nbytes < min_bytes:
+            return True
+        buffers.append(buffer)
+        return False
+
+    return pickle.dumps(obj, protocol=5, buffer_callback=in_band), buffers
 
 
 def _write_all(descriptor: int, data: memoryview, offset: int) -> None:

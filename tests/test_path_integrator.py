@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import core
-from core import sampler
+from core import sampler, workers
 from core.path import converged, filter_offsets
 from core.scene import (AreaLight, BlenderCamera, RenderSettings, Scene, SceneError, Sphere,
                         SurfaceMaterial, TriangleMesh)
@@ -84,7 +84,8 @@ def _box_scene(width=24, height=18):
 
 
 @pytest.mark.slow
-def test_the_image_is_the_same_for_any_tiles_threads_and_processes():
+def test_the_image_is_the_same_for_any_tiles_threads_and_processes(monkeypatch):
+    monkeypatch.setattr(workers, "MIN_PIXELS", 0)   # (a frame this small stays in-process)
     scene = _box_scene(40, 30)
     base = RenderSettings(samples=4, threads=1, tile_size=64, parallelism="threads")
     reference = core.render(scene, base).image
@@ -92,7 +93,9 @@ def test_the_image_is_the_same_for_any_tiles_threads_and_processes():
                      dataclasses.replace(base, threads=2, tile_size=16),
                      dataclasses.replace(base, threads=2, tile_size=16,
                                          parallelism="processes")):
-        np.testing.assert_array_equal(core.render(scene, settings).image, reference)
+        result = core.render(scene, settings)
+        assert result.parallelism == settings.parallelism
+        np.testing.assert_array_equal(result.image, reference)
 
 
 @pytest.mark.slow

@@ -4,6 +4,7 @@ module): every mistake is one line and exit status 2, before anything is read or
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import os
 import re
 import sys
@@ -82,8 +83,15 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--parallelism", choices=choices.PARALLELISM,
                         help=choices.help_text(choices.PARALLELISM_CHOICES) +
                              " (default: the scene's Glint > Performance > Parallelism)")
+    parser.add_argument("--cluster", metavar="ADDRESS",
+                        help="render the tiles on the Dask scheduler at ADDRESS "
+                             "(tcp://HOST:8786 or tls://HOST:8786; default: the scene's "
+                             "Glint > Performance > Cluster, empty for this computer)")
     add_animation_arguments(parser)
     args = parser.parse_args(argv)
+    if args.cluster and importlib.util.find_spec("distributed") is None:
+        parser.error('--cluster needs Dask\'s distributed scheduler: pip install '
+                     '"dask[distributed]"')
 
     check_animation_arguments(parser, args)
     if args.output is not None:

@@ -95,6 +95,8 @@ def apply_options(scene, args) -> None:
         settings.precision = args.precision.upper()
     if args.parallelism is not None:
         settings.parallelism = args.parallelism.upper()
+    if args.cluster is not None:
+        settings.cluster_address = args.cluster
     if args.frame is not None:
         scene.frame_set(args.frame)   # within Blender's range (``arguments``)
     render.engine = "GLINT"

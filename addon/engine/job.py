@@ -74,7 +74,8 @@ def render_settings(settings, render=None, scene=None) -> RenderSettings:
     RenderSettings), if given, sets the threads: Blender's Performance > Threads, so a farm
     node running several jobs is not oversubscribed (Auto-detect: one per core), and the film
     (Film > Transparent; without ``render``, the core's own 'coverage'); ``scene``, if given,
-    the Light Paths and pixel filter (``cycles_settings``)."""
+    the Light Paths and pixel filter (``cycles_settings``).  The cluster address, if any,
+    sends the tiles to a Dask cluster (``core.cluster``)."""
     threads = None
     film = "coverage"
     if render is not None:
@@ -99,6 +100,7 @@ def render_settings(settings, render=None, scene=None) -> RenderSettings:
         threads=threads,
         film=film,
         parallelism=settings.parallelism.lower(),
+        cluster=settings.cluster_address,
     )
 
 

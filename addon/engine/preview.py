@@ -81,6 +81,7 @@ def prepare_preview_job(depsgraph, camera_override=None) -> RenderJob:
                    if isinstance(light, (PointLight, SphereLight)))
     job.scene = dataclasses.replace(job.scene, lights=points or (preview_light(job.scene),))
     job.warnings = []
+    job.settings = dataclasses.replace(job.settings, cluster="")   # (small: rendered here)
     return job
 
 

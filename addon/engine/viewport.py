@@ -284,7 +284,9 @@ def export_viewport_scene(depsgraph, preferences=None, view: Optional[ViewportVi
     scene, warnings = export_scene(depsgraph, view_camera=camera)
     warnings += ignored_settings_warning(depsgraph)
     blender_scene = depsgraph.scene_eval
-    settings = render_settings(blender_scene.glint, blender_scene.render, blender_scene)
+    # The viewport renders here: a cluster's round trips would slow its every redraw.
+    settings = dataclasses.replace(
+        render_settings(blender_scene.glint, blender_scene.render, blender_scene), cluster="")
     if path_traced(scene, settings):
         settings = dataclasses.replace(settings, samples=blender_scene.glint.viewport_samples)
     return (scene, settings, pixel_size(blender_scene.render, preferences), warnings)
