@@ -11,12 +11,15 @@ second, to the render's end.
 A path tracer follows one branch at a glass surface (reflection or refraction, chosen by
 their Fresnel weights), so a path crosses each surface at most once per bounce: its cost
 grows with the bounces its paths actually take, and never as 2^depth; its memory is the
-tile's arrays, whatever the depth.
+tile's arrays, whatever the depth.  The Whitted integrator follows both branches while a
+bounce stays within ``core.trace.BRANCH_BUDGET`` rays a camera ray, and one beyond it: its
+rays a bounce are bounded too.
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import threading
 import time
 
@@ -43,7 +46,10 @@ def nested_glass_scene(width: int, height: int, layers: int) -> Scene:
                  meshes=(floor,), background=(0.05, 0.05, 0.05))
 
 
-def settings_at(bounces: int, samples: int) -> RenderSettings:
+def settings_at(bounces: int, samples: int, integrator: str = "path") -> RenderSettings:
+    if integrator == "whitted":   # (its Max Depth counts the camera ray)
+        return RenderSettings(integrator="whitted", samples=samples, threads=1,
+                              anti_aliasing="fixed", max_depth=min(bounces + 1, 256))
     return RenderSettings(samples=samples, threads=1, noise_threshold=0.0,
                           max_bounces=bounces, transmission_bounces=bounces,
                           transparent_bounces=bounces)
@@ -79,18 +85,18 @@ def main(argv=None) -> None:
     scene = nested_glass_scene(args.width, args.height, args.layers)
     print(f"# {args.layers} nested glass balls, {args.width} x {args.height}, "
           f"{args.samples} samples; {load_average()}")
-    print(f"{'bounces':>8} {'CPU s':>8} {'peak MB':>8} {'camera':>8} {'bounce':>9} "
+    print(f"{'integrator':>10} {'bounces':>8} {'CPU s':>8} {'peak MB':>8} {'camera':>8} {'bounce':>9} "
           f"{'shadow':>9} {'cancel s':>9}")
-    for bounces in (4, 16, 64, 256):
-        settings = settings_at(bounces, args.samples)
+    for integrator, bounces in itertools.product(("path", "whitted"), (4, 16, 64, 256)):
+        settings = settings_at(bounces, args.samples, integrator)
         core.render(scene, settings)   # warm
         start = time.process_time()
         result, peak = traced_peak(lambda: core.render(scene, settings))
         seconds = time.process_time() - start
         stats = result.stats
-        latency = cancel_latency(scene, settings_at(bounces, max(args.samples, 64)))
+        latency = cancel_latency(scene, settings_at(bounces, max(args.samples, 64), integrator))
         cancel = "finished" if latency is None else f"{latency:.2f}"
-        print(f"{bounces:>8} {seconds:>8.2f} {peak / 2 ** 20:>8.1f} {stats.camera_rays:>8} "
+        print(f"{integrator:>10} {bounces:>8} {seconds:>8.2f} {peak / 2 ** 20:>8.1f} {stats.camera_rays:>8} "
               f"{stats.reflection_rays:>9} {stats.shadow_rays:>9} {cancel:>9}")
 
 

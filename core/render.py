@@ -95,6 +95,17 @@ SAMPLE_ERROR = 4 / 255
 APRON = 2
 
 
+class _Asked:
+    """A tile's ``stop`` on the render's own thread: ``is_set`` asks ``should_cancel``, as a
+    threading.Event set by the thread loop would answer."""
+
+    def __init__(self, should_cancel):
+        self.should_cancel = should_cancel
+
+    def is_set(self) -> bool:
+        return self.should_cancel is not None and bool(self.should_cancel())
+
+
 class RenderCancelled(Exception):
     """``should_cancel()`` answered True; the render stopped between tiles."""
 
@@ -189,13 +200,14 @@ def _even_tail(tiles: list, count: int) -> list:
     return tiles[:-1] + parts
 
 
-def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None, shares=None):
+def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None, shares=None,
+                     stop=None):
     """(rgb (n, 3), alpha (n,), signature (n,), noise (n, 3) or None) for sample positions
     xs, ys (n,); rgb clipped to [0, 1] per sample in article semantics, unclipped radiance
     otherwise; noise: the standard deviation of rgb's world occlusion
     (``trace.BundleResult.world_noise``); lens: aperture positions (2, n) for a thin-lens
     camera; shares: the soft lights' sample shares of anti-aliasing samples
-    (``core.lights.pixel_shares``), None at pixel centres."""
+    (``core.lights.pixel_shares``), None at pixel centres; stop: ``trace_bundle``'s."""
     start = time.perf_counter()
     rays = camera_rays(camera, xs, ys, ctx.dtype, lens)
     if shares is not None:
@@ -203,7 +215,7 @@ def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None, shares
     if traces_world_occlusion(ctx):
         rays = dataclasses.replace(rays, world_shift=pixel_shifts(np.floor(xs), np.floor(ys)))
     traced = time.perf_counter()
-    result = trace_bundle(ctx, rays, stats)
+    result = trace_bundle(ctx, rays, stats, stop=stop)
     stats.seconds_camera += traced - start
     stats.seconds_bounces += time.perf_counter() - traced
     rgb = result.colour.T
@@ -285,7 +297,7 @@ def _sample_bundles(ctx, camera, cols, rows, count, ks, stats, stop=None):
         shares = pixel_shares(cols[part], rows[part], count)   # (per bundle: its memory)
         if shares is not None and k < count:
             shares = SampleShares(shares.slot.reshape(-1, count)[:, ks].ravel(), count)
-        colour, hit, _, _ = _trace_positions(ctx, camera, xs, ys, stats, lens, shares)
+        colour, hit, _, _ = _trace_positions(ctx, camera, xs, ys, stats, lens, shares, stop)
         yield part, colour.reshape(-1, k, 3), hit.reshape(-1, k)
 
 
@@ -447,7 +459,8 @@ def _render_whitted_tile(ctx: TraceContext, camera, tile, stop=None):
         rgb, coverage = _supersample(ctx, camera, cols, rows, ctx.settings.samples, stats,
                                      stop)
     elif mode == "off":
-        rgb, coverage, _, _ = _trace_positions(ctx, camera, cols + 0.5, rows + 0.5, stats)
+        rgb, coverage, _, _ = _trace_positions(ctx, camera, cols + 0.5, rows + 0.5, stats,
+                                              stop=stop)
     else:
         # Trace the tile and an apron at pixel centres, then supersample the pixels whose
         # path signature differs from a 4-neighbour's where the colour steps (_edges).
@@ -456,7 +469,7 @@ def _render_whitted_tile(ctx: TraceContext, camera, tile, stop=None):
         apron = (min(y1 + APRON, height) - ay0, min(x1 + APRON, width) - ax0)
         apron_cols, apron_rows = _pixel_grid(ay0, ay0 + apron[0], ax0, ax0 + apron[1])
         centre_rgb, centre_coverage, signature, noise = _trace_positions(
-            ctx, camera, apron_cols + 0.5, apron_rows + 0.5, stats)
+            ctx, camera, apron_cols + 0.5, apron_rows + 0.5, stats, stop=stop)
         inner = (rows - ay0) * apron[1] + (cols - ax0)
         order = np.empty(len(apron_cols), np.intp)
         order[(apron_rows - ay0) * apron[1] + (apron_cols - ax0)] = np.arange(len(apron_cols))
@@ -678,10 +691,11 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
     image = np.zeros(shape, image_dtype)
 
     if threads == 1 or len(tiles) == 1:
+        asked = _Asked(should_cancel)   # (a deep tile polls it between bounces)
         for done, tile in enumerate(tiles, 1):
             if cancelled():
                 raise RenderCancelled("render cancelled")
-            finish(tile, *work(ctx, scene.camera, tile), done)
+            finish(tile, *work(ctx, scene.camera, tile, asked), done)
         return _result(image, stats, dtype, scene, settings, passes=primary,
                        fallback=fallback)
 
@@ -788,11 +802,12 @@ def _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype, 
         frame = queue.frame
 
     if threads == 1 or len(tiles) == 1:
+        asked = _Asked(should_cancel)
         while queue:
             if cancelled():
                 raise RenderCancelled("render cancelled")
             job = queue.popleft()
-            sums, tile_stats = render_tile(ctx, scene.camera, job)
+            sums, tile_stats = render_tile(ctx, scene.camera, job, asked)
             landed(job, sums, tile_stats, job.first == 0)
         return _result(image, stats, dtype, scene, settings, passes=primary,
                        fallback=fallback)

@@ -27,10 +27,19 @@ from .camera import CameraRays
 from .context import RayStats, TraceContext
 from .bsdf import scatter
 from .rays import RayBatch
+from .sampler import hash_u32
 from .shading import shade, shade_translucent
 from .vectors import facing, take
 
 _SIGNATURE_PRIME = np.uint64(1_000_003)
+#: Rays per camera ray a bounce may spawn by splitting at glass and mirrors (reflected and
+#: refracted rays both followed); beyond it each hit follows one of its branches, chosen in
+#: proportion to its weight and weighted by the inverse of that chance.  Nested glass would
+#: otherwise double the rays at every bounce (2^depth); with the budget a bounce traces at
+#: most this many rays a camera ray, so time and memory grow with the depth, not its power.
+#: 4 leaves a glass ball at the default depth of 3 (at most 4 rays a camera ray) split
+#: exactly.
+BRANCH_BUDGET = 4
 
 
 @dataclass
@@ -98,7 +107,7 @@ def _mean_channel(weight):
 
 def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
                  record_primary: bool = False, record_emission: bool = False,
-                 primary_only: bool = False) -> BundleResult:
+                 primary_only: bool = False, stop=None) -> BundleResult:
     """Follow the bundle: article semantics as the article does (one mirror ray per hit, a
     scalar weight); default semantics with Blender's look (``ctx.look``) with colour weights
     and, where ``core.bsdf`` says so, several secondary rays per hit (mirror, refraction,
@@ -107,7 +116,8 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
     straight through Transparent BSDFs, weighted; not what mirrors or refraction show), as
     Cycles' Emission pass does.  primary_only (with record_primary): stop at the first
     hits, recorded and not shaded (the render passes' depth, normals and indices need
-    nothing more; the colour is then left black)."""
+    nothing more; the colour is then left black).  stop: a threading.Event; once set, the
+    bundle raises RenderCancelled at its next bounce (a deep bundle of glass takes seconds)."""
     dtype = ctx.dtype
     geometry = ctx.geometry
     n = rays.directions.shape[1]
@@ -142,6 +152,9 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
                      ctx.camera_origin if rays.shared_origin else None)
     stats.camera_rays += n
     for depth in range(max_depth):
+        if depth and stop is not None and stop.is_set():
+            from .render import RenderCancelled
+            raise RenderCancelled("render cancelled")
         hits = geometry.nearest(batch, stats)
         if signature is not None:
             signature[path] = (signature[path] * _SIGNATURE_PRIME
@@ -218,7 +231,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
                 break
             batch = _secondary_rays(ctx, look, hits, normals, cos_in, path, weight,
                                     bounces_left, cutoff, camera_path, held_object,
-                                    _arrived_from(batch))
+                                    _arrived_from(batch), BRANCH_BUDGET * n)
             if batch is None:
                 break
             batch, path, weight, camera_path = batch
@@ -292,35 +305,40 @@ def _hold_out(surfaces, materials, camera_path, path, weight, transparency, uniq
 
 
 def _secondary_rays(ctx, look, hits, normals, cos_in, path, weight, bounces_left, cutoff,
-                    camera_path, held_object=None, arrived_from=None):
+                    camera_path, held_object=None, arrived_from=None, budget=np.inf):
     """The next bounce's rays for Blender's look (``core.bsdf.scatter``), or None:
     (RayBatch, path (k,), weight (3, k), camera_path (k,)).  Mirror rays leave on the side
     the ray came from; refracted and straight-through rays on the other
     (``Aggregate.spawn``).  camera_path (m,): which hits the camera sees (module docstring);
     held_object: indices of hits on holdout objects, which only pass their transparency on;
-    arrived_from: ``RayBatch.arrived_from`` of the rays spawned."""
+    arrived_from: ``RayBatch.arrived_from`` of the rays spawned.  budget: the most rays the
+    bounce may spawn by splitting; beyond it each hit sends one of its branches on
+    (``_one_branch_each``)."""
     branches = scatter(look.surfaces, normals, hits.directions, cos_in, hits.material,
                        hits.front)
     blocked = None
     if held_object is not None:
         blocked = np.zeros(len(path), bool)
         blocked[held_object] = True
-    parts = []
+    candidates = []
     for branch in branches:
         w = weight[:, branch.index] * branch.weights
         going = w.max(axis=0) * (ctx.path_gain_bound * bounces_left) > cutoff
         if blocked is not None and not branch.straight:
             going &= ~blocked[branch.index]
         alive = np.flatnonzero(going)
-        if len(alive) == 0:
-            continue
-        index = branch.index[alive]
+        if len(alive):
+            candidates.append((branch, alive, branch.index[alive], w[:, alive]))
+    if sum(len(index) for _, _, index, _ in candidates) > budget and len(candidates) > 1:
+        candidates = _one_branch_each(candidates, hits.points, len(path), bounces_left)
+    parts = []
+    for branch, alive, index, w in candidates:
         front = hits.front[index]
         rays = ctx.geometry.spawn(take(hits.points, index), take(hits.normals, index),
                                   hits.primitive[index], take(branch.directions, alive),
                                   ~front if branch.through else front, arrived_from)
         seen = camera_path[index] if branch.straight else np.zeros(len(index), bool)
-        parts.append((rays, path[index], w[:, alive], seen))
+        parts.append((rays, path[index], w, seen))
     if not parts:
         return None
     if len(parts) == 1:
@@ -332,3 +350,37 @@ def _secondary_rays(ctx, look, hits, normals, cos_in, path, weight, bounces_left
                       arrived_from=arrived_from)
     return (joined, np.concatenate([p[1] for p in parts]),
             np.concatenate([p[2] for p in parts], axis=1), np.concatenate([p[3] for p in parts]))
+
+
+def _one_branch_each(candidates, points, m: int, bounces_left: int):
+    """The candidates (branch, alive, index (k,) into the m hits, weight (3, k)), reduced to
+    one branch per hit: chosen with probability in proportion to the mean of its weight's
+    channels, its weight divided by that probability (unbiased).  The choice hashes the hit
+    point's float32 bits and the bounce, so it is the same for any tiling, thread or
+    process."""
+    hit = np.concatenate([index for _, _, index, _ in candidates])
+    part = np.concatenate([np.full(len(index), j) for j, (_, _, index, _) in
+                           enumerate(candidates)])
+    position = np.concatenate([np.arange(len(index)) for _, _, index, _ in candidates])
+    share = np.concatenate([w.mean(axis=0) for _, _, _, w in candidates]).astype(np.float64)
+    order = np.lexsort((part, hit))
+    hit, part, position, share = hit[order], part[order], position[order], share[order]
+    total = np.bincount(hit, share, minlength=m)
+    first = np.r_[True, hit[1:] != hit[:-1]]
+    last = np.r_[hit[1:] != hit[:-1], True]
+    after = np.cumsum(share)
+    before = after - share
+    base = before[first][np.cumsum(first) - 1]
+    bits = np.ascontiguousarray(points, np.float32).view(np.uint32)
+    key = hash_u32(bits[2] ^ hash_u32(bits[1] ^ hash_u32(bits[0] ^ np.uint32(bounces_left))))
+    u = (key >> np.uint32(8)).astype(np.float64) * 2.0 ** -24   # [0, 1)
+    target = u[hit] * total[hit]
+    chosen = (before - base <= target) & ((target < after - base) | last)
+    reduced = []
+    for j, (branch, alive, index, w) in enumerate(candidates):
+        mine = chosen & (part == j)
+        keep = np.sort(position[mine])
+        scale = (total[hit[mine]] / share[mine])[np.argsort(position[mine])]
+        reduced.append((branch, alive[keep], index[keep],
+                        w[:, keep] * scale.astype(w.dtype)))
+    return [c for c in reduced if len(c[2])]
