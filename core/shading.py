@@ -504,7 +504,7 @@ def _segments_blocked(ctx, terminator, points, rows, rays: _ShadowRays, stats):
 #: to this many rays: the join's gain is in the traces it saves (a particle scene's world
 #: rays replayed: 447 batches of 386 rays 2.10 s, joined 64 at a time 0.48 s, all in one
 #: 0.46 s), while the 9 world batches of a 16,384-pixel tile with anti-aliasing off, joined,
-#: made issue 9's points and instances 4-6 % slower through F12 (larger temporaries).
+#: made the point-cloud and instancing scenes 4-6 % slower through F12 (larger temporaries).
 JOINED_SHADOW_RAYS = 16384
 
 
