@@ -153,7 +153,7 @@ def test_the_png_writer_streams_rows(tmp_path):
 
 
 def test_a_million_spheres_at_64x64_stay_within_their_plan():
-    """A million spheres at 1080p (an early tracer took 13-20 GB, then a MemoryError).  A million
+    """A million spheres (an early tracer took 13-20 GB for them, then a MemoryError).  A million
     spheres is the size the claim is about, so this test builds them (about 5 s here)."""
     scene = sphere_set_scene(1_000_000, False)
     settings = core.RenderSettings(threads=2)
