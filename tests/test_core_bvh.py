@@ -66,9 +66,11 @@ def test_tree_finds_exactly_the_flat_paths_hits(dtype, sorts):
     soup = core.TriangleMesh(corners.reshape(-1, 3), np.arange(600).reshape(200, 3), None,
                              np.zeros(200, np.int64), MATERIALS)
     scene = _scene(3000, meshes=(soup,))
+    # (Sorted for rays that share an origin and rays that do not alike.)
     policy = dataclasses.replace(DEFAULT_POLICY,
                                  sorted_from=10 ** 9 if sorts == "unsorted" else 0,
-                                 deep_sort_crossings=0.0 if sorts == "widest" else np.inf)
+                                 deep_sort_crossings=0.0 if sorts == "widest" else np.inf,
+                                 coherent_sort_crossings=0.0, incoherent_sort_crossings=0.0)
     tree, flat = _contexts(scene, dtype, policy)
     levels = tree.geometry.tree.bvh._nearest_levels
     widest = int(np.argmax(np.bincount(tree.geometry.tree.bvh.depths)))
@@ -91,6 +93,47 @@ def test_tree_finds_exactly_the_flat_paths_hits(dtype, sorts):
         assert np.array_equal(t1, t2)
         assert np.array_equal(o1, o2)
         assert (p1 >= 3001).any() and ((p1 >= 1) & (p1 < 3001)).any() and o1.any() and not o1.all()
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_rays_descend_unsorted_where_lines_meet_few_leaves(monkeypatch, dtype):
+    """A mesh's tree (a line through it crosses about two leaves): rays from one point and
+    rays leaving points in all directions descend it level by level, sorting nothing
+    (``GeometryPolicy.coherent_sort_crossings``, ``incoherent_sort_crossings``); a dense
+    field of spheres sorts both kinds front to back, and a field of fewer only the rays
+    that share their origin.  The hits are the sorted traversal's either way."""
+    from core.geometry.bvh import BVH
+    sorted_calls = []
+    rounds = BVH._rounds
+    monkeypatch.setattr(BVH, "_rounds", lambda self, *args: sorted_calls.append(1)
+                        or rounds(self, *args))
+    scene, _ = _backdrop_and_ball()
+    cloud = core.Scene(camera=scene.camera, sphere_sets=(_cloud(20_000),),
+                       lights=scene.lights)
+    rng = np.random.default_rng(12)
+    for case, crossings in ((scene, 2.0), (cloud, 8.0)):
+        contexts = [make_context(case, core.RenderSettings(), dtype, geometry_policy=policy)
+                    for policy in (DEFAULT_POLICY, dataclasses.replace(
+                        DEFAULT_POLICY, coherent_sort_crossings=0.0,
+                        incoherent_sort_crossings=0.0))]
+        assert (contexts[0].geometry.tree.bvh.leaf_crossings < crossings) == (case is scene)
+        for shared in (None, (0.5, 3.0, 11.0)):
+            origins, directions = _rays(rng, 3000, dtype, shared)
+            answers = []
+            for ctx in contexts:
+                sorted_calls.clear()
+                origin = None if shared is None else ctx.geometry.shared_origin(shared)
+                # (Too few rays from the point for its direction bins: the tree answers.)
+                answers.append(ctx.geometry.intersect(
+                    RayBatch(origins, directions, 0.0, np.inf, origin), RayStats())[:2])
+                sorts = bool(sorted_calls)
+                if ctx is contexts[1]:
+                    assert sorts
+                else:
+                    assert sorts == (case is cloud and shared is not None)
+            assert np.array_equal(answers[0][0], answers[1][0])
+            assert np.array_equal(answers[0][1], answers[1][1])
+            assert (answers[0][1] >= 0).mean() > 0.1
 
 
 def test_sphere_set_renders_the_same_through_the_tree_and_flat():

@@ -156,7 +156,7 @@ class BVH(WideTree):
     # ---- traversal ----------------------------------------------------------------------
 
     def traverse(self, origins, inverse, t_min, t_max, visit, accept=None, *, any_hit=False,
-                 sources=None, leaf_blocks=None, slot_visit=None, stats=None):
+                 sources=None, leaf_blocks=None, slot_visit=None, stats=None, coherent=True):
         """Visit, front to back, the primitives whose leaves each ray's segment reaches.
 
         origins (3, n) or (3, 1) and inverse (3, n) (1 / direction) float64; t_min scalar
@@ -177,6 +177,11 @@ class BVH(WideTree):
         ray, (kept (k,) the pairs it tested, an index into them (the rest cannot hit),
         their primitives (k,), their hit distances (k,) as ``visit`` gives them); ``accept``
         is then told pairs as indices into the kept ones.
+        ``coherent``: whether the rays share an origin (the eye, a light sample).  Rays
+        descend the tree unsorted, level by level, where a line through it meets few leaves
+        (``policy.coherent_sort_crossings``, ``incoherent_sort_crossings``: a mesh's
+        surfaces; rays leaving points in all directions unless the tree is a dense field):
+        sorting their pairs front to back there costs more than it saves.
         Returns (n,) bool: whether a hit (any_hit: a blocker) was found for each ray.
         """
         # (The slab tests' 0 * inf, a ray in a box's plane, is NaN and ignored there
@@ -184,10 +189,11 @@ class BVH(WideTree):
         # call, which cost about 3 % of the trails' time.)
         with np.errstate(invalid="ignore"):
             return self._traverse_rays(origins, inverse, t_min, t_max, visit, accept,
-                                       any_hit, sources, leaf_blocks, slot_visit, stats)
+                                       any_hit, sources, leaf_blocks, slot_visit, stats,
+                                       coherent)
 
     def _traverse_rays(self, origins, inverse, t_min, t_max, visit, accept, any_hit, sources,
-                       leaf_blocks, slot_visit, stats):
+                       leaf_blocks, slot_visit, stats, coherent):
         n = inverse.shape[1]
         found = np.zeros(n, bool)
         near_origin = np.abs(origins).max(initial=0) <= self.origin_reach
@@ -210,9 +216,13 @@ class BVH(WideTree):
                 found[rest] = self.traverse(
                     origins if origins.shape[1] == 1 else origins[:, rest], inverse[:, rest],
                     t_min if np.ndim(t_min) == 0 else t_min[rest], t_max[rest],
-                    lambda r, prims: visit(rest.take(r), prims), any_hit=True, stats=stats)
+                    lambda r, prims: visit(rest.take(r), prims), any_hit=True, stats=stats,
+                    coherent=coherent)
             return found
         levels = self._levels() if any_hit else self._nearest_levels
+        if self.leaf_crossings < (self.policy.coherent_sort_crossings if coherent
+                                  else self.policy.incoherent_sort_crossings):
+            levels = None
         # (Unsorted descents hold a few pairs a ray and sort nothing: larger chunks, fewer
         # calls.)
         chunk = RAY_CHUNK if levels is not None else UNSORTED_CHUNK

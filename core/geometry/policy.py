@@ -108,6 +108,15 @@ class GeometryPolicy:
     #: ``deep_sort_crossings`` leaves (``bench --only cost-sphere-sets``).
     sorted_from: int = 2048
     deep_sort_crossings: float = 32.0
+    #: Rays descend the tree unsorted, level by level, unless a line through its root
+    #: crosses at least this many leaves: rays sharing an origin (the eye, a light sample)
+    #: ``coherent_sort_crossings`` (a mesh's surfaces cross about 2, a field of spheres 5 or
+    #: more), rays that share none (bounces, shadow rays from points)
+    #: ``incoherent_sort_crossings`` (a dense field) (``python -m bench.rays``:
+    #: clevr_Rubber's camera rays 1.9x and bounces 2.2x faster unsorted, the 10^4-sphere
+    #: set's camera rays 1.4x and the 10^5-sphere set's bounces 6x slower).
+    coherent_sort_crossings: float = 4.0
+    incoherent_sort_crossings: float = 32.0
     #: Climbing steps an occlusion trail takes before it meets its home node's children
     #: (``bench --only cost-sphere-sets``: the 10^5 and 10^6 fields' shadow rays).
     home_after: int = 4

@@ -129,7 +129,8 @@ class TreeAccelerator:
             slot_visit = None if table is None else (
                 lambda r, slots: kernel.slot_visit(r, slots, table))
             self.bvh.traverse(*_box_terms(rays), box_t_min, kernel.reach, kernel.visit,
-                              kernel.accept, slot_visit=slot_visit, stats=stats)
+                              kernel.accept, slot_visit=slot_visit, stats=stats,
+                              coherent=rays.shared is not None)
             return
         if len(rest) == 0:
             return
@@ -137,7 +138,8 @@ class TreeAccelerator:
         visit, accept, slot_visit = kernel.of(rest, local)
         self.bvh.traverse(*_box_terms(rays, rest), box_t_min, local, visit, accept,
                           slot_visit=None if table is None else (
-                              lambda r, slots: slot_visit(r, slots, table)), stats=stats)
+                              lambda r, slots: slot_visit(r, slots, table)), stats=stats,
+                          coherent=rays.shared is not None)
 
     def occluded(self, kernel: OcclusionPairs, stats=None) -> np.ndarray:
         """(n,) whether each segment of the kernel's batch is blocked.  Rays leaving a
@@ -154,7 +156,8 @@ class TreeAccelerator:
 
         return self.bvh.traverse(*_box_terms(segments), max(_box_start(segments.t_min), 0.0),
                                  kernel.reach, kernel.visit, any_hit=True,
-                                 sources=segments.source, leaf_blocks=leaf_blocks, stats=stats)
+                                 sources=segments.source, leaf_blocks=leaf_blocks, stats=stats,
+                                 coherent=segments.shared is not None)
 
 
 def _box_terms(rays: RayBatch, keep=None):
