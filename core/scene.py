@@ -735,6 +735,8 @@ class TriangleMesh:
     tangent_maps: ((UV map name, (T, 3, 4) corner tangents and bitangent signs), ...): the
     MikkTSpace tangents of the UV maps Normal Map nodes read, object space, the first the
     active render map's; () where none reads them.
+    attributes: ((name, (T, 3, 4) corner values and alpha), ...): the mesh attributes
+    Attribute and Vertex Color nodes read ('' the render colour attribute); () where none.
     Triangles that touch a vertex that is not finite are left out, as Cycles leaves them
     (``warnings`` counts them, in one line).
     """
@@ -749,6 +751,7 @@ class TriangleMesh:
     shadow_terminator_offset: float = DEFAULT_GEOMETRY_OFFSET
     uv_maps: tuple = ()
     tangent_maps: tuple = ()
+    attributes: tuple = ()
     warnings: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -815,6 +818,17 @@ class TriangleMesh:
             _require_finite(where, f"tangent_maps[{name!r}]", corners)
             tangents.append((str(name), corners if keep is None else _frozen(corners[keep])))
         _set(self, "tangent_maps", tuple(tangents))
+        attributes = []
+        for name, corners in self.attributes:
+            if not isinstance(name, str):
+                raise SceneError(f"{where}: attributes names must be strings, got {name!r}")
+            corners = _frozen_array(where, f"attributes[{name!r}]", corners, np.float32,
+                                    (count, 3, 4))
+            # (Imported data may hold NaN: read as zero, as a missing attribute is.)
+            if not np.isfinite(corners).all():
+                corners = _frozen(np.nan_to_num(corners, nan=0.0, posinf=0.0, neginf=0.0))
+            attributes.append((name, corners if keep is None else _frozen(corners[keep])))
+        _set(self, "attributes", tuple(attributes))
 
     def __len__(self) -> int:
         """Triangles drawn: triangles per instance times instances."""

@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .shader.input_nodes import (ATTRIBUTE_ALPHA_PREFIX, ATTRIBUTE_PREFIX, RENDER_COLOR,
+                                 RENDER_COLOR_ALPHA)
 from .shader.points import ShadingPoints
 from .shader.world import light_path_sources
 from .vectors import take
@@ -40,6 +42,7 @@ class SurfaceTables:
     world_scale: float
     meshes: tuple = ()
     tangent_maps: tuple = ()
+    attributes: tuple = ()
     world_centre: np.ndarray = field(default_factory=lambda: np.zeros(3))
     camera: object = None
 
@@ -69,7 +72,8 @@ class SurfaceTables:
         return cls(scene.sphere_count, starts.astype(np.int64), counts, tuple(transforms),
                    tuple(inverses), tuple(boxes), tuple(mesh.uv_maps for mesh in scene.meshes),
                    float(world_scale), tuple(scene.meshes),
-                   tuple(mesh.tangent_maps for mesh in scene.meshes), centre, scene.camera)
+                   tuple(mesh.tangent_maps for mesh in scene.meshes),
+                   tuple(mesh.attributes for mesh in scene.meshes), centre, scene.camera)
 
 
 def _triangle_hits(tables: SurfaceTables, primitive):
@@ -229,6 +233,24 @@ class _HitSources:
             result[:, rows] = world / np.where(length > 0, length, 1)
         return result
 
+    def attribute(self, name: str, alpha: bool) -> np.ndarray:
+        """(3, k) a mesh attribute interpolated at each hit (alpha: its alpha in the first
+        row); zero (alpha 1) where a hit's mesh has none of that name, as in Cycles."""
+        result = np.zeros_like(self.points)
+        if alpha:
+            result[0] = 1.0
+        for m, rows in self._groups():
+            corners = dict(self.tables.attributes[m]).get(name)
+            if corners is None:
+                continue
+            weights = np.stack([b[rows] for b in self.barycentrics], axis=1)   # (k, 3)
+            values = np.einsum("kc,kcj->jk", weights, corners[self.local[rows]])  # (4, k)
+            if alpha:
+                result[0, rows] = values[3]
+            else:
+                result[:, rows] = values[:3]
+        return result
+
     def object_axis(self, axis: int) -> np.ndarray:
         """(3, k) the world-space image of each hit's object's local axis (scene units)."""
         result = np.zeros_like(self.points)
@@ -289,6 +311,11 @@ def surface_points(tables: SurfaceTables, geometry, points, normal, true_normal,
     for name in {name for maps in tables.tangent_maps for name, _ in maps}:
         sources[f"tangent:{name}"] = (lambda name=name: hits.tangent(name, False))
         sources[f"tangent:{name}_sign"] = (lambda name=name: hits.tangent(name, True))
+    for name in {name for maps in tables.attributes for name, _ in maps}:
+        value, alpha = ((RENDER_COLOR, RENDER_COLOR_ALPHA) if name == "" else
+                        (ATTRIBUTE_PREFIX + name, ATTRIBUTE_ALPHA_PREFIX + name))
+        sources[value] = (lambda name=name: hits.attribute(name, False))
+        sources[alpha] = (lambda name=name: hits.attribute(name, True))
     sources.update(light_path_sources(ray))
     if footprint is not None:
         footprint = footprint * tables.world_scale

@@ -229,3 +229,50 @@ def test_light_path_rays_see_the_world_and_shadows_as_in_cycles():
     # The camera sees the blue backdrop; the ball and the floor are lit warm.
     assert glint[sky, 2].mean() > 3 * glint[sky, 0].mean()
     assert glint[on_ball, 0].mean() > glint[on_ball, 2].mean()
+
+
+def test_mesh_attributes_and_uv_map_nodes_match_cycles(lit_scene):
+    """A subdivided plane's render colour attribute (corner bytes: scene-linear in Cycles),
+    a point float and a face integer through Vertex Color, Attribute and UV Map nodes: the
+    exporter hands each to the integrator, which interpolates it at the hit as Cycles does
+    (a missing attribute reads black, a missing vertex colour black with alpha 0)."""
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=6, y_subdivisions=4, size=4.0,
+                                    rotation=(math.pi / 2, 0.0, 0.0))   # facing the camera
+    plane = bpy.context.object
+    mesh = plane.data
+    mesh.color_attributes.new("paint", 'BYTE_COLOR', 'CORNER')
+    mesh.attributes.new("height", 'FLOAT', 'POINT')
+    mesh.attributes.new("group", 'INT', 'FACE')
+    mesh.color_attributes.render_color_index = 0
+    rng = np.random.default_rng(5)
+    paint = mesh.attributes["paint"]
+    colours = rng.uniform(0.05, 1.0, (len(paint.data), 4))
+    paint.data.foreach_set("color", colours.astype(np.float32).ravel())
+    height = mesh.attributes["height"]
+    height.data.foreach_set("value", rng.uniform(0, 1, len(height.data)).astype(np.float32))
+    group = mesh.attributes["group"]
+    group.data.foreach_set("value", np.arange(len(group.data), dtype=np.int32) % 3)
+    material, tree, principled = _material("attributes")
+    vertex = tree.nodes.new("ShaderNodeVertexColor")          # the render colour
+    attribute = tree.nodes.new("ShaderNodeAttribute")
+    attribute.attribute_name = "height"
+    faces = tree.nodes.new("ShaderNodeAttribute")
+    faces.attribute_name = "group"
+    uv = tree.nodes.new("ShaderNodeUVMap")
+    mix = tree.nodes.new("ShaderNodeMix")
+    mix.data_type = 'RGBA'
+    tree.links.new(attribute.outputs["Fac"], mix.inputs["Factor"])
+    tree.links.new(vertex.outputs["Color"], mix.inputs[6])
+    tree.links.new(uv.outputs["UV"], mix.inputs[7])
+    tree.links.new(mix.outputs[2], principled.inputs["Base Color"])
+    scale = tree.nodes.new("ShaderNodeMath")
+    scale.operation = 'MULTIPLY'
+    scale.inputs[1].default_value = 0.3
+    tree.links.new(faces.outputs["Fac"], scale.inputs[0])
+    tree.links.new(scale.outputs[0], principled.inputs["Roughness"])
+    mesh.materials.append(material)
+    glint, cycles = core_image(), cs.render_cycles()
+    assert _per_pixel(glint, cycles) < PIXEL_TOLERANCE
+    # The attributes are there: the plane is not one colour.
+    plane = cycles[..., :3].max(axis=2) > 0
+    assert plane.mean() > 0.3 and glint[plane, :3].std(axis=0).min() > 0.02

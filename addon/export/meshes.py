@@ -40,6 +40,7 @@ from ...core import SceneError, Sphere, SphereSet, TriangleMesh
 from ...core.scene import row_blocks
 from ...core.validation import usable_triangles
 from ...core.terminator import DEFAULT_GEOMETRY_OFFSET
+from ...core.shader.input_nodes import ATTRIBUTE_PREFIX, RENDER_COLOR
 from ..compat import matrix_bytes
 from .context import instance_name
 from .errors import ExportError
@@ -77,6 +78,7 @@ class MeshArrays:
     slots: np.ndarray                     # (T,) int64 material slot of each triangle
     corner_loops: np.ndarray              # (T, 3) int64 each corner's loop (its UVs' index)
     dropped: Optional[str] = None         # what usable_triangles left out, or None
+    faces: Optional[np.ndarray] = None    # (T,) int64 each triangle's face
 
 
 def face_slots(mesh, faces: np.ndarray) -> np.ndarray:
@@ -149,9 +151,9 @@ def read_mesh(mesh) -> MeshArrays:
         normals = _flat_where_zero(_gathered(corner_normals, loops, np.float64), vertices,
                                    triangles)
     if not keep.all():
-        triangles, slots, loops = triangles[keep], slots[keep], loops[keep]
+        triangles, slots, loops, faces = triangles[keep], slots[keep], loops[keep], faces[keep]
         normals = normals[keep] if normals is not None else None
-    return MeshArrays(vertices, triangles, normals, slots, loops, dropped)
+    return MeshArrays(vertices, triangles, normals, slots, loops, dropped, faces)
 
 
 def evaluated_materials(obj) -> tuple:
@@ -224,8 +226,9 @@ def _coordinates(materials) -> set:
 
 
 def _reads_coordinates(materials) -> bool:
-    return bool(_coordinates(materials) & {"uv", "generated", "object", "tangent"}
-                or any(name.startswith(("uv:", "tangent:")) for name in _coordinates(materials)))
+    names = _coordinates(materials)
+    return bool(names & {"uv", "generated", "object", "tangent", RENDER_COLOR}
+                or any(name.startswith(("uv:", "tangent:", ATTRIBUTE_PREFIX)) for name in names))
 
 
 def _uv_names(materials):
@@ -291,6 +294,70 @@ def tangent_maps(mesh, arrays: MeshArrays, names, context=None) -> tuple:
         corners = np.concatenate([tangent, sign[:, None]], axis=1)[arrays.corner_loops]
         maps.append((layer.name, corners.astype(np.float32)))
     return tuple(maps)
+
+
+#: How a mesh attribute's data type is read (its ``data`` items' field and width) as the
+#: Attribute node sees it: a float as (f, f, f), a 2D vector with z 0, colours with alpha.
+_ATTRIBUTE_FIELDS = {"FLOAT": ("value", 1), "INT": ("value", 1), "INT8": ("value", 1),
+                     "BOOLEAN": ("value", 1), "FLOAT2": ("vector", 2),
+                     "FLOAT_VECTOR": ("vector", 3), "FLOAT_COLOR": ("color", 4),
+                     "BYTE_COLOR": ("color", 4)}
+
+
+def _attribute_names(materials):
+    """The mesh attributes the materials' programs read: None for none, else their names
+    ('' for the mesh's render colour attribute, a Vertex Color node's default)."""
+    names = _coordinates(materials)
+    wanted = {name[len(ATTRIBUTE_PREFIX):] for name in names
+              if name.startswith(ATTRIBUTE_PREFIX)}
+    if RENDER_COLOR in names:
+        wanted.add("")
+    return wanted or None
+
+
+def attribute_maps(mesh, arrays: MeshArrays, names) -> tuple:
+    """((name, (T, 3, 4) float32 corner values and alpha), ...) of the point, corner and face
+    attributes ``names`` of the evaluated mesh ('' its render colour attribute), as
+    Cycles' Attribute node reads them (``_ATTRIBUTE_FIELDS``: colours scene-linear, byte
+    colours too); names the mesh lacks, or of other domains and types, are left out (they
+    read as zero)."""
+    if not names:
+        return ()
+    maps = []
+    for name in sorted(names):
+        attribute = mesh.attributes.get(name) if name else _render_color(mesh)
+        if attribute is None or attribute.data_type not in _ATTRIBUTE_FIELDS:
+            continue
+        domain = attribute.domain
+        if domain == 'POINT':
+            rows = arrays.triangles
+        elif domain == 'CORNER':
+            rows = arrays.corner_loops
+        elif domain == 'FACE' and arrays.faces is not None:
+            rows = np.repeat(arrays.faces[:, None], 3, axis=1)
+        else:
+            continue
+        field_name, width = _ATTRIBUTE_FIELDS[attribute.data_type]
+        stored = STORED_INT if attribute.data_type in ("INT", "INT8") else None
+        values = read_array(attribute.data, field_name, width, np.float32, stored=stored)
+        values = values.reshape(len(attribute.data), width)
+        table = np.zeros((len(values), 4), np.float32)
+        table[:, 3] = 1.0
+        if width == 1:
+            table[:, :3] = values
+        else:
+            table[:, :width] = values
+        maps.append((name, table[rows]))
+    return tuple(maps)
+
+
+def _render_color(mesh):
+    """The mesh's colour attribute for rendering (Cycles' default vertex colours), or None."""
+    colors = mesh.color_attributes
+    index = getattr(colors, "render_color_index", -1)
+    if 0 <= index < len(colors):
+        return colors[index]
+    return colors.active_color if len(colors) else None
 
 
 def own_geometry(instance) -> bool:
@@ -435,6 +502,7 @@ class MeshExporter:
                 name=name, shadow_terminator_offset=use.terminator_offset,
                 uv_maps=uv_maps(use.mesh, arrays, _uv_names(materials)),
                 tangent_maps=tangent_maps(use.mesh, arrays, _tangent_names(materials),
-                                          self.context)))
+                                          self.context),
+                attributes=attribute_maps(use.mesh, arrays, _attribute_names(materials))))
         except SceneError as error:
             raise ExportError(f"object '{use.name}': {error}") from None

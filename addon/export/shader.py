@@ -24,6 +24,8 @@ from ...core.shader.bsdf_nodes import LobeSum
 from ...core.shader.program import (MAX_INSTRUCTIONS, Coordinate, Instruction, Register,
                                     ShaderProgram, constant_array, evaluate, run)
 from ...core.shader.points import ShadingPoints
+from ...core.shader.input_nodes import (ATTRIBUTE_ALPHA_PREFIX, ATTRIBUTE_PREFIX, RENDER_COLOR,
+                                       RENDER_COLOR_ALPHA)
 from ...core.shader.registry import CLOSURE, COLOR, FLOAT, NODES, VECTOR
 from ...core.validation import MAX_COLOUR, value_text
 from .errors import ExportError
@@ -44,6 +46,13 @@ def _tangent_names(node) -> set:
 NODE_COORDINATES = {
     "ShaderNodeNormalMap": _tangent_names,
     "ShaderNodeUVMap": lambda node: {f"uv:{node.uv_map}" if node.uv_map else "uv"},
+    "ShaderNodeAttribute": lambda node: ({ATTRIBUTE_PREFIX + node.attribute_name,
+                                          ATTRIBUTE_ALPHA_PREFIX + node.attribute_name}
+                                         if node.attribute_type == 'GEOMETRY' else set()),
+    "ShaderNodeVertexColor": lambda node: ({ATTRIBUTE_PREFIX + node.layer_name,
+                                            ATTRIBUTE_ALPHA_PREFIX + node.layer_name}
+                                           if node.layer_name else
+                                           {RENDER_COLOR, RENDER_COLOR_ALPHA}),
     "ShaderNodeTexCoord": lambda node: {"uv", "generated", "object"},
     "ShaderNodeTangent": lambda node: ({f"tangent:{node.uv_map}" if node.uv_map else "tangent"}
                                        if node.direction_type == 'UV_MAP' else set()),

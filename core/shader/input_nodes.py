@@ -141,6 +141,13 @@ def object_info(points):
             point_data.scalar(points, "object_random"))
 
 
+#: The coordinates of a mesh's attribute of a name (its value, its alpha), and of its render
+#: colour attribute (a Vertex Color node without a name), as the integrator gives them.
+ATTRIBUTE_PREFIX = "attribute:"
+ATTRIBUTE_ALPHA_PREFIX = "attribute_alpha:"
+RENDER_COLOR = "render_color"
+RENDER_COLOR_ALPHA = "render_color_alpha"
+
 #: The coordinate-name prefix of each Attribute node type.
 ATTRIBUTE_PREFIXES = {"GEOMETRY": "attribute", "OBJECT": "object_attribute",
                       "INSTANCER": "instancer_attribute", "VIEW_LAYER": "view_layer_attribute"}
@@ -164,6 +171,27 @@ def attribute(points, *, attribute_type="GEOMETRY", attribute_name=""):
     known = attribute_type == "GEOMETRY" or point_data.provided(points, name)
     alpha = point_data.scalar(points, f"{prefix}_alpha:{attribute_name}", 1.0 if known else 0.0)
     return data, data, (data[0] + data[1] + data[2]) * (1 / 3), alpha
+
+
+@node("ShaderNodeVertexColor", outputs=(("Color", COLOR), ("Alpha", FLOAT)),
+      options=("layer_name",), reads_points=True)
+def vertex_color(points, *, layer_name=""):
+    """A colour attribute of the mesh by name, or its render colour attribute where the name
+    is empty (``RENDER_COLOR``), and its alpha; black with alpha 0 where the mesh has none,
+    as Cycles renders a missing one."""
+    value, alpha = ((ATTRIBUTE_PREFIX + layer_name, ATTRIBUTE_ALPHA_PREFIX + layer_name)
+                    if layer_name else (RENDER_COLOR, RENDER_COLOR_ALPHA))
+    known = point_data.provided(points, value)
+    return (points.coordinate(value),
+            point_data.scalar(points, alpha, 1.0) if known else np.zeros((), points.dtype))
+
+
+@node("ShaderNodeUVMap", outputs=(("UV", VECTOR),), options=("uv_map", "from_instancer"),
+      reads_points=True)
+def uv_map(points, *, uv_map="", from_instancer=False):
+    """The UV map of that name ('uv:<name>'), or the render map where the name is empty."""
+    prefix = "instancer_" if from_instancer else ""
+    return (points.coordinate(f"{prefix}uv:{uv_map}" if uv_map else f"{prefix}uv"),)
 
 
 # --- Light Path ----------------------------------------------------------------------------------
