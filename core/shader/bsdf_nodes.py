@@ -260,7 +260,11 @@ def glass_bsdf(points, colour, roughness, ior, normal):
       outputs=(("BSDF", CLOSURE),), implicit=_NORMAL,
       note="rough refraction goes through GGX microfacets by BSDF samples only")
 def refraction_bsdf(points, colour, roughness, ior, normal):
-    return (_normal(points, _refraction(colour, np.maximum(ior, 1e-3), 0.0), normal),)
+    lobes = _refraction(colour, np.maximum(ior, 1e-3), 0.0)
+    # Its microfacets' roughness, weighed as a glossy lobe's is (the two share one alpha).
+    lobes.gloss_weight = lobes.refraction_weight
+    lobes.roughness_sum = lobes.refraction_weight * np.asarray(roughness)
+    return (_normal(points, lobes, normal),)
 
 
 @node("ShaderNodeBsdfTranslucent", inputs=(("Color", COLOR), ("Normal", VECTOR)),
