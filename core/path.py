@@ -237,8 +237,10 @@ def _next_event(ctx, setup, closures, choice, points, normal, geometric, to_view
     """(3, k) the light the points receive by light samples: every light source when there
     are few (``SAMPLED_EACH``), else one chosen by power, each times the BSDF and the power
     heuristic against BSDF sampling.  exclude: (2, k) the primitive shadow rays ignore on
-    the side the view is on and on the other (``Aggregate.exclusions``); a light sample on
-    the side of the shading normal other than the geometric normal's brings nothing."""
+    the side the view is on and on the other (``Aggregate.exclusions``).  As in Cycles'
+    ``bsdf_eval``, the BSDF sees a light sample by the shading normal alone, on either side
+    of the geometric one: near a smooth mesh's terminator its shadow ray decides
+    (``core.terminator``)."""
     k = points.shape[1]
     dtype = points.dtype
     total = np.zeros((3, k), dtype)
@@ -272,9 +274,8 @@ def _next_event(ctx, setup, closures, choice, points, normal, geometric, to_view
         f, pdf = lobes.evaluate(part, part_choice, shading, take(to_view, rows),
                                 sample.towards)
         above = dot(take(geometric, rows), sample.towards) > 0
-        agree = above == (dot(shading, sample.towards) > 0)
         ignore = np.where(above, exclude[0][rows], exclude[1][rows])
-        useful = np.flatnonzero(agree & (np.abs(f).max(axis=0) > 0)
+        useful = np.flatnonzero((np.abs(f).max(axis=0) > 0)
                                 & (np.abs(sample.over_pdf).max(axis=0) > 0))
         if len(useful) == 0:
             continue
@@ -409,6 +410,14 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats,
             normal = closures.normal
         if depth == 0:
             first_normal[:, path] = normal
+        # Holdouts on the camera's view.
+        held = None
+        if setup.any_holdout and camera_view.any():
+            held = _hold_out(closures, camera_view, path, throughput, transparency)
+        if held is not None:
+            # An object holdout hides its shading and emission from the camera; only its
+            # transparency lets the ray on (and may meet the object again behind).
+            _only_transparency(closures, held)
         # Emission, weighted against the light samples that could have found it.
         emits = np.flatnonzero(np.abs(closures.emission).max(axis=0) > 0)
         if len(emits):
@@ -422,15 +431,9 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats,
                                   _power_heuristic(last_pdf[emits], light_pdf), 1.0)
             _add(colour, path[emits], _clamp(throughput[:, emits]
                                              * take(closures.emission, emits) * weight, limit))
-        # Holdouts on the camera's view.
-        held = None
-        if setup.any_holdout and camera_view.any():
-            held = _hold_out(closures, camera_view, path, throughput, transparency)
         # Paths past their limits end here, after their emission; the rest may be cut by
         # Russian roulette.
         alive = ~emission_only
-        if held is not None:
-            alive[held] = False
         # The vertex's choices: lobe, light, Russian roulette.
         choices = sample_group(seed, sample, bounce_groups(depth)[1], bits, dtype)
         if depth > 1:
@@ -565,6 +568,14 @@ def _filter_closures(setup, closures: Closures, min_pdf, by_diffuse) -> None:
             closures.f90[:, by_diffuse] = 0
         if not setup.caustics_refractive:
             closures.transmission[:, by_diffuse] = 0
+
+
+def _only_transparency(closures: Closures, rows) -> None:
+    """Leave the closures of ``rows`` their transparency alone, in place (an object
+    holdout's hits on the camera's view: what passes through it goes on)."""
+    for name in ("diffuse", "f0", "f90", "transmission", "translucency", "emission"):
+        getattr(closures, name)[:, rows] = 0
+    closures.holdout[rows] = 0
 
 
 def _hold_out(closures: Closures, camera_view, path, throughput, transparency):
