@@ -21,7 +21,7 @@ import time
 import numpy as np
 import pytest
 
-import distributed
+from process_support import sigint_disposition
 
 import core
 from core import cluster
@@ -30,6 +30,9 @@ from test_path_integrator import _box_scene
 
 REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RENDER_SCRIPT = os.path.join(REPOSITORY, "render.py")
+#: Every test here starts a cluster, child processes or a pip install, and needs Dask's
+#: distributed (the optional extra the default venv installs, imported where used).
+pytestmark = pytest.mark.slow
 #: Long enough for a worker process to start and import the core on a loaded machine.
 START_SECONDS = 60
 
@@ -54,6 +57,8 @@ def worker_site(tmp_path_factory):
 
 
 def _local_cluster(**options):
+    import distributed
+
     return distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                     dashboard_address=":0", silence_logs=logging.ERROR,
                                     **options)
@@ -183,7 +188,8 @@ def test_ctrl_c_in_render_py_cancels_the_tasks_and_writes_nothing(local_cluster,
     process = subprocess.Popen(
         [sys.executable, RENDER_SCRIPT, "--width", "1920", "--height", "1080", "--samples",
          "64", "--output", str(output), "--cluster", local_cluster.scheduler_address],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPOSITORY)
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPOSITORY,
+        preexec_fn=sigint_disposition())
     try:
         deadline = time.monotonic() + START_SECONDS
         while not _glint_tasks(local_cluster.scheduler) and time.monotonic() < deadline:
@@ -239,6 +245,8 @@ def test_an_unreachable_scheduler_is_one_line_and_render_py_writes_nothing(tmp_p
 
 def test_a_scheduler_without_workers_is_one_line(worker_site, monkeypatch):
     monkeypatch.setenv(cluster.TIMEOUT_VARIABLE, "1")
+    import distributed
+
     with distributed.LocalCluster(n_workers=0, protocol="tcp://", dashboard_address=":0",
                                   silence_logs=logging.ERROR) as empty:
         address = empty.scheduler_address

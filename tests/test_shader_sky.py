@@ -192,6 +192,7 @@ SKIES = {
 }
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("label", list(SKIES))
 def test_sky_matches_cycles_over_the_whole_sphere(label):
     cycles_file()
@@ -223,6 +224,7 @@ SUNS = {
 }
 
 
+@pytest.mark.cycles
 @pytest.mark.parametrize("label", list(SUNS))
 def test_sun_disc_matches_cycles(label):
     """A long lens on the sun (1.4 times its diameter across): its disc, limb-darkened and
@@ -253,6 +255,7 @@ def test_sun_disc_matches_cycles(label):
 # --------------------------------------------------------------------------------------------
 # Glint's own renders.
 
+@pytest.mark.cycles
 def test_glint_render_of_a_sky_world_matches_cycles():
     """F12 of a world-only scene with the default sky, a wide view from below the horizon to
     high above it: Glint's camera rays, exported and compiled world, one sample at each
@@ -273,6 +276,7 @@ def test_glint_render_of_a_sky_world_matches_cycles():
     assert glint.std() > 0.1
 
 
+@pytest.mark.cycles
 def test_diffuse_ball_lit_by_the_sky_matches_cycles():
     """A grey diffuse ball under the default sky with its sun (bounces 0): its lit surface's
     mean radiance, per channel, within 3 % of Cycles'.  The sun, 0.55 degrees wide, is most

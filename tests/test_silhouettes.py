@@ -122,6 +122,7 @@ def test_glint_silhouettes_match_workbench_and_cycles_within_the_mesh_band(name,
 
 
 @pytest.mark.slow
+@pytest.mark.cycles
 @pytest.mark.parametrize("name", FINE_SCENES)
 def test_finely_tessellated_spheres_match_blender_with_iou_above_0_995(name, tmp_path):
     glint, references = render_all(FINE_SCENES[name], fine_spheres, tmp_path)[1:]
@@ -129,6 +130,7 @@ def test_finely_tessellated_spheres_match_blender_with_iou_above_0_995(name, tmp
 
 
 @pytest.mark.slow
+@pytest.mark.cycles
 @pytest.mark.parametrize("name", MESH_SCENES)
 def test_triangle_mesh_silhouettes_match_workbench_and_cycles_but_at_edges(name, tmp_path):
     exported, glint, references = render_all(*MESH_SCENES[name], tmp_path)
@@ -141,6 +143,7 @@ def test_triangle_mesh_silhouettes_match_workbench_and_cycles_but_at_edges(name,
 
 
 @pytest.mark.slow
+@pytest.mark.cycles
 @pytest.mark.parametrize("dx, dy", [(0.5, 0.0), (0.0, 0.5)], ids=["x", "y"])
 def test_a_camera_half_a_pixel_off_fails_the_edge_check_for_meshes(dx, dy, tmp_path):
     exported, glint, references = render_all(*MESH_SCENES["triangle meshes, landscape"],
@@ -152,6 +155,7 @@ def test_a_camera_half_a_pixel_off_fails_the_edge_check_for_meshes(dx, dy, tmp_p
 
 
 @pytest.mark.slow
+@pytest.mark.cycles
 @pytest.mark.parametrize("dx, dy", [(0.5, 0.0), (0.0, 0.5)], ids=["x", "y"])
 def test_a_camera_half_a_pixel_off_fails_the_band_check(dx, dy, tmp_path):
     exported, glint, references = render_all(FINE_SCENES["landscape"], fine_spheres, tmp_path)
