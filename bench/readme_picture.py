@@ -6,9 +6,9 @@
 The scene is built here in ``bpy`` (no file is read): three spheres (a red plastic, a gold
 metal, a white plastic) and a blue cube on a grey floor, a sun and a blue world, each
 surface a Principled BSDF.  Both engines render it through F12 (``bpy.ops.render.render``)
-with their own settings: Glint at the add-on's defaults (adaptive anti-aliasing, 16
-samples, 9 world samples), Cycles on the CPU at ``--cycles-samples`` samples with its
-default light paths (so its picture holds the bounced light Glint does not trace yet).
+with their own settings: Glint at the add-on's defaults (path tracing, 4 samples,
+denoised, the scene's light paths), Cycles on the CPU at ``--cycles-samples`` samples with
+its default light paths, not denoised.
 Both go through the scene's colour management (AgX, Blender's default).  The PNG has Glint
 on the left and Cycles on the right; one JSON line gives each engine's F12 time and the
 two images' similarity (``bench.scale.similarity``).
