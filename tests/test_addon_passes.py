@@ -281,3 +281,17 @@ def test_denoising_data_gives_the_albedo_and_normal_passes_cycles_gives(tmp_path
         np.testing.assert_allclose(np.median(ours[inside], axis=0),
                                    np.median(theirs[inside], axis=0), atol=tolerance,
                                    err_msg=name)
+
+
+def test_a_textured_material_keeps_its_pass_index(tmp_path):
+    """A material whose Base Color comes from a texture is a shader program (arrays), not a
+    set of constants: its Material Index still reaches the pass."""
+    scene = passes_scene()
+    material = bpy.data.materials["small material"]
+    tree = material.node_tree
+    checker = tree.nodes.new("ShaderNodeTexChecker")
+    tree.links.new(checker.outputs["Color"], tree.nodes["Principled BSDF"].inputs["Base Color"])
+    p = layer_passes(render_exr(scene, tmp_path, 'GLINT', "glint.exr"), "ViewLayer")
+    for index in (3, 7):
+        on = p["object"] == index
+        assert on.sum() > 20 and (p["material"][on] == index + 10).all(), index

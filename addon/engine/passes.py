@@ -103,6 +103,16 @@ def _object_name(entry_name: str) -> str:
     return re.sub(r" \((instanced by .*|\d+ instances)\)$", "", entry_name or "")
 
 
+def _material_key(entry):
+    """A dict key for a material table entry: the entry, or, for one that holds arrays (a
+    shader program, textures), its text, which equal exports share."""
+    try:
+        hash(entry)
+    except TypeError:
+        return repr(entry)
+    return entry
+
+
 def scene_pass_indices(scene) -> tuple[np.ndarray, np.ndarray]:
     """(object pass index per scene entry (E,), material pass index per material table entry
     (M,)), float32, for ``core.passes``' primitive and material ids.
@@ -121,10 +131,12 @@ def scene_pass_indices(scene) -> tuple[np.ndarray, np.ndarray]:
     for material in bpy.data.materials:
         if material.users and material.pass_index:
             try:
-                by_values.setdefault(export_material(material)[0], material.pass_index)
+                by_values.setdefault(_material_key(export_material(material)[0]),
+                                     material.pass_index)
             except Exception:  # an invalid material fails the export itself, not here
                 continue
-    material_index = [by_values.get(entry, 0) for entry in material_entries(scene)]
+    material_index = [by_values.get(_material_key(entry), 0)
+                      for entry in material_entries(scene)]
     return np.asarray(object_index, np.float32), np.asarray(material_index, np.float32)
 
 
