@@ -62,14 +62,23 @@ class MemoryPlan:
     tracing: int
     scene: int
     other: int = 0  # bytes the caller holds besides the render (e.g. Blender's result)
+    images: tuple = ()  # ((name, bytes), ...) of the textures the scene's shaders read
+
+    @property
+    def texture_bytes(self) -> int:
+        return sum(size for _, size in self.images)
 
     @property
     def total(self) -> int:
-        return self.image + self.tracing + self.scene + self.other
+        return self.image + self.tracing + self.scene + self.other + self.texture_bytes
 
     def what_to_lower(self) -> str:
         largest = max(("image", self.image + self.other), ("tracing", self.tracing),
-                      ("scene", self.scene), key=lambda item: item[1])[0]
+                      ("scene", self.scene), ("textures", self.texture_bytes),
+                      key=lambda item: item[1])[0]
+        if largest == "textures":
+            name, size = max(self.images, key=lambda item: item[1])
+            return f"use smaller textures (image '{name}' alone takes {_gb(size)})"
         return {"image": "lower the resolution (or its percentage)",
                 "tracing": "lower the samples, the tile size or the threads",
                 "scene": "use fewer spheres, triangles or light samples"}[largest]
@@ -100,7 +109,37 @@ def plan(scene: Scene, settings: RenderSettings, image_dtype, threads: int,
                         for light in scene.lights)
     scene_bytes = (spheres * (BYTES_PER_SPHERE + (1 + light_samples) * BYTES_PER_SPHERE_TERMS)
                    + triangles * BYTES_PER_TRIANGLE)
-    return MemoryPlan(image, tracing, scene_bytes, other_bytes)
+    return MemoryPlan(image, tracing, scene_bytes, other_bytes, texture_sizes(scene))
+
+
+def texture_sizes(scene: Scene) -> tuple:
+    """((name, bytes), ...) of each image the scene's shader programs read (materials and
+    world), each counted once however many programs share it."""
+    from .shader.images import ImageData
+
+    programs = [getattr(material, "program", None) for material in _materials(scene)]
+    programs.append(getattr(scene, "world", None))
+    found = {}
+
+    def visit(value):
+        if isinstance(value, ImageData):
+            found.setdefault(id(value.texels), (value.name, int(value.texels.nbytes)))
+        elif isinstance(value, (tuple, list)):
+            for item in value:
+                visit(item)
+
+    for program in programs:
+        for instruction in getattr(program, "instructions", ()):
+            visit(instruction.arguments)
+            visit(tuple(value for _, value in instruction.options))
+    return tuple(found.values())
+
+
+def _materials(scene: Scene):
+    for sphere in scene.spheres:
+        yield sphere.material
+    for group in (*scene.sphere_sets, *scene.meshes):
+        yield from group.materials
 
 
 def available_memory() -> Optional[int]:
@@ -129,6 +168,10 @@ def available_memory() -> Optional[int]:
     return max(0, min(candidates))
 
 
+def _texture_text(memory_plan: MemoryPlan) -> str:
+    return f", textures {_gb(memory_plan.texture_bytes)}" if memory_plan.images else ""
+
+
 def _gb(size: int) -> str:
     return f"{size / 1e9:.1f} GB"
 
@@ -143,5 +186,6 @@ def check(memory_plan: MemoryPlan, width: int, height: int,
     raise NotEnoughMemory(
         f"a {width}x{height} render needs about {_gb(memory_plan.total)} of memory "
         f"(image {_gb(memory_plan.image + memory_plan.other)}, tracing "
-        f"{_gb(memory_plan.tracing)}, scene {_gb(memory_plan.scene)}) but "
+        f"{_gb(memory_plan.tracing)}, scene {_gb(memory_plan.scene)}"
+        f"{_texture_text(memory_plan)}) but "
         f"{_gb(available)} is available: {memory_plan.what_to_lower()}")

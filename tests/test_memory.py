@@ -9,6 +9,7 @@ not in CI.
 
 from __future__ import annotations
 
+import dataclasses
 import subprocess
 import sys
 import tracemalloc
@@ -198,3 +199,32 @@ def test_render_py_hands_its_frame_to_blender_in_place():
     # would cost 8x, several times the image in float64).
     assert tall < 1.5 * short, f"{short / 1e6:.1f} MB for 512 rows, {tall / 1e6:.1f} for 4096"
     assert tall < tall_bytes
+
+
+def test_textures_are_in_the_plan_and_a_too_big_one_is_named():
+    """A material's image is held for the render: the plan counts its texels once, however
+    many materials read it, and a render that does not fit because of it says which image."""
+    import bpy
+
+    from addon_support import add_camera, add_sphere, depsgraph, empty_file, prepare_job
+    from glint.addon.compat import new_material
+    from glint.core import memory as glint_memory   # (the add-on's copy of the core)
+
+    empty_file()
+    image = bpy.data.images.new("big texture", 1024, 512, alpha=True, float_buffer=True)
+    for index in range(2):
+        material = new_material(f"textured {index}")
+        texture = material.node_tree.nodes.new("ShaderNodeTexImage")
+        texture.image = image
+        material.node_tree.links.new(texture.outputs["Color"],
+                                     material.node_tree.nodes["Principled BSDF"].inputs[0])
+        add_sphere(f"ball {index}", (2.0 * index, 0.0, 0.0), 0.8, material=material)
+    add_camera()
+    job = prepare_job(depsgraph())
+    plan = glint_memory.plan(job.scene, job.settings, np.float32, threads=2)
+    assert [name for name, _ in plan.images] == ["big texture"]
+    assert plan.texture_bytes >= 1024 * 512 * 3 * 2      # at least half floats, RGB
+    assert plan.total == (plan.image + plan.tracing + plan.scene + plan.texture_bytes)
+    with pytest.raises(glint_memory.NotEnoughMemory, match="image 'big texture' alone takes"):
+        glint_memory.check(dataclasses.replace(plan, images=(("big texture", 10**12),)), 64, 64,
+                     available=10**11)
