@@ -36,6 +36,16 @@ def light_exposure(light) -> float:
     return float(light.exposure) if LIGHT_EXPOSURE else 0.0
 
 
+#: Blender 4.2 has no light Temperature (4.5 has it): there a light's colour is its Color alone.
+LIGHT_TEMPERATURE = "use_temperature" in bpy.types.Light.bl_rna.properties
+
+
+def uses_light_temperature(light) -> bool:
+    """Whether the light's colour is multiplied by its temperature's (False where Blender has
+    no light Temperature)."""
+    return LIGHT_TEMPERATURE and light.use_temperature
+
+
 #: Blender 4.3: ``Object.evaluated_geometry()`` hands out an instancer's instances as one
 #: point cloud, read in bulk; on 4.2 the export walks the depsgraph's instances one by one
 #: (the same scene, slower for many instances).
@@ -162,3 +172,43 @@ def new_effect_strip(scene, name: str, kind: str, channel: int, frame_start: int
                                  frame_start=frame_start, length=length)
     return strips.new_effect(name=name, type=kind, channel=channel, frame_start=frame_start,
                              frame_end=frame_start + length)
+
+
+#: Shader nodes newer than some Blender Glint supports, by the first supported version that
+#: has them: the Metallic BSDF (4.5 has it, 4.2 does not).  An older Blender's files cannot
+#: hold them.
+NEWER_NODES = {"ShaderNodeBsdfMetallic": (4, 5, 0)}
+
+#: Sockets of shader nodes newer than some Blender Glint supports, (node, socket identifier)
+#: by the first supported version that has them: Bump's Filter Width and Light Path's Is
+#: Volume Scatter Ray (4.5 has them, 4.2 does not), Light Path's Portal Depth (5.0 has it,
+#: 4.5 does not).
+NEWER_SOCKETS = {("ShaderNodeBump", "Filter Width"): (4, 5, 0),
+                 ("ShaderNodeLightPath", "Is Volume Scatter Ray"): (4, 5, 0),
+                 ("ShaderNodeLightPath", "Portal Depth"): (5, 0, 0)}
+
+#: What the exporter takes for a newer input on a Blender whose node lacks it: the Bump's
+#: neighbours 0.1 of the ray's footprint away, Filter Width's default.  (Cycles 4.2 bumps
+#: otherwise: a strong bump differs from it, see the user guide.)
+ABSENT_INPUT_VALUES = {("ShaderNodeBump", "Filter Width"): 0.1}
+
+
+def absent_input_value(bl_idname: str, identifier: str):
+    """The value the exporter reads for input ``identifier`` of a node of type ``bl_idname``
+    that this Blender's node lacks, or None when it has none (``ABSENT_INPUT_VALUES``)."""
+    return ABSENT_INPUT_VALUES.get((bl_idname, identifier))
+
+
+#: Blender 5.0: the Sky Texture's Nishita model is called Single Scattering (and Multiple
+#: Scattering, the new default, came with it), its Dust density Aerosol density; 4.2 and 4.5
+#: have the old names.
+SKY_AEROSOL = "aerosol_density" in bpy.types.ShaderNodeTexSky.bl_rna.properties
+SKY_TYPE_NAMES = {"NISHITA": "SINGLE_SCATTERING"}
+
+
+def sky_model(node) -> dict:
+    """A Sky Texture's ``sky_type`` and ``aerosol_density`` under Blender 5's names."""
+    if SKY_AEROSOL:
+        return {"sky_type": node.sky_type, "aerosol_density": node.aerosol_density}
+    return {"sky_type": SKY_TYPE_NAMES.get(node.sky_type, node.sky_type),
+            "aerosol_density": node.dust_density}
