@@ -30,7 +30,7 @@ glint = render_script.import_glint()
 render_script.register_glint(glint)
 
 from glint import core  # noqa: E402
-from glint.addon.compat import new_material, new_world  # noqa: E402
+from glint.addon.compat import new_compositor, new_material, new_world  # noqa: E402
 from glint.addon.engine.job import prepare_job  # noqa: E402
 from glint.addon.export import ExportError, export_scene  # noqa: E402
 from glint.addon.utils.image import read_image  # noqa: E402
@@ -148,17 +148,17 @@ def animate_small_sphere(last_frame):
 
 
 def invert_compositor(scene, layer="ViewLayer"):
-    """Compositing that shows ``layer`` inverted (Blender 5.0's compositing node group)."""
-    tree = bpy.data.node_groups.new("Invert", "CompositorNodeTree")
-    tree.interface.new_socket("Image", in_out='OUTPUT', socket_type='NodeSocketColor')
+    """Compositing that shows ``layer`` inverted."""
+    tree, image = new_compositor(scene, "Invert")
     render_layers = tree.nodes.new("CompositorNodeRLayers")
     render_layers.layer = layer
     invert = tree.nodes.new("CompositorNodeInvert")
-    output = tree.nodes.new("NodeGroupOutput")
     tree.links.new(render_layers.outputs["Image"], invert.inputs["Color"])
-    tree.links.new(invert.outputs["Color"], output.inputs["Image"])
-    scene.compositing_node_group = tree
+    tree.links.new(invert.outputs["Color"], image)
     scene.render.use_compositing = True
+    # On the CPU, as Blender before 5.3 composites by default: 5.3 chooses the GPU, and where
+    # there is none (CI) Blender prints EGL errors on stderr, which render.py cannot silence.
+    scene.render.compositor_device = 'CPU'
     return tree
 
 

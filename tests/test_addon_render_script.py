@@ -16,6 +16,8 @@ from addon_support import (RENDER_SCRIPT, REPOSITORY, add_point_light, add_spher
                            animate_small_sphere, empty_file, invert_compositor, read_png,
                            simple_scene)
 
+from glint.addon.compat import new_effect_strip, set_file_format  # noqa: E402
+
 ARTICLE_REFERENCE = os.path.join(REPOSITORY, "tests", "data", "article_300x200.npy")
 
 
@@ -429,8 +431,7 @@ def test_only_the_view_layers_the_file_shows_are_rendered(tmp_path):
 
 def test_a_blend_with_sequencer_strips_gives_f12s_pixels(tmp_path):
     scene = simple_scene()
-    strip = scene.sequence_editor_create().strips.new_effect(
-        name="red", type='COLOR', channel=1, frame_start=1, length=10)
+    strip = new_effect_strip(scene, "red", 'COLOR', channel=1, frame_start=1, length=10)
     strip.color = (1.0, 0.2, 0.1)
     blend = save_blend(tmp_path / "edit.blend")
 
@@ -478,7 +479,7 @@ def test_without_output_the_scene_output_path_format_and_frame_are_used(tmp_path
 def test_without_output_a_video_format_is_refused_with_one_line(tmp_path):
     scene = simple_scene()
     scene.render.filepath = str(tmp_path / "movie_")
-    scene.render.image_settings.media_type = 'VIDEO'
+    set_file_format(scene.render.image_settings, 'FFMPEG')
     blend = save_blend(tmp_path / "movie.blend")
 
     result = run_script(blend)

@@ -22,9 +22,9 @@ VECTOR_OPERATIONS = [item.identifier for item in
 THIRD = 0.35
 
 
-#: Operations a later Blender added, which an older one does not offer (Vector Math's Round:
-#: Blender 5.3).
-LATER_VECTOR_OPERATIONS = {"ROUND"}
+#: Operations a later Blender added, which an older one does not offer (Vector Math's Power
+#: and Sign: 4.5 has them, 4.2 does not; Round: Blender 5.3).
+LATER_VECTOR_OPERATIONS = {"POWER", "SIGN", "ROUND"}
 
 
 def test_every_math_and_vector_math_operation_of_blender_is_implemented():

@@ -14,7 +14,8 @@ import pytest
 from node_support import by_identifier, evaluate
 
 from glint.addon.export.context import ExportContext  # noqa: E402
-from glint.addon.compat import new_material  # noqa: E402
+from glint.addon.compat import (NEWER_NODES, NEWER_SOCKETS, absent_input_value,  # noqa: E402
+                                new_material)
 from glint.addon.export.node_options import OPTION_READERS  # noqa: E402
 from glint.addon.export.shader import node_options  # noqa: E402
 from glint.core.shader.points import ShadingPoints  # noqa: E402
@@ -33,13 +34,23 @@ def tree():
 @pytest.mark.parametrize("bl_idname", sorted(name for name in NODES
                                        if not name.startswith("Glint")))
 def test_registered_sockets_and_options_exist_on_blenders_node(tree, bl_idname):
-    # (Glint's own nodes, the compiler's conversions, are not Blender's.)
+    # (Glint's own nodes, the compiler's conversions, are not Blender's.)  A node or socket
+    # newer than this Blender (compat.NEWER_NODES, NEWER_SOCKETS) must be missing from it,
+    # and an input missing has a value the exporter stands in for it.
     spec = NODES[bl_idname]
+    if bpy.app.version < NEWER_NODES.get(bl_idname, (0, 0, 0)):
+        assert not hasattr(bpy.types, bl_idname), f"{bl_idname} is older than compat says"
+        return
     blender_node = tree.nodes.new(bl_idname)
     for label, declared, sockets in (("input", spec.inputs, blender_node.inputs),
                                      ("output", spec.outputs, blender_node.outputs)):
         actual = {identifier: socket.type for identifier, socket in by_identifier(sockets).items()}
         for identifier, kind in declared:
+            if bpy.app.version < NEWER_SOCKETS.get((bl_idname, identifier), (0, 0, 0)):
+                assert identifier not in actual, f"{bl_idname}: {identifier!r} is older"
+                if label == "input":
+                    assert absent_input_value(bl_idname, identifier) is not None
+                continue
             assert identifier in actual, f"{bl_idname}: no {label} socket {identifier!r}"
             assert actual[identifier] == BLENDER_TYPES[kind], (
                 f"{bl_idname}: {label} {identifier!r} is {actual[identifier]} in Blender, "

@@ -36,6 +36,7 @@ from exr import read_exr
 from node_support import by_identifier
 from test_shader_images import cycles_file, pixel_rays
 
+from glint.addon.compat import set_file_format
 from glint.addon.export.node_options import OPTION_READERS
 from glint.addon.export.world import export_world
 from glint.core.shader import sky as core_sky
@@ -110,7 +111,7 @@ def render_with_directions():
         scene = bpy.context.scene
         scene.render.engine = 'CYCLES'
         settings = scene.render.image_settings
-        settings.media_type = 'MULTI_LAYER_IMAGE'
+        set_file_format(settings, 'OPEN_EXR_MULTILAYER')
         settings.exr_codec, settings.color_depth = 'NONE', '32'
         with tempfile.TemporaryDirectory() as folder:
             scene.render.filepath = os.path.join(folder, "sky.exr")

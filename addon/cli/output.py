@@ -19,6 +19,7 @@ import os
 from dataclasses import dataclass
 from typing import Optional
 
+from ..compat import all_strips, compositor_trees
 from .report import RenderScriptError
 
 #: Rows converted at a time by ``_to_blender_rows``: bounds its temporaries (float64 for the
@@ -59,17 +60,17 @@ class OutputPlan:
                 f"scene '{scene.name}' writes a video ({scene.render.image_settings.file_format})"
                 f": render.py writes images; give --output FILE.png or FILE.exr")
         sequencer = uses_sequencer(scene)
-        compositor = compositor_tree(scene)
+        compositor = compositor_trees(scene) if scene.render.use_compositing else ()
         multilayer = fmt == "multilayer-exr" or (fmt == "scene" and is_multilayer(scene))
         if multilayer or sequencer:
             # Every layer goes into the file; a sequencer strip may show any of them.
             layers = None
-        elif compositor is not None:
+        elif compositor:
             layers = compositor_layers(scene, compositor)
         else:
             # Blender's file of a frame (not a multilayer one) shows its first view layer.
             layers = tuple(layer.name for layer in scene.view_layers if layer.use)[:1] or None
-        return cls(fmt, fmt != "png" or sequencer or compositor is not None, layers)
+        return cls(fmt, fmt != "png" or sequencer or bool(compositor), layers)
 
     def select_view_layers(self, scene) -> None:
         """Turn off (for this session) the view layers the file does not need, so that
@@ -102,32 +103,18 @@ def is_video(scene) -> bool:
     return getattr(settings, "media_type", None) == 'VIDEO' or settings.file_format == 'FFMPEG'
 
 
-def compositor_tree(scene):
-    """The compositing node tree Blender runs after rendering this scene, or None: Blender
-    5.0's ``compositing_node_group`` (earlier: ``node_tree`` with Use Nodes), with Post
-    Processing > Compositing on."""
-    if not scene.render.use_compositing:
-        return None
-    if hasattr(scene, "compositing_node_group"):
-        return scene.compositing_node_group
-    return scene.node_tree if scene.use_nodes else None
-
-
 def uses_sequencer(scene) -> bool:
     """Whether Blender's output is the sequencer's (Post Processing > Sequencer on and the
     scene has strips)."""
     editor = scene.sequence_editor
-    if not scene.render.use_sequencer or editor is None:
-        return False
-    strips = getattr(editor, "strips_all", None)
-    return len(strips if strips is not None else editor.sequences_all) > 0
+    return scene.render.use_sequencer and editor is not None and len(all_strips(editor)) > 0
 
 
-def compositor_layers(scene, tree) -> Optional[tuple]:
-    """The names of ``scene``'s enabled view layers the compositor reads (its Render Layers
-    nodes, inside node groups too), or None when that cannot be told (a Cryptomatte node
-    reading the render) or it reads none of them: then every layer is rendered, as F12
-    does."""
+def compositor_layers(scene, trees) -> Optional[tuple]:
+    """The names of ``scene``'s enabled view layers the compositor's node ``trees`` read
+    (their Render Layers nodes, inside node groups too), or None when that cannot be told
+    (a Cryptomatte node reading the render) or they read none of them: then every layer is
+    rendered, as F12 does."""
     layers, seen = set(), set()
 
     def visit(nodes) -> bool:
@@ -144,7 +131,7 @@ def compositor_layers(scene, tree) -> Optional[tuple]:
                     return False
         return True
 
-    if not visit(tree.nodes):
+    if not all(visit(tree.nodes) for tree in trees):
         return None
     layers &= {layer.name for layer in scene.view_layers if layer.use}
     return tuple(sorted(layers)) or None

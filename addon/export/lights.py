@@ -30,7 +30,7 @@ import math
 
 from ...core import AreaLight, PointLight, SphereLight, SpotLight, SunLight
 from ...core.validation import MAX_COLOUR, value_text
-from ..compat import light_exposure
+from ..compat import light_exposure, uses_light_temperature
 from .values import as_stored
 
 #: The most power (W) or sun strength (W/m^2) a light is exported with (past it, clamped): as
@@ -49,7 +49,7 @@ FLOAT32_MAX = 3.4028234663852886e+38
 def blender_colour(light) -> tuple[float, float, float]:
     """The light's colour as Blender holds it, times its temperature's when that is on."""
     colour = tuple(light.color)
-    if getattr(light, "use_temperature", False):
+    if uses_light_temperature(light):
         colour = tuple(c * t for c, t in zip(colour, light.temperature_color))
     return colour
 

@@ -28,6 +28,7 @@ from mathutils import Color, Matrix
 
 from ...core.shader.colour_models import CYCLES_XYZ_TO_REC709, IDENTITY
 from ...core.shader.colour_nodes import RAMP_TABLE_SIZE
+from ..compat import sky_model
 
 
 def _floats(values) -> tuple:
@@ -209,9 +210,9 @@ def sky_texture(node) -> dict:
     """Sky Texture: its properties (Sun Direction as a tuple), Texture Mapping and the working
     space's XYZ -> RGB matrix."""
     options = {name: getattr(node, name) for name in (
-        "sky_type", "sun_disc", "sun_size", "sun_intensity", "sun_elevation", "sun_rotation",
-        "altitude", "air_density", "aerosol_density", "ozone_density", "turbidity",
-        "ground_albedo")}
+        "sun_disc", "sun_size", "sun_intensity", "sun_elevation", "sun_rotation",
+        "altitude", "air_density", "ozone_density", "turbidity", "ground_albedo")}
+    options.update(sky_model(node))
     options["sun_direction"] = _floats(node.sun_direction)
     options["xyz_to_scene"] = xyz_to_scene()
     options.update(texture_mapping(node))

@@ -28,6 +28,7 @@ from ...core.shader.input_nodes import (ATTRIBUTE_ALPHA_PREFIX, ATTRIBUTE_PREFIX
                                        RENDER_COLOR_ALPHA)
 from ...core.shader.registry import CLOSURE, COLOR, FLOAT, NODES, VECTOR
 from ...core.validation import MAX_COLOUR, value_text
+from ..compat import absent_input_value
 from .errors import ExportError
 from .values import as_stored, counted
 
@@ -275,6 +276,10 @@ class ShaderCompiler:
         arguments = []
         for identifier, kind in spec.inputs:
             socket = sockets.get(identifier)
+            if socket is None and absent_input_value(node.bl_idname, identifier) is not None:
+                # An input newer than this Blender: the value compat stands in for it.
+                arguments.append(absent_input_value(node.bl_idname, identifier))
+                continue
             if socket is None:
                 raise ShaderCompileError(f"{self.owner}: node '{node.name}' has no input "
                                          f"'{identifier}' in this Blender")
