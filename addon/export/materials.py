@@ -214,6 +214,14 @@ def _viewport_display(material, where: str) -> tuple[SurfaceMaterial, Optional[s
         roughness=min(max(values.roughness, 0.0), 1.0)), note
 
 
+def displacement_method(material) -> str:
+    """The material's Settings > Displacement method ('BUMP', 'DISPLACEMENT' or 'BOTH')."""
+    method = getattr(material, "displacement_method", None)   # Blender 4.1 and later
+    if method is None:
+        method = getattr(getattr(material, "cycles", None), "displacement_method", 'BUMP')
+    return method
+
+
 def export_material(material, owner: str = "", context=None) -> tuple[
         SurfaceMaterial | Material, Optional[str]]:
     """(core material, note or None) for a bpy Material or None, default semantics; owner:
@@ -245,5 +253,11 @@ def export_material(material, owner: str = "", context=None) -> tuple[
     compiler = ShaderCompiler(f"material '{material.name}'", context,
                               f"object '{owner}', " if owner else "")
     compiler.note(custom_note)
+    displacement = surface.node.inputs.get("Displacement")
+    if displacement is not None and displacement.is_linked:
+        if displacement_method(material) != 'BUMP':
+            compiler.note(f"material '{material.name}': its displacement is rendered as bump "
+                          f"(Cycles' Bump Only), not by moving the surface")
+        compiler.displace(displacement)
     value = compiler.compile(surface)
     return surface_material(value, compiler), ("; ".join(compiler.notes) or None)

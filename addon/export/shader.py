@@ -149,6 +149,8 @@ class ShaderCompiler:
         self.registers = 0
         self.coordinates: set[str] = set()
         self._memo: dict = {}
+        #: The normal shaders with an unlinked Normal use (a Register), or None: the hit's.
+        self.shading_normal = None
 
     def note(self, text: str | None) -> None:
         if text and text not in self.notes:
@@ -200,7 +202,8 @@ class ShaderCompiler:
         output, where = self.source(socket, groups)
         if output is None:
             if implicit == "normal" and closures_only:
-                return None     # a shader's own normal: the hit's (and foldable)
+                # A shader's own normal: the hit's (and foldable), or the displaced one.
+                return self.shading_normal
             if implicit is not None and not _followed(where):
                 self.coordinates.add(implicit)
                 return Coordinate(implicit)
@@ -303,10 +306,20 @@ class ShaderCompiler:
             self._memo[key] = None
         return self._memo[key]
 
-    def _subprogram(self, socket, groups):
-        """The program (or constant) computing a float input on its own."""
+    def displace(self, socket) -> None:
+        """Make the material output's Displacement ``socket`` bump the normal every shader
+        with an unlinked Normal reads, as Cycles' Bump Only displacement does."""
+        program = self._subprogram(socket, (), VECTOR)
+        if not isinstance(program, ShaderProgram):
+            return      # a constant displacement tilts nothing
+        self.coordinates.add("normal")
+        self.shading_normal = self._emit("GlintDisplacementBump", (Coordinate("normal"),),
+                                         (("displacement", program),), 1)[0]
+
+    def _subprogram(self, socket, groups, kind: str = FLOAT):
+        """The program (or constant) computing an input of ``kind`` on its own."""
         child = ShaderCompiler(self.owner, self.context)
-        value = child.argument(socket, groups, FLOAT)
+        value = child.argument(socket, groups, kind)
         self.notes += [note for note in child.notes if note not in self.notes]
         self.coordinates |= child.coordinates
         if _is_constant(value):

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..closures import valid_reflection
 from ..vectors import dot
+from .point_data import ObjectFrame
 from .program import run
 from .registry import COLOR, FLOAT, VECTOR, node
 
@@ -50,23 +52,72 @@ def bump(points, strength, distance, filter_width, normal, *, invert=False, heig
     normal = np.broadcast_to(normal, points.position.shape).astype(points.dtype)
     if height is None or not hasattr(height, "instructions"):
         return (normal,)
+    return (_bumped(points, normal, lambda at: _height(height, at), strength,
+                    -distance if invert else distance, filter_width),)
+
+
+def _bumped(points, normal, height_at, strength, distance, filter_width):
+    """The normal (3, n) tilted by the gradient of ``height_at(points)`` (``bump``)."""
     width = np.maximum(points.footprint * np.maximum(filter_width, 0), 1e-6)
     first, second = _tangents(points.true_normal)
     dx, dy = first * width, second * width
-    h_c = _height(height, points)
-    h_x = _height(height, points.shifted(dx))
-    h_y = _height(height, points.shifted(dy))
+    h_c = height_at(points)
+    h_x = height_at(points.shifted(dx))
+    h_y = height_at(points.shifted(dy))
     rx, ry = _cross(dy, normal), _cross(normal, dx)
     det = dot(dx, rx)
     gradient = (h_x - h_c) * rx + (h_y - h_c) * ry
-    scale = -distance if invert else distance
-    out = np.abs(det) * normal - scale * np.sign(det) * gradient
+    out = np.abs(det) * normal - distance * np.sign(det) * gradient
     length = np.sqrt(dot(out, out))
     out = np.where(length > 0, out / np.where(length > 0, length, 1), normal)
     strength = np.maximum(strength, 0)
     mixed = strength * out + (1 - strength) * normal
     mixed /= np.sqrt(dot(mixed, mixed))
-    return (mixed,)
+    # As Cycles' bump ends: a normal whose mirror reflection of the view would go below the
+    # surface is raised until it does not (ensure_valid_reflection).
+    return valid_reflection(points.true_normal, points.incoming, mixed)
+
+
+@node("ShaderNodeDisplacement", inputs=(("Height", FLOAT), ("Midlevel", FLOAT),
+                                        ("Scale", FLOAT), ("Normal", VECTOR)),
+      outputs=(("Displacement", VECTOR),), options=("space",),
+      implicit={"Normal": "normal"}, reads_points=True,
+      note="into a material output, rendered as bump (Cycles' Bump Only method; the surface "
+           "is not moved); at sharp steps of height the neighbours' offsets differ from "
+           "Cycles' ray differentials (a Wave's bands: 2-5 % per pixel)")
+def displacement(points, height, midlevel, scale, normal, *, space="OBJECT"):
+    """Cycles' ``svm_node_displacement``: the normal times (Height - Midlevel) x Scale, in
+    object space (the normal taken to the object, the offset back to the world, so the
+    object's scale scales it) or in world space."""
+    normal = np.broadcast_to(normal, points.position.shape).astype(points.dtype)
+    amount = (np.asarray(height) - midlevel) * scale
+    if space == "OBJECT":
+        frame = ObjectFrame(points)
+        return (frame.to_world(frame.to_object(normal, "NORMAL") * amount, "VECTOR"),)
+    return (normal * amount,)
+
+
+#: Cycles' Bump node's Filter Width default, which the bump it makes from a material's
+#: displacement keeps.
+DISPLACEMENT_FILTER_WIDTH = 0.1
+
+
+@node("GlintDisplacementBump", inputs=(("Normal", VECTOR),), outputs=(("Normal", VECTOR),),
+      options=("displacement",), implicit={"Normal": "normal"}, reads_points=True)
+def displacement_bump(points, normal, *, displacement=None):
+    """A material output's Displacement as Cycles' Bump Only method renders it
+    (``ShaderGraph::bump_from_displacement``): the height is the displacement vector's dot
+    product with the normal, at the point and its two neighbours, and a bump of distance 1
+    and strength 1 gives the normal every shader with an unlinked Normal uses."""
+    normal = np.broadcast_to(normal, points.position.shape).astype(points.dtype)
+    if displacement is None or not hasattr(displacement, "instructions"):
+        return (normal,)
+
+    def height_at(at):
+        vector = np.broadcast_to(run(displacement, at), at.position.shape)
+        return dot(vector, at.normal)
+
+    return (_bumped(points, normal, height_at, 1.0, 1.0, DISPLACEMENT_FILTER_WIDTH),)
 
 
 @node("ShaderNodeNormalMap", inputs=(("Strength", FLOAT), ("Color", COLOR)),
