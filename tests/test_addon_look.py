@@ -174,6 +174,37 @@ def test_approximated_shaders_are_a_diffuse_of_their_colour_with_one_note(scene,
     assert len([w for w in warnings if node.name in w and "approximated" in w]) == 1
 
 
+@pytest.mark.parametrize("kind, output, socket", [
+    ("ShaderNodeAmbientOcclusion", "Color", "Base Color"),
+    ("ShaderNodeBevel", "Normal", "Normal")])
+def test_ambient_occlusion_and_bevel_are_stand_ins_named_once(scene, kind, output, socket):
+    """Glint traces no rays from shaders: Ambient Occlusion passes its Color through (AO 1)
+    and Bevel leaves the normal unbevelled, each named in one warning."""
+    material = new_material(kind)
+    tree = material.node_tree
+    node = tree.nodes.new(kind)
+    if kind == "ShaderNodeAmbientOcclusion":
+        node.inputs["Color"].default_value = (0.2, 0.4, 0.6, 1.0)
+    tree.links.new(node.outputs[output], tree.nodes["Principled BSDF"].inputs[socket])
+    surface, warnings = exported_material(material)
+    assert len([w for w in warnings if node.name in w and "stand-in" in w]) == 1
+    if kind == "ShaderNodeAmbientOcclusion":
+        # The shader gets the AO's Color, as it would that colour unlinked.
+        plain = new_material("plain")
+        plain.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (
+            0.2, 0.4, 0.6, 1.0)
+        bpy.data.objects.remove(bpy.data.objects["ball"])
+        reference, _ = exported_material(plain)
+        assert surface == reference
+    else:
+        # The normal comes out as it went in.
+        from glint.core.shader.registry import NODES
+        normal = np.array([[0.0], [0.6], [0.8]])
+        points = type("Points", (), {"position": np.zeros((3, 1)), "dtype": np.float64})()
+        (out,) = NODES[kind].function(points, 0.1, normal)
+        np.testing.assert_array_equal(out, normal)
+
+
 def test_without_a_linked_surface_the_material_is_black_as_in_cycles(scene):
     material = new_material("unplugged")
     tree = material.node_tree

@@ -303,3 +303,33 @@ def test_a_displaced_ball_is_bumped_as_cycles_bumps_it(lit_scene):
     smooth = core_image()
     ball = cycles[..., 3] > 0.99
     assert np.abs(smooth[ball, :3] - glint[ball, :3]).max() > 0.05
+
+
+@pytest.mark.parametrize("direction_type, axis", [("RADIAL", "Z"), ("RADIAL", "X"),
+                                                  ("UV_MAP", "Z")])
+def test_the_tangent_node_matches_cycles(lit_scene, direction_type, axis):
+    """The Tangent node's direction (radial about an axis through the Generated coordinate's
+    centre, or the UV map's tangent), shown as an emission colour 0.5 + 0.5 T on a turned,
+    smooth ball: per pixel as Cycles computes it."""
+    material = new_material("tangent")
+    tree = material.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    node = tree.nodes.new("ShaderNodeTangent")
+    node.direction_type, node.axis = direction_type, axis
+    shown = tree.nodes.new("ShaderNodeVectorMath")
+    shown.operation = 'MULTIPLY_ADD'
+    shown.inputs[1].default_value = (0.5, 0.5, 0.5)
+    shown.inputs[2].default_value = (0.5, 0.5, 0.5)
+    emission = tree.nodes.new("ShaderNodeEmission")
+    tree.links.new(node.outputs["Tangent"], shown.inputs[0])
+    tree.links.new(shown.outputs["Vector"], emission.inputs["Color"])
+    output = tree.get_output_node('ALL') or tree.get_output_node('CYCLES')
+    tree.links.new(emission.outputs["Emission"], output.inputs["Surface"])
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, radius=1.2,
+                                         rotation=(0.4, 0.3, 0.2))
+    bpy.ops.object.shade_smooth()
+    bpy.context.object.data.materials.append(material)
+    glint, cycles = core_image(), cs.render_cycles()
+    assert _per_pixel(glint, cycles) < PIXEL_TOLERANCE
+    ball = cycles[..., 3] > 0.99
+    assert glint[ball, :3].std(axis=0).max() > 0.1      # the direction varies over the ball

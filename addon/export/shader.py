@@ -56,7 +56,7 @@ NODE_COORDINATES = {
                                            {RENDER_COLOR, RENDER_COLOR_ALPHA}),
     "ShaderNodeTexCoord": lambda node: {"uv", "generated", "object"},
     "ShaderNodeTangent": lambda node: ({f"tangent:{node.uv_map}" if node.uv_map else "tangent"}
-                                       if node.direction_type == 'UV_MAP' else set()),
+                                       if node.direction_type == 'UV_MAP' else {"generated"}),
 }
 
 #: Inputs compiled as programs of their own, which the node evaluates where it needs them

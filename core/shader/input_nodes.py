@@ -194,6 +194,49 @@ def uv_map(points, *, uv_map="", from_instancer=False):
     return (points.coordinate(f"{prefix}uv:{uv_map}" if uv_map else f"{prefix}uv"),)
 
 
+@node("ShaderNodeTangent", outputs=(("Tangent", VECTOR),),
+      options=("direction_type", "axis", "uv_map"), reads_points=True)
+def tangent(points, *, direction_type="RADIAL", axis="Z", uv_map=""):
+    """Cycles' ``svm_node_tangent``: the UV map's tangent ('tangent:<map>'; zero where the
+    mesh has none), or the direction around the object's ``axis`` through the Generated
+    coordinate's centre, taken to the world; then made perpendicular to the normal."""
+    if direction_type == "UV_MAP":
+        name = f"tangent:{uv_map}" if uv_map else "tangent"
+        if not point_data.provided(points, name):
+            return (np.zeros_like(points.position),)
+        direction = points.coordinate(name)
+    else:
+        g = points.coordinate("generated") - 0.5
+        zero = np.zeros_like(g[0])
+        local = {"X": (zero, -g[2], g[1]), "Y": (-g[2], zero, g[0])}.get(
+            axis, (-g[1], g[0], zero))
+        direction = ObjectFrame(points).to_world(np.stack(local), "VECTOR")
+    normal = points.normal
+    side = np.cross(direction, normal, axis=0)
+    length = np.sqrt(dot(side, side))
+    side = side / np.where(length > 0, length, 1)
+    return (np.cross(normal, side, axis=0),)
+
+
+@node("ShaderNodeAmbientOcclusion", inputs=(("Color", COLOR), ("Distance", FLOAT),
+                                            ("Normal", VECTOR)),
+      outputs=(("Color", COLOR), ("AO", FLOAT)), options=("samples", "inside", "only_local"),
+      stand_in=True,
+      note="a stand-in: Color passes through and AO is 1 (nothing occluded); Glint traces "
+           "no rays from shaders")
+def ambient_occlusion(points, colour, distance, normal, *, samples=16, inside=False,
+                      only_local=False):
+    return colour, np.ones((), points.dtype)
+
+
+@node("ShaderNodeBevel", inputs=(("Radius", FLOAT), ("Normal", VECTOR)),
+      outputs=(("Normal", VECTOR),), options=("samples",), implicit={"Normal": "normal"},
+      reads_points=True, stand_in=True,
+      note="a stand-in: the normal unbevelled (Glint traces no rays from shaders)")
+def bevel(points, radius, normal, *, samples=4):
+    return (np.broadcast_to(normal, points.position.shape).astype(points.dtype),)
+
+
 # --- Light Path ----------------------------------------------------------------------------------
 
 #: Bits of the per-hit ray type code (coordinate 'ray_type', component 0) the integrator
