@@ -264,7 +264,8 @@ def run_tiles(frame, key: str, tiles: bytes, dtype: str, sender_identity):
     unpickled by the submitter."""
     from . import allocator
     from .progressive import TileJob
-    from .render import RenderCancelled, render_tile
+    from .failures import RenderCancelled
+    from .tiles import render_tile
 
     if tuple(sender_identity) != identity():
         from distributed import get_worker
@@ -427,7 +428,7 @@ def render_tiles(address: str, ctx, camera, tiles, shape, dtype, finish, should_
     ``WorkQueue``).  Raises ClusterError (one line) where the cluster cannot render it,
     RenderCancelled when ``should_cancel()`` answers True."""
     from .rays import RayStats
-    from .render import RenderCancelled, RenderError
+    from .failures import RenderCancelled, RenderError
 
     connection = client(address)
     workers = _check_workers(connection, address)

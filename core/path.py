@@ -762,7 +762,8 @@ def render_path_tile(ctx, camera, job, stop=None):
     from .camera import camera_rays, has_aperture
     from .passes import PASS_CHANNELS, first_hit_channels
     from .progressive import GUIDE_SUM_CHANNELS, SUM_CHANNELS
-    from .render import RenderCancelled, _pixel_grid
+    from .failures import RenderCancelled
+    from .tiles import _pixel_grid
     from .sampler import PIXEL_GROUP, pixel_seeds
 
     start = time.perf_counter()

@@ -25,6 +25,7 @@ import numpy as np
 
 from .camera import CameraRays
 from .context import RayStats, TraceContext
+from .failures import RenderCancelled
 from .bsdf import scatter
 from .rays import RayBatch
 from .sampler import hash_u32
@@ -153,7 +154,6 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
     stats.camera_rays += n
     for depth in range(max_depth):
         if depth and stop is not None and stop.is_set():
-            from .render import RenderCancelled
             raise RenderCancelled("render cancelled")
         hits = geometry.nearest(batch, stats)
         if signature is not None:

@@ -309,7 +309,8 @@ def worker_loop(connection, setup: dict) -> None:
 
 def _serve(connection) -> None:
     """``worker_loop``'s renders, one after the other."""
-    from .render import RenderCancelled, render_tile
+    from .failures import RenderCancelled
+    from .tiles import render_tile
 
     try:
         control = _received_mapping(connection, mmap.PAGESIZE)
@@ -641,7 +642,7 @@ class _Render:
         process renders tiles itself, so a cold start costs the frame nothing but the tiles
         it did not help with."""
         global unavailable_reason
-        from .render import RenderCancelled
+        from .failures import RenderCancelled
 
         self.pending = tiles if hasattr(tiles, "popleft") else deque(tiles)
         by_connection = {w.connection: w for w in self.workers}
@@ -692,7 +693,7 @@ class _Render:
 
     def render_here(self, tile, finish) -> None:
         """One tile rendered in this process, as a thread would, into the image."""
-        from .render import render_tile
+        from .tiles import render_tile
 
         rgba, stats = render_tile(self.ctx, self.camera, tile)
         y0, y1, x0, x1 = tile[:4]
@@ -706,7 +707,7 @@ class _Render:
     def finish_here(self, finish, should_cancel) -> None:
         """The workers are gone after some tiles landed: the tiles they had and those never
         sent, rendered in this process (as one thread would; two threads gain nothing)."""
-        from .render import RenderCancelled
+        from .failures import RenderCancelled
 
         for worker in self.workers:
             self.pending.extendleft(reversed(worker.in_flight))
@@ -728,7 +729,7 @@ class _Render:
 
     def _died(self, worker: _Worker):
         """A worker went away during the render: a RenderError naming its exit code."""
-        from .render import RenderError
+        from .failures import RenderError
 
         _pool.drop(worker)
         self.workers.remove(worker)

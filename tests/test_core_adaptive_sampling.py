@@ -1,5 +1,5 @@
 """Soft lights and the world spread over a pixel's anti-aliasing samples (``core.lights``
-sample shares), and adaptive AA's edge test (``core.render.EDGE_CONTRAST``): a supersampled
+sample shares), and adaptive AA's edge test (``core.tiles.EDGE_CONTRAST``): a supersampled
 pixel traces about as many shadow rays per light as its centre alone, every stratum of a
 light still counts once per pixel, and a surface of many flat facets of one colour is not an
 "edge" everywhere.  All of it is the Whitted integrator's (``WHITTED``); the path
@@ -157,7 +157,7 @@ def test_soft_lights_with_adaptive_aa_do_not_depend_on_tiles_or_threads():
 
 
 def test_a_colour_step_is_an_edge_and_a_gradient_is_not():
-    from core.render import EDGE_CONTRAST, _edges
+    from core.tiles import EDGE_CONTRAST, _edges
 
     width = 12
     ramp = np.linspace(0.2, 0.8, width)                  # 0.055 a pixel: 14 8-bit levels

@@ -1,4 +1,4 @@
-"""Adaptive AA's staged supersampling (``core.render._staged_supersample``): edge pixels get
+"""Adaptive AA's staged supersampling (``core.tiles._staged_supersample``): edge pixels get
 FIRST_SAMPLES samples first and more only while their estimated error is too large, so a
 faint edge costs fewer samples than a contrasted one; a thin line on one surface is an edge
 (``LINE_CONTRAST``); and on a dense field of small spheres the sampler reaches fixed AA's
@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 import core
-from core.render import FIRST_SAMPLES, LINE_CONTRAST, SAMPLE_ERROR, _edges
+from core.tiles import FIRST_SAMPLES, LINE_CONTRAST, SAMPLE_ERROR, _edges
 
-render_module = importlib.import_module("core.render")  # core.render is also the function
+tiles_module = importlib.import_module("core.tiles")
 
 
 def _flat(ambient: float):
@@ -114,7 +114,7 @@ def test_on_a_dense_field_staged_samples_cost_fewer_rays_for_the_same_error(monk
     reference = _fixed(scene, 64).image
     fixed = _fixed(scene, 16)
     staged = _adaptive(scene, samples=32)
-    monkeypatch.setattr(render_module, "SAMPLE_ERROR", -1.0)  # every edge pixel to 32
+    monkeypatch.setattr(tiles_module, "SAMPLE_ERROR", -1.0)  # every edge pixel to 32
     full = _adaptive(scene, samples=32)
 
     def rms(image):
@@ -146,7 +146,7 @@ def test_a_centre_is_sample_zero_where_the_light_shares_change_nothing(monkeypat
     # changes nothing, so the centres already traced are the edge pixels' sample 0 (as in
     # article semantics); a light with a radius samples by shares, so there sample 0 is
     # traced again, with its share.  Every edge pixel goes to the end here.
-    monkeypatch.setattr(render_module, "SAMPLE_ERROR", -1.0)
+    monkeypatch.setattr(tiles_module, "SAMPLE_ERROR", -1.0)
     point = _field(size=(40, 30), count=600)
     soft = dataclasses.replace(point, lights=(core.PointLight((5, 5, 5), radius=0.5),))
     for scene, again in ((point, 0), (soft, 1)):

@@ -14,7 +14,7 @@ from core import shading
 from core.context import make_context
 from core.png import decode_png
 from core.precision import choose_precision
-from core.render import render_tile
+from core.tiles import render_tile
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # The image the article's own program produces (a copy of shared/reference/article_300x200.npy).

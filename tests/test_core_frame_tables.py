@@ -20,7 +20,8 @@ from core.progressive import ProgressiveFrame, WorkQueue
 from core.geometry import DEFAULT_POLICY, bins, bvh
 from core.geometry.spheres import Spheres
 from core.geometry.threads import thread_pool
-from core.render import _tiles, render_tile
+from core.render import _tiles
+from core.tiles import render_tile
 from core.shading import traces_from_points
 from core.trace import traces_bounces
 from test_core_workers import small_renders_in_processes  # noqa: F401 (a fixture)

@@ -125,7 +125,7 @@ def test_adaptive_supersamples_only_edges_and_approaches_fixed():
 
 
 def test_sample_offsets_start_at_the_centre_and_stay_in_the_pixel():
-    from core.render import sample_offsets
+    from core.tiles import sample_offsets
     offsets = sample_offsets(256)
     assert tuple(offsets[0]) == (0.5, 0.5)
     assert offsets.min() >= 0 and offsets.max() < 1
@@ -172,7 +172,8 @@ def test_a_frames_last_tile_is_cut_so_that_the_tiles_end_even(count):
     """``_even_tail``: the last tile cut across its longer side, at multiples of BLOCK,
     into pieces that cover it exactly, so that the tiles are a multiple of count; tile
     lists already even, and tiles too small to cut, stay as they are."""
-    from core.render import BLOCK, _even_tail, _tiles
+    from core.render import _even_tail, _tiles
+    from core.tiles import BLOCK
 
     tiles = _tiles(640, 360, 128)                   # 15: the last is 128 x 104
     even = _even_tail(tiles, count)

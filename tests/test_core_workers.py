@@ -14,7 +14,8 @@ import pytest
 
 import core
 from core import workers
-from core.render import RenderCancelled, render_tile
+from core.failures import RenderCancelled
+from core.tiles import render_tile
 from core.scene import SceneError
 from process_support import all_ended, sigint_disposition
 

@@ -160,13 +160,13 @@ def test_adaptive_aa_allows_for_the_worlds_noise_and_still_finds_silhouettes(mon
     somewhere, and adaptive AA supersampled them: at least twice as many pixels as with
     NOISE_ALLOWANCE's 2 standard deviations.  The silhouettes against the sky still are:
     alpha along them is fixed 16's."""
-    render_module = importlib.import_module("core.render")   # (core.render: the function)
+    tiles_module = importlib.import_module("core.tiles")
     scene = _faceted_ball_on_a_floor()
     # (threads: the patched constant must reach the tiles)
     adaptive = core.RenderSettings(**WHITTED, anti_aliasing="adaptive", samples=16,
                                    parallelism="threads")
     allowed = core.render(scene, adaptive)
-    monkeypatch.setattr(render_module, "NOISE_ALLOWANCE", 0.0)
+    monkeypatch.setattr(tiles_module, "NOISE_ALLOWANCE", 0.0)
     bare = core.render(scene, adaptive)
     assert allowed.stats.supersampled_pixels * 2 <= bare.stats.supersampled_pixels
     fixed = core.render(scene, core.RenderSettings(**WHITTED, anti_aliasing="fixed", samples=16))
