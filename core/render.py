@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import itertools
 import os
 import threading
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
@@ -295,9 +296,6 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
             image[y0:y1, x0:x1] = rgba
         land(tile, image[y0:y1, x0:x1], tile_stats, done, finite)
 
-    def cancelled():
-        return should_cancel is not None and should_cancel()
-
     if on_cluster:   # (tiles land as worker processes' do: their passes filled here)
         image = cluster.render_tiles(settings.cluster, ctx, scene.camera, tiles, shape,
                                      image_dtype, functools.partial(land, worker_tile=True),
@@ -325,47 +323,12 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
 
     image = np.zeros(shape, image_dtype)
 
-    if threads == 1 or len(tiles) == 1:
-        asked = _Asked(should_cancel)   # (a deep tile polls it between bounces)
-        for done, tile in enumerate(tiles, 1):
-            if cancelled():
-                raise RenderCancelled("render cancelled")
-            finish(tile, *work(ctx, scene.camera, tile, asked), done)
-        return _result(image, stats, dtype, scene, settings, passes=primary,
-                       fallback=fallback)
-
-    stop = threading.Event()
-    with ThreadPoolExecutor(max_workers=threads) as pool:
-        pending = {}
-        queue = iter(tiles)
-        done = 0
-        try:
-            while True:
-                # Keep only a few tiles in flight so a cancel is honoured promptly.
-                while len(pending) < 2 * threads:
-                    tile = next(queue, None)
-                    if tile is None:
-                        break
-                    pending[pool.submit(work, ctx, scene.camera, tile, stop)] = tile
-                if not pending:
-                    break
-                # Wake up regularly to poll should_cancel while long tiles run.
-                finished, _ = wait(pending, timeout=CANCEL_POLL_SECONDS,
-                                   return_when=FIRST_COMPLETED)
-                for future in finished:
-                    tile = pending.pop(future)
-                    rgba, tile_stats = future.result()
-                    done += 1
-                    finish(tile, rgba, tile_stats, done)
-                if cancelled():
-                    raise RenderCancelled("render cancelled")
-        except BaseException:
-            # Cancelled, a tile failed, or an exception (KeyboardInterrupt) arrived: stop
-            # the other tiles at their next bundle instead of finishing them.
-            stop.set()
-            for future in pending:
-                future.cancel()
-            raise
+    queue = iter(tiles)
+    tile_numbers = itertools.count(1)
+    _run_on_threads(lambda: next(queue, None),
+                    lambda tile, stop: work(ctx, scene.camera, tile, stop),
+                    lambda tile, result: finish(tile, *result, next(tile_numbers)),
+                    1 if len(tiles) == 1 else threads, should_cancel)
     return _result(image, stats, dtype, scene, settings, passes=primary, fallback=fallback)
 
 
@@ -408,9 +371,6 @@ def _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype, 
             on_pass(frame.done_samples, image)
         queue.refill()
 
-    def cancelled():
-        return should_cancel is not None and should_cancel()
-
     def finish(job, sums, tile_stats, done, finite):
         """A job from worker processes or a cluster: its sums as they arrived (float32)."""
         landed(job, np.array(sums, np.float64), tile_stats, job.first == 0)
@@ -436,41 +396,57 @@ def _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype, 
                                            passes=carried))
         frame = queue.frame
 
-    if threads == 1 or len(tiles) == 1:
-        asked = _Asked(should_cancel)
-        while queue:
+    _run_on_threads(lambda: queue.popleft() if queue else None,
+                    lambda job, stop: render_tile(ctx, scene.camera, job, stop),
+                    lambda job, result: landed(job, *result, job.first == 0),
+                    1 if len(tiles) == 1 else threads, should_cancel)
+    return _result(image, stats, dtype, scene, settings, passes=primary, fallback=fallback)
+
+
+def _run_on_threads(next_job, run, land, threads: int, should_cancel) -> None:
+    """Run every job ``next_job()`` hands out (None: none now; landing one may make more)
+    as ``run(job, stop)`` and give its result to ``land(job, result)`` on this thread as it
+    finishes: on this thread alone for one thread, else on a pool of ``threads`` with a few
+    jobs in flight, so that a cancel (``should_cancel()``) is honoured promptly.  ``stop``
+    tells a running job to raise RenderCancelled at its next bundle of rays."""
+    def cancelled():
+        return should_cancel is not None and should_cancel()
+
+    if threads == 1:
+        asked = _Asked(should_cancel)   # (a deep tile polls it between bounces)
+        while True:
             if cancelled():
                 raise RenderCancelled("render cancelled")
-            job = queue.popleft()
-            sums, tile_stats = render_tile(ctx, scene.camera, job, asked)
-            landed(job, sums, tile_stats, job.first == 0)
-        return _result(image, stats, dtype, scene, settings, passes=primary,
-                       fallback=fallback)
-
+            job = next_job()
+            if job is None:
+                return
+            land(job, run(job, asked))
     stop = threading.Event()
     with ThreadPoolExecutor(max_workers=threads) as pool:
         pending = {}
         try:
-            while queue or pending:
-                while len(pending) < 2 * threads and queue:
-                    job = queue.popleft()
-                    pending[pool.submit(render_tile, ctx, scene.camera, job, stop)] = job
+            while True:
+                while len(pending) < 2 * threads:
+                    job = next_job()
+                    if job is None:
+                        break
+                    pending[pool.submit(run, job, stop)] = job
                 if not pending:
-                    break
+                    return
+                # Wake up regularly to poll should_cancel while long tiles run.
                 finished, _ = wait(pending, timeout=CANCEL_POLL_SECONDS,
                                    return_when=FIRST_COMPLETED)
                 for future in finished:
-                    job = pending.pop(future)
-                    sums, tile_stats = future.result()
-                    landed(job, sums, tile_stats, job.first == 0)
+                    land(pending.pop(future), future.result())
                 if cancelled():
                     raise RenderCancelled("render cancelled")
         except BaseException:
+            # Cancelled, a tile failed, or an exception (KeyboardInterrupt) arrived: stop
+            # the other tiles at their next bundle instead of finishing them.
             stop.set()
             for future in pending:
                 future.cancel()
             raise
-    return _result(image, stats, dtype, scene, settings, passes=primary, fallback=fallback)
 
 
 def _result(image, stats, dtype, scene, settings, **extra) -> RenderResult:
