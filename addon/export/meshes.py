@@ -241,18 +241,22 @@ def _uv_names(materials):
     return wanted or None
 
 
+def _chosen_uv_layers(mesh, names) -> list:
+    """The mesh's UV layers ``names`` asks for (None: none), the active render map first."""
+    if not names or not len(mesh.uv_layers):
+        return []
+    active = next((layer for layer in mesh.uv_layers if layer.active_render),
+                  mesh.uv_layers[0])
+    return [active] + [layer for layer in mesh.uv_layers
+                       if layer.name in names and layer is not active]
+
+
 def uv_maps(mesh, arrays: MeshArrays, names) -> tuple:
     """((name, (T, 3, 2) float32 corner UVs), ...) of the maps ``names`` ('' the active
     render map, which goes first) of the evaluated mesh, for its drawn triangles; () for
     None."""
-    if not names or not len(mesh.uv_layers):
-        return ()
-    active = next((layer for layer in mesh.uv_layers if layer.active_render),
-                  mesh.uv_layers[0])
-    chosen = [active] + [layer for layer in mesh.uv_layers
-                         if layer.name in names and layer is not active]
     maps = []
-    for layer in chosen:
+    for layer in _chosen_uv_layers(mesh, names):
         corners = read_array(layer.uv, "vector", 2, np.float32, stored=STORED_FLOAT)
         maps.append((layer.name, corners[arrays.corner_loops].astype(np.float32)))
     return tuple(maps)
@@ -274,14 +278,8 @@ def tangent_maps(mesh, arrays: MeshArrays, names, context=None) -> tuple:
     ``uv_maps``), Blender's MikkTSpace tangents (``Mesh.calc_tangents``, which Cycles uses
     too); () for None or where Blender cannot compute them (faces of more than 4 corners:
     a note says so)."""
-    if not names or not len(mesh.uv_layers):
-        return ()
-    active = next((layer for layer in mesh.uv_layers if layer.active_render),
-                  mesh.uv_layers[0])
-    chosen = [active] + [layer for layer in mesh.uv_layers
-                         if layer.name in names and layer is not active]
     maps = []
-    for layer in chosen:
+    for layer in _chosen_uv_layers(mesh, names):
         try:
             mesh.calc_tangents(uvmap=layer.name)
         except RuntimeError as error:
