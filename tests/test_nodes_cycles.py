@@ -24,7 +24,7 @@ import pytest
 
 import cycles_support as cs
 from glint.addon.compat import new_material  # noqa: E402
-from addon_support import core_image, link
+from addon_support import core_image
 
 pytestmark = pytest.mark.cycles  # every test here renders with Cycles
 
@@ -43,6 +43,14 @@ def lit_scene():
 def _per_pixel(glint, cycles):
     error = np.abs(glint[..., :3] - cycles[..., :3]).max(axis=2)
     return np.percentile(error, 90) / max(cycles[..., :3].max(), 1e-6)
+
+
+def _smooth_ball(material, rotation=(0.0, 0.0, 0.0)):
+    """A smooth UV sphere of radius 1.2 at the origin wearing ``material``."""
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, radius=1.2,
+                                         rotation=rotation)
+    bpy.ops.object.shade_smooth()
+    bpy.context.object.data.materials.append(material)
 
 
 def _material(name):
@@ -68,9 +76,7 @@ def test_a_procedural_material_ball_matches_cycles(lit_scene):
     bump.inputs["Strength"].default_value = 0.6
     tree.links.new(voronoi.outputs["Distance"], bump.inputs["Height"])
     tree.links.new(bump.outputs["Normal"], principled.inputs["Normal"])
-    bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, radius=1.2)
-    bpy.ops.object.shade_smooth()
-    bpy.context.object.data.materials.append(material)
+    _smooth_ball(material)
     glint, cycles = core_image(), cs.render_cycles()
     assert _per_pixel(glint, cycles) < PIXEL_TOLERANCE
     # The pattern is there: both colours of the ramp show on the ball.
@@ -293,9 +299,7 @@ def test_a_displaced_ball_is_bumped_as_cycles_bumps_it(lit_scene):
     tree.links.new(noise.outputs["Fac"], displacement.inputs["Height"])
     output = tree.get_output_node('ALL') or tree.get_output_node('CYCLES')
     tree.links.new(displacement.outputs["Displacement"], output.inputs["Displacement"])
-    bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, radius=1.2)
-    bpy.ops.object.shade_smooth()
-    bpy.context.object.data.materials.append(material)
+    _smooth_ball(material)
     glint, cycles = core_image(), cs.render_cycles()
     assert _per_pixel(glint, cycles) < PIXEL_TOLERANCE
     # The bumps show: without the displacement the ball's shading is smooth.
@@ -325,10 +329,7 @@ def test_the_tangent_node_matches_cycles(lit_scene, direction_type, axis):
     tree.links.new(shown.outputs["Vector"], emission.inputs["Color"])
     output = tree.get_output_node('ALL') or tree.get_output_node('CYCLES')
     tree.links.new(emission.outputs["Emission"], output.inputs["Surface"])
-    bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, radius=1.2,
-                                         rotation=(0.4, 0.3, 0.2))
-    bpy.ops.object.shade_smooth()
-    bpy.context.object.data.materials.append(material)
+    _smooth_ball(material, rotation=(0.4, 0.3, 0.2))
     glint, cycles = core_image(), cs.render_cycles()
     assert _per_pixel(glint, cycles) < PIXEL_TOLERANCE
     ball = cycles[..., 3] > 0.99
