@@ -157,6 +157,16 @@ def surface_arrays(materials, dtype) -> SurfaceArrays:
         any_holdout=bool(arrays["holdout"].any() or arrays["holdout_object"].any()))
 
 
+def held_share(holdout, whole, transparency, weight):
+    """(k,) how much of each camera-path sample (weights (3, k)) holdouts take, as Cycles
+    does: a Holdout shader of weight h takes h x the mean of the weight's channels; an object
+    holdout (``whole``) all of it but its transparency (3, k), through which the ray goes on."""
+    held = holdout * weight.mean(axis=0)
+    if whole.any():
+        held = np.where(whole, ((1 - transparency) * weight).mean(axis=0), held)
+    return held
+
+
 def translucent_view(surfaces: SurfaceArrays):
     """The lobes the light arriving through a surface meets (Translucent BSDF: a Lambertian
     lobe of colour ``translucency`` on the back side, nothing else), for shading the back

@@ -31,6 +31,7 @@ import numpy as np
 
 from . import closures as lobes
 from .camera import CameraRays
+from .bsdf import held_share
 from .closures import Closures
 from .emitters import (SAMPLED_EACH, LightSample, MeshLights, WorldLight, light_hit,
                        mesh_light_pdf, sample_light, sample_mesh_light)
@@ -586,11 +587,8 @@ def _hold_out(closures: Closures, camera_view, path, throughput, transparency):
     whole = closures.holdout_object[viewed]
     if not (holdout.any() or whole.any()):
         return None
-    w = throughput[:, viewed]
-    held = holdout * w.mean(axis=0)
-    if whole.any():
-        kept = 1 - take(closures.transparency, viewed)
-        held = np.where(whole, (kept * w).mean(axis=0), held)
+    held = held_share(holdout, whole, take(closures.transparency, viewed),
+                      throughput[:, viewed])
     np.add.at(transparency, path[viewed], held)
     return viewed[whole] if whole.any() else None
 

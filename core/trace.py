@@ -26,7 +26,7 @@ import numpy as np
 from .camera import CameraRays
 from .context import RayStats, TraceContext
 from .failures import RenderCancelled
-from .bsdf import scatter
+from .bsdf import held_share, scatter
 from .rays import RayBatch
 from .sampler import hash_u32
 from .shading import shade, shade_translucent
@@ -294,12 +294,7 @@ def _hold_out(surfaces, materials, camera_path, path, weight, transparency, uniq
     holdout, whole = surfaces.holdout[material], surfaces.holdout_object[material]
     if not (holdout.any() or whole.any()):
         return None
-    w = weight[:, viewed]
-    held = holdout * w.mean(axis=0)
-    if whole.any():
-        # Cycles keeps an object holdout's transparency: the rest of the sample is held out.
-        kept = 1 - take(surfaces.transparency, material)
-        held = np.where(whole, (kept * w).mean(axis=0), held)
+    held = held_share(holdout, whole, take(surfaces.transparency, material), weight[:, viewed])
     _accumulate_scalar(transparency, path[viewed], held, unique)
     return viewed[whole] if whole.any() else None
 
