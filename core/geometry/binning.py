@@ -19,14 +19,17 @@ from ..vectors import dot, take
 from .bins import OriginBins, ParallelBins
 from .bvh_build import SLAB_PADDING_32
 from .kernels import NearestPairs, OcclusionPairs
+from .threads import PicklesWithoutLock
 
 
-class DirectionBins:
+class DirectionBins(PicklesWithoutLock):
     """The direction bins of an aggregate's tree (``tree.TreeAccelerator``): spheres,
     triangles the scene's shapes; tree_spheres (k,) the spheres the tree holds (ascending);
     rays_per_origin: how many rays a frame traces from one shared origin (the eye, a light
     sample), as far as the caller knows (0: unknown), which decides whether depth-ordered
-    or parallel bins pay; policy: the ``GeometryPolicy``."""
+    or parallel bins pay; policy: the ``GeometryPolicy``.  Pickled for worker processes with
+    the bins built so far (the frame's, built once for every worker; bins a worker builds on
+    first use are its own)."""
 
     def __init__(self, tree, spheres, triangles, tree_spheres, rays_per_origin: int, policy):
         self.tree, self.spheres, self.triangles = tree, spheres, triangles
@@ -44,18 +47,6 @@ class DirectionBins:
             _, low, high = tree.boxes
             half_side = float(np.median((high - low).max(axis=1))) / 2
             self.mirror_slack = policy.mirror_slack * half_side
-
-    def __getstate__(self):
-        """Pickled (for worker processes) without its lock, with the bins built so far (the
-        frame's, built once for every worker; bins a worker builds on first use are its
-        own)."""
-        state = dict(self.__dict__)
-        del state["_lock"]
-        return state
-
-    def __setstate__(self, state):
-        self.__dict__.update(state)
-        self._lock = threading.Lock()
 
     # ---- which batches --------------------------------------------------------------------
 

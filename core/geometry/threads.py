@@ -3,6 +3,7 @@ most whole-array operations, so parts of a build run side by side."""
 
 from __future__ import annotations
 
+import threading
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
 
@@ -31,3 +32,17 @@ def map_on(pool, function, items) -> list:
     if pool is None:
         return [function(item) for item in items]
     return list(pool.map(function, items))
+
+
+class PicklesWithoutLock:
+    """A holder of a ``_lock`` (threading.Lock, which cannot be pickled) that pickles for
+    worker processes without it and gets a new one when unpickled."""
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        del state["_lock"]
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._lock = threading.Lock()

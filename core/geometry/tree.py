@@ -14,9 +14,10 @@ from ..rays import RayBatch
 from ..vectors import take
 from .bvh import BVH
 from .kernels import NearestPairs, OcclusionPairs
+from .threads import PicklesWithoutLock
 
 
-class TreeAccelerator:
+class TreeAccelerator(PicklesWithoutLock):
     """A tree over spheres ``sphere_ids`` (k,) and triangles ``triangle_ids`` (t,) (indices
     into the shapes ``spheres``, ``triangles``; triangles take global ids after every
     sphere), whose pairs count hits under ``rules``, built on up to ``threads`` threads
@@ -64,15 +65,6 @@ class TreeAccelerator:
 
     def __len__(self) -> int:
         return self.sphere_count + self.triangle_count
-
-    def __getstate__(self):
-        state = dict(self.__dict__)
-        del state["_lock"]
-        return state
-
-    def __setstate__(self, state):
-        self.__dict__.update(state)
-        self._lock = threading.Lock()
 
     # ---- kernels --------------------------------------------------------------------------
 
