@@ -188,7 +188,7 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
             # unit intensities): paths then stop only where their weight is zero.
             gain = np.inf
             if settings.integrator == "path":
-                paths = _path_setup(scene, settings, arrays, surfaces, frame)
+                paths = _path_setup(scene, settings, arrays, surfaces, frame, geometry)
     cast = lambda a: np.ascontiguousarray(a, dtype)  # noqa: E731
     materials = Materials(cast(table.ambient.T), cast(table.diffuse.T), cast(table.specular.T),
                           cast(table.exponent), cast(table.reflection))
@@ -216,7 +216,7 @@ def path_traced(scene: Scene, settings: RenderSettings) -> bool:
     return any(isinstance(material, SurfaceMaterial) for material in materials)
 
 
-def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces, frame):
+def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces, frame, geometry):
     """The path integrator's frame (``core.path.PathSetup``): Blender's lights, the
     emitting triangles, the materials' and the world's programs."""
     from .emitters import mesh_lights, prepare_lights
@@ -225,11 +225,13 @@ def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces, frame)
     # (A light scaled to 0 or of size 0 emits nothing, as in Cycles: ``emits``.)
     lights = prepare_lights([light for light in scene.lights if getattr(light, "emits", True)],
                             scene_radius=1.0)
-    mesh = mesh_lights(arrays.triangles, len(arrays.spheres),
-                       surfaces.emission.astype(np.float64))
     programs = {row: material.program for row, material in enumerate(arrays.materials.entries)
                 if getattr(material, "program", None) is not None}
     tables = SurfaceTables.of(scene, frame) if programs else None
+    textured = {row: _emission_estimate(program, tables, geometry, arrays.triangles)
+                for row, program in programs.items() if may_emit(program)}
+    mesh = mesh_lights(arrays.triangles, len(arrays.spheres),
+                       surfaces.emission.astype(np.float64), textured)
     world = None
     if scene.world is not None:
         from .emitters import world_light
@@ -249,6 +251,43 @@ def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces, frame)
                       transparent_shadows=bool(surfaces.transparency.any()) or any(
                           may_be_transparent(program) for program in programs.values()),
                       frame=frame)
+
+
+def may_emit(program) -> bool:
+    """Whether a material's program may emit light: an Emission (or Background) shader in
+    it, or a Principled BSDF whose Emission Color and Strength are not both constant with
+    one of them black."""
+    from .shader.program import Register
+    for instruction in program.instructions:
+        if instruction.node in ("ShaderNodeEmission", "ShaderNodeBackground"):
+            return True
+        if instruction.node == "ShaderNodeBsdfPrincipled":
+            colour, strength = instruction.arguments[9], instruction.arguments[10]
+            if isinstance(colour, Register) or isinstance(strength, Register):
+                return True
+            if not isinstance(colour, tuple) or (float(strength) != 0
+                                                 and any(float(c) != 0 for c in colour)):
+                return True
+    return False
+
+
+def _emission_estimate(program, tables, geometry, triangles):
+    """A function of (primitive (k,), b1 (k,), b2 (k,)) giving the emission (3, k) of the
+    material ``program`` on those triangles of ``triangles`` at barycentrics (b1, b2), seen
+    head-on (``core.emitters.mesh_lights`` weighs its choice of emitters by it)."""
+    from .surface_points import program_emission
+    first = tables.sphere_count
+
+    def estimate(primitive, b1, b2):
+        local = primitive - first
+        v0, v1, v2 = (v[:, local] for v in (triangles.v0, triangles.v1, triangles.v2))
+        points = v0 + b1 * (v1 - v0) + b2 * (v2 - v0)
+        cross = np.cross((v1 - v0).T, (v2 - v0).T).T
+        length = np.sqrt((cross ** 2).sum(axis=0))
+        normal = cross / np.where(length > 0, length, 1)
+        return program_emission(program, tables, geometry, points, normal, normal, primitive,
+                                (1 - b1 - b2, b1, b2))
+    return estimate
 
 
 def may_be_transparent(program) -> bool:

@@ -343,9 +343,12 @@ def light_hit(light: Light, origins, directions, t_max):
 class MeshLights:
     """Emitting triangles, float64: their global primitive ids (E,), corners (3, E) each,
     unit normals (3, E), areas (E,), emitted radiance (3, E) (their material's constant
-    emission), the probability (E,) of choosing each (in proportion to area x mean
-    radiance) and its cumulative sum, and per primitive id of the scene the probability
-    of choosing it (0 for the rest), for the density of a BSDF ray that hits one."""
+    emission; for a textured one, an estimate that only weighs the choice), material table
+    rows (E,), whether each one's emission is textured (E,) (a program that the light
+    samples evaluate where they land), the probability (E,) of choosing each (in proportion
+    to area x mean radiance) and its cumulative sum, and per primitive id of the scene the
+    probability of choosing it (0 for the rest), for the density of a BSDF ray that hits
+    one."""
 
     primitives: np.ndarray
     v0: np.ndarray
@@ -354,20 +357,49 @@ class MeshLights:
     normals: np.ndarray
     areas: np.ndarray
     emission: np.ndarray
+    material: np.ndarray
+    textured: np.ndarray
     probability: np.ndarray
     cumulative: np.ndarray
     by_primitive: np.ndarray
     power: float
 
 
-def mesh_lights(triangles, sphere_count: int, emission_table: np.ndarray):
+#: Barycentrics (b1, b2) at which a textured emitter's radiance is estimated for choosing
+#: among triangles: the centroid and a point towards each corner, so that a two-triangle
+#: plane under a checker is not judged dark by its centroids alone.
+ESTIMATE_POINTS = ((1 / 3, 1 / 3), (1 / 6, 1 / 6), (2 / 3, 1 / 6), (1 / 6, 2 / 3))
+#: A textured emitter's share of choice never falls below this fraction of its material's
+#: mean radiance per area: where the estimate misses its light, the light samples still find
+#: it (unbiased either way; this bounds the variance).
+TEXTURED_FLOOR = 0.1
+
+
+def mesh_lights(triangles, sphere_count: int, emission_table: np.ndarray,
+                textured_estimate=None):
     """The emitting triangles of ``triangles`` (``core.arrays.TriangleArrays``, global ids
     after ``sphere_count`` spheres) whose material's emission (``emission_table`` (3, M))
-    is not black, or None."""
+    is not black, or None.  textured_estimate: {material row: a function of (primitive
+    (k,), b1 (k,), b2 (k,)) giving the emission (3, k) there} for the materials whose
+    emission a program textures: every triangle of theirs may emit."""
     if triangles is None or len(triangles) == 0:
         return None
-    emission = emission_table[:, triangles.material]
-    emitting = np.flatnonzero(emission.max(axis=0) > 0)
+    textured_estimate = textured_estimate or {}
+    emission = emission_table[:, triangles.material].astype(np.float64)
+    textured = np.isin(triangles.material, list(textured_estimate))
+    for material, estimate in textured_estimate.items():
+        rows = np.flatnonzero(triangles.material == material)
+        if len(rows) == 0:
+            continue
+        total = np.zeros((3, len(rows)))
+        for b1, b2 in ESTIMATE_POINTS:
+            total += np.maximum(estimate(rows + sphere_count, np.full(len(rows), b1),
+                                         np.full(len(rows), b2)), 0)
+        total /= len(ESTIMATE_POINTS)
+        mean = total.mean(axis=0)
+        floor = TEXTURED_FLOOR * mean.mean() if mean.any() else 1.0
+        emission[:, rows] = total + (np.maximum(mean, floor) - mean)
+    emitting = np.flatnonzero((emission.max(axis=0) > 0) | textured)
     if len(emitting) == 0:
         return None
     v0, v1, v2 = (v[:, emitting] for v in (triangles.v0, triangles.v1, triangles.v2))
@@ -383,12 +415,14 @@ def mesh_lights(triangles, sphere_count: int, emission_table: np.ndarray):
     by_primitive[primitives] = probability
     normals = cross / np.where(double_area > 0, double_area, 1)
     return MeshLights(primitives, v0, v1, v2, normals, areas, emission[:, emitting],
+                      triangles.material[emitting], textured[emitting],
                       probability, np.cumsum(probability), by_primitive,
                       float(np.pi * weight.sum()))
 
 
 def sample_mesh_light(lights: MeshLights, points, u_pick, u1, u2) -> tuple:
-    """A point on an emitting triangle for each of k points: (LightSample, primitive (k,))."""
+    """A point on an emitting triangle for each of k points: (LightSample, index (k,) of
+    the triangle among ``lights``, barycentrics (b1, b2) (k,) each of the point on it)."""
     dtype = points.dtype
     index = np.minimum(np.searchsorted(lights.cumulative, u_pick * lights.cumulative[-1],
                                        side="right"), len(lights.areas) - 1)
@@ -402,7 +436,7 @@ def sample_mesh_light(lights: MeshLights, points, u_pick, u1, u2) -> tuple:
            * distance * distance / np.maximum(cos_l, 1e-9)).astype(dtype)
     radiance = lights.emission[:, index].astype(dtype)
     over = np.where(cos_l > 1e-9, radiance / pdf, 0)
-    return LightSample(towards, distance, radiance, pdf, over), lights.primitives[index]
+    return LightSample(towards, distance, radiance, pdf, over), index, (b1, b2)
 
 
 def mesh_light_pdf(lights: MeshLights, primitive, t, cos_l):

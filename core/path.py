@@ -40,7 +40,7 @@ from .sampler import bounce_groups, index_bits, sample_group
 from .shader.input_nodes import (RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_REFLECT, RAY_SHADOW,
                                  RAY_SINGULAR, RAY_TRANSMIT, RAY_TRANSPARENT)
 from .shader.program import run
-from .surface_points import surface_points
+from .surface_points import program_emission, surface_points
 from .vectors import dot, facing, take
 
 #: The golden ratio's fraction: successive lights at one vertex shift their sample numbers
@@ -264,7 +264,10 @@ def _next_event(ctx, setup, closures, choice, points, normal, geometric, to_view
         where = take(points, rows)
         source = sources[i]
         if isinstance(source, MeshLights):
-            sample, _ = sample_mesh_light(source, where, (u_pick[rows] + shift) % 1.0, u1, u2)
+            sample, index, barycentrics = sample_mesh_light(
+                source, where, (u_pick[rows] + shift) % 1.0, u1, u2)
+            if source.textured.any():
+                _texture_emission(ctx, source, sample, index, barycentrics, where)
         elif isinstance(source, WorldLight):
             sample = _sample_world(ctx, source, u1, u2, dtype)
         else:
@@ -288,6 +291,46 @@ def _next_event(ctx, setup, closures, choice, points, normal, geometric, to_view
                                 None if lift is None else lift.take(rows[useful]), stats)
         total[:, rows[useful]] += contribution * passed
     return total
+
+
+def _texture_emission(ctx, lights: MeshLights, sample: LightSample, index, barycentrics,
+                      points) -> None:
+    """Put into ``sample`` (drawn by ``sample_mesh_light`` from ``points``) the radiance
+    that the programs of textured emitters give where its samples landed: the triangle
+    ``index`` (k,) among ``lights`` at barycentrics (b1, b2), seen from the points."""
+    rows = np.flatnonzero(lights.textured[index])
+    if len(rows) == 0:
+        return
+    b1, b2 = (b[rows] for b in barycentrics)
+    towards = take(sample.towards, rows)
+    landed = take(points, rows) + towards * sample.distance[rows]
+    radiance = emission_at(ctx, lights.primitives[index[rows]], (1 - b1 - b2, b1, b2),
+                           landed, lights.normals[:, index[rows]].astype(points.dtype),
+                           -towards, lights.material[index[rows]])
+    sample.radiance[:, rows] = radiance
+    sample.over_pdf[:, rows] = np.where(sample.pdf[rows] > 0,
+                                        radiance / np.where(sample.pdf[rows] > 0,
+                                                            sample.pdf[rows], 1), 0)
+
+
+def emission_at(ctx, primitive, barycentrics, points, normal, incoming, material):
+    """(3, k) the emission of the materials of table rows ``material`` (k,) at points (3, k)
+    on triangles ``primitive`` (k,) at ``barycentrics`` (b0, b1, b2), unit normal (3, k),
+    seen from unit ``incoming`` (3, k) (towards the viewer): what a light sample finds
+    there (Cycles evaluates an emitter's shader at the point its light sample chose)."""
+    setup = ctx.paths
+    radiance = np.zeros(points.shape, points.dtype)
+    for row in np.unique(material):
+        program = setup.programs.get(int(row))
+        at = np.flatnonzero(material == row)
+        if program is None:
+            radiance[:, at] = ctx.look.surfaces.emission[:, [row]]
+            continue
+        radiance[:, at] = program_emission(
+            program, setup.surface_tables, ctx.geometry, take(points, at), take(normal, at),
+            take(incoming, at), primitive[at], tuple(b[at] for b in barycentrics),
+            LIGHT_SAMPLE_RAY)
+    return radiance
 
 
 def _sample_world(ctx, world: WorldLight, u1, u2, dtype) -> LightSample:

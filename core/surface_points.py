@@ -20,6 +20,7 @@ import numpy as np
 from .shader.input_nodes import (ATTRIBUTE_ALPHA_PREFIX, ATTRIBUTE_PREFIX, RENDER_COLOR,
                                  RENDER_COLOR_ALPHA)
 from .shader.points import ShadingPoints
+from .shader.program import run
 from .shader.world import light_path_sources
 from .vectors import take
 
@@ -321,6 +322,20 @@ def surface_points(tables: SurfaceTables, geometry, points, normal, true_normal,
         footprint = footprint * tables.world_scale
     return ShadingPoints(tables.to_world(points).astype(points.dtype), normal, true_normal,
                          incoming, backfacing, sources, jacobians, footprint)
+
+
+def program_emission(program, tables: SurfaceTables, geometry, points, normal, incoming,
+                     primitive, barycentrics, ray=None) -> np.ndarray:
+    """(3, k) the emission of a material's ``program`` at k points (3, k) on triangles
+    ``primitive`` (k,) at ``barycentrics`` (b0, b1, b2), of unit (geometric) normal (3, k),
+    seen from unit ``incoming`` (3, k); ray: as for ``surface_points``.  Emitters shine on
+    both sides, as in Cycles: the back side sees its normal turned towards it."""
+    backfacing = (normal * incoming).sum(axis=0) < 0
+    facing_normal = np.where(backfacing, -normal, normal)
+    found = surface_points(tables, geometry, points, facing_normal, facing_normal, incoming,
+                           backfacing, primitive, barycentrics, None, ray)
+    return run(program, found).closures(points.shape[1], points.dtype,
+                                        facing_normal).emission
 
 
 def camera_coordinates(tables: SurfaceTables, points):
