@@ -81,6 +81,20 @@ def node_tree_in_use(datablock):
     return None
 
 
+#: Lights render their node tree only with Use Nodes on, until a Blender (5.3 here) where
+#: every light has a tree and ``use_nodes`` is deprecated (always True): asked of its RNA.
+LIGHT_NODES_ALWAYS = bool(getattr(bpy.types.Light.bl_rna.properties["use_nodes"],
+                                  "is_deprecated", False))
+
+
+def light_node_tree(light):
+    """The node tree a light renders with, or None (it renders its colour and power)."""
+    tree = light.node_tree
+    if tree is None or LIGHT_NODES_ALWAYS or light.use_nodes:
+        return tree
+    return None
+
+
 def new_material(name: str):
     """A new material with its node tree (Principled BSDF into Material Output), as Blender
     5 creates one."""

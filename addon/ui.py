@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import bpy
 
+from .compat import LIGHT_NODES_ALWAYS, light_node_tree
 from .engine.base import GlintRenderEngine
 from .operators import GLINT_OT_render
 
@@ -140,8 +141,36 @@ class GLINT_PT_material(bpy.types.Panel):
                          icon='INFO')
 
 
+class GLINT_PT_light_nodes(bpy.types.Panel):
+    """A light's node tree (``export.lights.light_nodes``), as Cycles' Nodes panel shows it:
+    Use Nodes, then what reaches its Light Output's Surface."""
+
+    bl_label = "Nodes"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "data"
+    COMPAT_ENGINES = {GlintRenderEngine.bl_idname}
+
+    @classmethod
+    def poll(cls, context):
+        return context.light is not None and context.engine in cls.COMPAT_ENGINES
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        light = context.light
+        if not LIGHT_NODES_ALWAYS:
+            layout.prop(light, "use_nodes", icon='NODETREE')
+        tree = light_node_tree(light)
+        output = tree.get_output_node('CYCLES') if tree is not None else None
+        if output is not None:
+            layout.template_node_view(tree, output, output.inputs["Surface"])
+        elif tree is not None:
+            layout.label(text="No output node")
+
+
 classes = (GLINT_PT_render, GLINT_PT_render_performance, GLINT_PT_sidebar,
-           GLINT_PT_sidebar_performance, GLINT_PT_material)
+           GLINT_PT_sidebar_performance, GLINT_PT_material, GLINT_PT_light_nodes)
 
 
 #: Panels marked for every engine that Glint does not show: Blender's type-only light panel

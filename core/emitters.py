@@ -27,6 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .scene import AreaLight, PointLight, SphereLight, SpotLight, SunLight
+from .shader.points import ShadingPoints
+from .shader.program import run
 from .vectors import dot, normalize
 
 #: Up to this many light sources, every vertex samples each of them.
@@ -46,6 +48,8 @@ class Light:
         normal, or the spot's axis.  radius: point light radius.  cos_half, one_minus_cos:
         the sun's cone.  axis_x, axis_y, size_x, size_y, disk: the area light's extent.
     power: an estimate of the power it brings a scene, for choosing among many.
+    program, matrix: the light's node tree and its object's world matrix (``core.scene``),
+        ``light_texture`` evaluates.
     """
 
     kind: str
@@ -63,6 +67,8 @@ class Light:
     size_x: float = 0.0
     size_y: float = 0.0
     disk: bool = False
+    program: object = None
+    matrix: np.ndarray | None = None
 
     @property
     def delta(self) -> bool:
@@ -82,6 +88,10 @@ def prepare_lights(lights, scene_radius: float) -> tuple[Light, ...]:
     centre (a sun's power estimate)."""
     prepared = []
     for light in lights:
+        texture = {}
+        if getattr(light, "program", None) is not None:
+            texture = dict(program=light.program,
+                           matrix=np.asarray(light.matrix, np.float64).reshape(3, 4))
         if isinstance(light, PointLight):
             light = SphereLight(light.position, light.diffuse,
                                 ARTICLE_LIGHT_POWER, light.radius, light.name)
@@ -105,7 +115,7 @@ def prepare_lights(lights, scene_radius: float) -> tuple[Light, ...]:
                 np.asarray(light.direction, np.float64), light.power * float(colour.mean()),
                 axis_x=np.asarray(light.axis_x, np.float64),
                 axis_y=np.asarray(light.axis_y, np.float64), size_x=light.size_x,
-                size_y=light.size_y, disk=disk))
+                size_y=light.size_y, disk=disk, **texture))
         elif isinstance(light, (SphereLight, SpotLight)):
             intensity = colour * light.power / (4 * math.pi)
             radiance = (intensity / (math.pi * light.radius ** 2) if light.radius > 0
@@ -117,10 +127,31 @@ def prepare_lights(lights, scene_radius: float) -> tuple[Light, ...]:
                             spot_blend=light.spot_blend)
             prepared.append(Light("point", radiance, np.asarray(light.position, np.float64),
                                   np.zeros(3), light.power * float(colour.mean()),
-                                  radius=light.radius, **spot))
+                                  radius=light.radius, **spot, **texture))
         else:
             raise TypeError(f"not a light: {type(light).__name__}")
     return tuple(prepared)
+
+
+def light_texture(light: Light, points, normal, incoming) -> np.ndarray:
+    """(3, k) what ``light``'s node tree multiplies its colour by at k points (3, k) on it
+    (world space), of unit normal (3, k), sending light along unit ``incoming`` (3, k) (the
+    shader's wi: from the light towards what it lights), as Cycles evaluates a light's
+    shader at its light sample's point: the emission of its program there, with the Object
+    texture coordinate the point in the light's object space and Normal the normal in it."""
+    matrix = light.matrix.astype(points.dtype)
+    k = points.shape[1]
+    inverse = np.linalg.inv(np.vstack([light.matrix, [0.0, 0.0, 0.0, 1.0]]))[:3]
+    inverse = inverse.astype(points.dtype)
+
+    def column(c):
+        return lambda: np.repeat(matrix[:, c:c + 1], k, axis=1)
+    sources = {"object": lambda: inverse[:, :3] @ points + inverse[:, 3:],
+               "object_axis_x": column(0), "object_axis_y": column(1),
+               "object_axis_z": column(2), "object_location": column(3)}
+    value = run(light.program, ShadingPoints(points, normal, normal, incoming,
+                                             sources=sources))
+    return np.broadcast_to(np.maximum(value.emission, 0), points.shape).astype(points.dtype)
 
 
 def _spot_mask(light: Light, from_light):

@@ -34,7 +34,7 @@ from .camera import CameraRays
 from .bsdf import held_share
 from .closures import Closures
 from .emitters import (SAMPLED_EACH, LightSample, MeshLights, WorldLight, light_hit,
-                       mesh_light_pdf, sample_light, sample_mesh_light)
+                       light_texture, mesh_light_pdf, sample_light, sample_mesh_light)
 from .rays import RayBatch, RayStats, ray_offsets
 from .sampler import bounce_groups, index_bits, sample_group
 from .shader.input_nodes import (RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_REFLECT, RAY_SHADOW,
@@ -272,6 +272,11 @@ def _next_event(ctx, setup, closures, choice, points, normal, geometric, to_view
             sample = _sample_world(ctx, source, u1, u2, dtype)
         else:
             sample = sample_light(source, where, u1, u2)
+            if source.program is not None:
+                textured = light_at(ctx, source, where + sample.towards * sample.distance,
+                                    sample.towards)
+                sample.radiance = sample.radiance * textured
+                sample.over_pdf = sample.over_pdf * textured
         part = closures.take(rows)
         part_choice = choice.take(rows)
         shading = take(normal, rows)
@@ -311,6 +316,22 @@ def _texture_emission(ctx, lights: MeshLights, sample: LightSample, index, baryc
     sample.over_pdf[:, rows] = np.where(sample.pdf[rows] > 0,
                                         radiance / np.where(sample.pdf[rows] > 0,
                                                             sample.pdf[rows], 1), 0)
+
+
+def light_at(ctx, light, points, towards) -> np.ndarray:
+    """(3, k) what a light's node tree (``core.emitters.light_texture``) gives at points
+    (3, k) on it (the render's frame) seen along unit ``towards`` (3, k) (from what they
+    light to them): a point light's surface faces what it lights, an area light's is its
+    emitting side."""
+    frame = ctx.paths.frame
+    world = points if frame is None else (points / frame.scale
+                                          + np.asarray(frame.centre, points.dtype)[:, None])
+    incoming = -towards
+    if light.kind == "area":
+        normal = np.repeat(light.direction.astype(points.dtype)[:, None], points.shape[1], 1)
+    else:
+        normal = incoming
+    return light_texture(light, world, normal, incoming)
 
 
 def emission_at(ctx, primitive, barycentrics, points, normal, incoming, material):
@@ -398,12 +419,17 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats,
         if setup.visible_lights and not camera_view.all():
             ray_origins = np.broadcast_to(batch.origins, batch.directions.shape)
             for light in setup.visible_lights:
-                found, _, radiance, pdf = light_hit(light, ray_origins, batch.directions,
-                                                    t_geometry)
+                found, t_light, radiance, pdf = light_hit(light, ray_origins,
+                                                          batch.directions, t_geometry)
                 found &= ~camera_view
                 if not found.any():
                     continue
                 index = np.flatnonzero(found)
+                if light.program is not None:
+                    directions = take(batch.directions, index)
+                    radiance[:, index] *= light_at(
+                        ctx, light, take(ray_origins, index) + directions * t_light[index],
+                        directions)
                 weight = np.where(last_pdf[index] > 0, _power_heuristic(
                     last_pdf[index], pdf[index] * setup.light_probability[light]), 1.0)
                 _add(colour, path[index], _clamp(throughput[:, index] * radiance[:, index]

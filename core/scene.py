@@ -326,6 +326,12 @@ class PointLight:
 # is 0 emits nothing (its power or strength is stored as 0); ``warnings`` holds the one line
 # that names those fields.
 
+#: What a light's node tree adds (SphereLight, SpotLight, AreaLight): ``program``, its
+#: Light Output's Surface compiled (``core.shader``) where an Emission's colour or strength
+#: comes from nodes, whose emission at the point a light sample leaves multiplies the
+#: light's colour (Cycles' light shaders); ``matrix``, the light object's 3 x 4 world
+#: matrix (rows), for the program's Object and Normal texture coordinates.
+
 @dataclass(frozen=True)
 class SphereLight:
     """Blender's point light in Cycles' units: ``power`` W of ``colour`` from a sphere of
@@ -338,6 +344,8 @@ class SphereLight:
     radius: float = 0.0
     name: str = ""
     warnings: tuple = field(default=(), init=False, repr=False, compare=False)
+    program: object = field(default=None, repr=False, compare=False)
+    matrix: tuple = None
 
     def __post_init__(self):
         fields = _LightFields(f"light {value_text(self.name)}" if self.name else "light")
@@ -367,6 +375,8 @@ class SpotLight:
     spot_blend: float = 0.15
     name: str = ""
     warnings: tuple = field(default=(), init=False, repr=False, compare=False)
+    program: object = field(default=None, repr=False, compare=False)
+    matrix: tuple = None
 
     def __post_init__(self):
         fields = _LightFields(f"light {value_text(self.name)}" if self.name else "light")
@@ -437,6 +447,8 @@ class AreaLight:
     power: float = 1000.0
     name: str = ""
     warnings: tuple = field(default=(), init=False, repr=False, compare=False)
+    program: object = field(default=None, repr=False, compare=False)
+    matrix: tuple = None
 
     def __post_init__(self):
         fields = _LightFields(f"light {value_text(self.name)}" if self.name else "light")

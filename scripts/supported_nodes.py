@@ -35,8 +35,10 @@ _VECTORS = {"ShaderNodeDisplacement", "ShaderNodeVectorDisplacement", "ShaderNod
 STRUCTURE = (
     ("Material Output, World Output, Light Output", "the active output's Surface (Cycles' "
      "or All) is what renders; a material's Displacement bumps its normal (Cycles' Bump "
-     "Only method, whatever the material's method, with a note otherwise); Volume is not "
-     "read"),
+     "Only method, whatever the material's method, with a note otherwise); a light's "
+     "Surface multiplies its colour (Use Nodes on: an Emission's constant colour x strength, "
+     "or a program evaluated where each light sample leaves a point, spot or area light; a "
+     "sun takes its value at rest); Volume is not read"),
     ("Group, Group Input, Group Output", "flattened: a group renders as its nodes"),
     ("Reroute", "passed through"),
     ("a muted node", "passes its first input of the output's kind through, as Blender "

@@ -56,7 +56,11 @@ class EditedFields:
 
     def prop(self, data, name, *args, **kwargs):
         if data == self._data:
-            self._fields.add(name)
+            self._fields.add(DERIVED_FIELDS.get(name, name))
+
+    def template_node_view(self, tree, *args, **kwargs):
+        if tree == self._data.node_tree:
+            self._fields.add("nodes")
 
     def __getattr__(self, name):
         return lambda *args, **kwargs: EditedFields(self._data, self._fields)
@@ -102,7 +106,8 @@ def light_panels_shown(context):
 
 
 #: Fields the exporter reads that Blender derives from another one, which is the one edited.
-DERIVED_FIELDS = {"temperature_color": "temperature"}
+#: A light's node tree and its Use Nodes toggle are one thing to edit: its nodes.
+DERIVED_FIELDS = {"temperature_color": "temperature", "node_tree": "nodes", "use_nodes": "nodes"}
 
 
 @pytest.mark.parametrize("kind, shape", [("POINT", None), ("SPOT", None), ("SUN", None),

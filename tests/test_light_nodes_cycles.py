@@ -32,28 +32,37 @@ def _floor(material, z: float = -1.0, size: float = 8.0):
     return link(bpy.data.objects.new("floor", mesh))
 
 
-def _two_colour_emission(name: str, strength: float):
-    """An Emission shader red on the left half of a plane, blue on the right (Generated x
-    through Greater Than into a Mix's factor)."""
-    material = new_material(name)
-    tree = material.node_tree
-    tree.nodes.remove(tree.nodes["Principled BSDF"])
+def _two_colours(tree, coordinate: str, threshold: float, strength: float):
+    """In ``tree``, an Emission of ``strength`` into its output's Surface, red where the
+    Texture Coordinate ``coordinate``'s x is under ``threshold``, blue above (through
+    Greater Than into a Mix's factor)."""
+    for node in list(tree.nodes):
+        if not node.bl_idname.startswith("ShaderNodeOutput"):
+            tree.nodes.remove(node)
+    output = tree.nodes[0]
     emission = tree.nodes.new("ShaderNodeEmission")
     emission.inputs["Strength"].default_value = strength
     coordinates = tree.nodes.new("ShaderNodeTexCoord")
     separate = tree.nodes.new("ShaderNodeSeparateXYZ")
     right = tree.nodes.new("ShaderNodeMath")
     right.operation = 'GREATER_THAN'
-    right.inputs[1].default_value = 0.5
+    right.inputs[1].default_value = threshold
     mix = tree.nodes.new("ShaderNodeMix")
     mix.data_type = 'RGBA'
     mix.inputs["A"].default_value = (1.0, 0.05, 0.05, 1.0)
     mix.inputs["B"].default_value = (0.05, 0.1, 1.0, 1.0)
-    tree.links.new(coordinates.outputs["Generated"], separate.inputs[0])
+    tree.links.new(coordinates.outputs[coordinate], separate.inputs[0])
     tree.links.new(separate.outputs["X"], right.inputs[0])
     tree.links.new(right.outputs[0], mix.inputs["Factor"])
     tree.links.new(mix.outputs["Result"], emission.inputs["Color"])
-    tree.links.new(emission.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    tree.links.new(emission.outputs[0], output.inputs["Surface"])
+
+
+def _two_colour_emission(name: str, strength: float):
+    """A material emitting red on the left half of a plane, blue on the right (its
+    Generated x)."""
+    material = new_material(name)
+    _two_colours(material.node_tree, "Generated", 0.5, strength)
     return material
 
 
@@ -83,3 +92,57 @@ def test_a_floor_lit_by_a_checker_textured_emitting_panel_matches_cycles():
     for got, want in ((left_glint, left_cycles), (right_glint, right_cycles)):
         np.testing.assert_allclose(got, want, rtol=MEAN_TOLERANCE,
                                    atol=MEAN_TOLERANCE * want.max())
+
+
+def _two_colour_light(kind: str, coordinate: str, location, **settings):
+    """A light of ``kind`` at ``location`` pointing down whose node tree makes it red where
+    its ``coordinate``'s x is negative and blue where positive."""
+    light = cs.add_light(kind, location, **settings)
+    light.data.use_nodes = True
+    _two_colours(light.data.node_tree, coordinate, 0.0, 1.0)
+    return light
+
+
+@pytest.mark.parametrize("kind, coordinate, settings", [
+    ('SPOT', "Normal", dict(energy=300.0, spot_size=2.0, shadow_soft_size=0.0)),
+    ('POINT', "Normal", dict(energy=300.0, shadow_soft_size=0.2)),
+    ('AREA', "Object", dict(energy=150.0, size=3.0)),
+])
+def test_a_light_textured_by_its_node_tree_matches_cycles(kind, coordinate, settings):
+    """The light's Texture Coordinate in its own space: a point or spot light's Normal is
+    the direction its light leaves in, an area light's Object the point on it."""
+    scene = cs.cycles_scene(bounces=0, samples=256)
+    scene.glint.samples = 128
+    _floor(cs.diffuse("floor", (0.8, 0.8, 0.8)))
+    _two_colour_light(kind, coordinate, (0.0, 1.0, 0.5), **settings)
+    glint, cycles = cs.render_both()
+    floor_rows = slice(20, 36)
+    (left_glint, left_cycles), (right_glint, right_cycles) = _halves(glint, cycles, floor_rows)
+    assert left_cycles[0] > 2 * left_cycles[2] and right_cycles[2] > 2 * right_cycles[0]
+    for got, want in ((left_glint, left_cycles), (right_glint, right_cycles)):
+        np.testing.assert_allclose(got, want, rtol=MEAN_TOLERANCE,
+                                   atol=MEAN_TOLERANCE * want.max())
+
+
+@pytest.mark.parametrize("linked", [True, False])
+def test_a_light_tree_of_constants_scales_the_light_as_in_cycles(linked):
+    """An Emission of constant colour x strength multiplies the light's colour; a Light
+    Output that nothing reaches leaves the light dark."""
+    scene = cs.cycles_scene(bounces=0, samples=64)
+    scene.glint.samples = 16
+    _floor(cs.diffuse("floor", (0.8, 0.8, 0.8)))
+    light = cs.add_light('POINT', (0.0, 1.0, 0.5), energy=100.0, shadow_soft_size=0.0)
+    light.data.use_nodes = True
+    tree = light.data.node_tree
+    emission = tree.nodes["Emission"]
+    emission.inputs["Color"].default_value = (1.0, 0.5, 0.25, 1.0)
+    emission.inputs["Strength"].default_value = 2.5
+    if not linked:
+        tree.links.remove(tree.nodes["Light Output"].inputs["Surface"].links[0])
+    glint, cycles = cs.render_both()
+    floor = cycles[20:36, :, :3].reshape(-1, 3).mean(axis=0)
+    np.testing.assert_allclose(glint[20:36, :, :3].reshape(-1, 3).mean(axis=0), floor,
+                               rtol=MEAN_TOLERANCE, atol=1e-6)
+    if linked:
+        # Brighter than the light's 100 W alone would make it (the factor is read).
+        assert floor[0] > 2 * floor[2] > 0

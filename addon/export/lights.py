@@ -11,8 +11,11 @@ the factors):
   for rectangles and ellipses) times the object's scale along each axis, power.
 
 The colour is ``color`` times ``temperature_color`` when "Temperature" is on; it multiplies
-the power and is used as is (scene-linear).  Light node trees, per-light visibility, area
-spread and soft falloff are not read.  A negative power subtracts light, as in Cycles; a
+the power and is used as is (scene-linear).  A light's node tree (``light_nodes``) multiplies
+it as in Cycles: by its Emission's colour x strength where those are constant, else by a
+program the path integrator evaluates where each light sample leaves the light (point, spot
+and area lights; a sun takes its tree's value at rest).  Per-light visibility, area spread
+and soft falloff are not read.  A negative power subtracts light, as in Cycles; a
 light Cycles cannot use (a NaN power, an object scaled to 0, an area of size 0) emits
 nothing, the core saying so (``core.scene``); a power past ``MAX_POWER`` is clamped to it
 (``power_note``; docs/invalid-data.md).
@@ -28,9 +31,14 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ...core import AreaLight, PointLight, SphereLight, SpotLight, SunLight
+from ...core.shader.points import ShadingPoints
+from ...core.shader.program import ShaderProgram, constant_array, run
 from ...core.validation import MAX_COLOUR, value_text
-from ..compat import light_exposure, uses_light_temperature
+from ..compat import light_exposure, light_node_tree, uses_light_temperature
+from .shader import ShaderCompiler
 from .values import as_stored
 
 #: The most power (W) or sun strength (W/m^2) a light is exported with (past it, clamped): as
@@ -121,19 +129,66 @@ def export_article_light(light, matrix_world, name: str) -> PointLight | None:
                                  name=name)
 
 
-def export_light(light, matrix_world, name: str):
-    """The core light (Cycles' units) for a bpy Light placed by ``matrix_world`` (4x4)."""
+def _at_rest(program) -> np.ndarray:
+    """(3,) a light program's emission at a point at rest (its centre, seen head-on)."""
+    up = np.array([[0.0], [0.0], [-1.0]])
+    value = run(program, ShadingPoints(np.zeros((3, 1)), up, up, -up))
+    return np.broadcast_to(value.emission, (3, 1))[:, 0]
+
+
+def light_nodes(light, name: str, context=None):
+    """(factor (3,) the light's colour is multiplied by, its program or None, note or None):
+    what the light's node tree adds, as Cycles reads it.  No tree (or nodes off): nothing
+    (factor 1).  A Light Output whose Surface nothing reaches: the light is dark, as in
+    Cycles.  Otherwise its Surface is compiled like a material's (``shader``): an Emission
+    of constant colour x strength folds to that factor; one whose colour or strength comes
+    from nodes becomes a program (a sun, which has no point to evaluate it at, takes its
+    value at rest, with a note)."""
+    tree = light_node_tree(light)
+    if tree is None:
+        return (1.0, 1.0, 1.0), None, None
+    output = tree.get_output_node('CYCLES') or tree.get_output_node('ALL')
+    surface = output.inputs.get("Surface") if output is not None else None
+    if surface is None or not surface.is_linked:
+        return (0.0, 0.0, 0.0), None, (f"light {value_text(name)}: nothing reaches its Light "
+                                       f"Output's Surface: it emits nothing, as in Cycles")
+    compiler = ShaderCompiler(f"light {value_text(name)}", context)
+    value = compiler.compile(surface)
+    program = value if isinstance(value, ShaderProgram) else None
+    if program is None:
+        factor = np.broadcast_to(constant_array(value, np.float64).emission, (3, 1))[:, 0]
+    elif light.type == 'SUN':
+        factor, program = _at_rest(program), None
+        compiler.note(f"light {value_text(name)}: a sun's node tree is taken at rest (its "
+                      f"textures are not evaluated across the sky)")
+    else:
+        factor = np.ones(3)
+    factor = tuple(float(min(max(c, 0.0), MAX_COLOUR)) for c in factor)
+    return factor, program, "; ".join(compiler.notes) or None
+
+
+def export_light(light, matrix_world, name: str, context=None):
+    """The core light (Cycles' units) for a bpy Light placed by ``matrix_world`` (4x4), and
+    a note on its node tree or None; context: the export context (its image cache)."""
     position = _column(matrix_world, 3)
     x_axis, y_axis, z_axis = (_column(matrix_world, c) for c in range(3))
     forward = tuple(-c for c in z_axis)
-    colour, power = light_colour(light), light_power(light)
+    factor, program, note = light_nodes(light, name, context)
+    colour = tuple(c * f for c, f in zip(light_colour(light), factor))
+    power = light_power(light)
+    texture = {}
+    if program is not None:
+        texture = dict(program=program,
+                       matrix=tuple(tuple(float(v) for v in row[:4]) for row in matrix_world[:3]))
     if light.type == 'POINT':
-        return SphereLight(position, colour, power, float(light.shadow_soft_size), name)
+        return SphereLight(position, colour, power, float(light.shadow_soft_size), name,
+                           **texture), note
     if light.type == 'SPOT':
         return SpotLight(position, forward, colour, power, float(light.shadow_soft_size),
-                         float(light.spot_size), float(light.spot_blend), name)
+                         float(light.spot_size), float(light.spot_blend), name,
+                         **texture), note
     if light.type == 'SUN':
-        return SunLight(forward, colour, power, float(light.angle), name)
+        return SunLight(forward, colour, power, float(light.angle), name), note
     if light.type == 'AREA':
         scale_x = math.sqrt(sum(c * c for c in x_axis))
         scale_y = math.sqrt(sum(c * c for c in y_axis))
@@ -142,5 +197,5 @@ def export_light(light, matrix_world, name: str):
         if shape in ('SQUARE', 'DISK') and not math.isclose(scale_x, scale_y, rel_tol=1e-6):
             shape = 'RECTANGLE' if shape == 'SQUARE' else 'ELLIPSE'
         return AreaLight(position, forward, x_axis, y_axis, shape, float(light.size) * scale_x,
-                         float(size_y) * scale_y, colour, power, name)
+                         float(size_y) * scale_y, colour, power, name, **texture), note
     raise ValueError(f"unknown light type {light.type!r}")

@@ -143,9 +143,12 @@ class _RenderVisibility:
 def export_light(context, obj, matrix, name: str) -> None:
     """A light instance -> a core light in the context (``lights``: every type in Cycles'
     units in default semantics, point lights only in the article's), or a skipped entry."""
-    exporter = export_article_light if context.article else export_cycles_light
     try:
-        light = exporter(obj.data, matrix, name)
+        if context.article:
+            light = export_article_light(obj.data, matrix, name)
+        else:
+            light, note = export_cycles_light(obj.data, matrix, name, context)
+            context.note(note)
     except SceneError as error:
         raise ExportError(str(error)) from None  # the core's message names the light
     if light is None:
