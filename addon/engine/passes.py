@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...core.passes import entry_names, material_entries, primitive_sources
+from ...core.passes import entry_names, material_entries
 
 
 

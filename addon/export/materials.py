@@ -45,7 +45,7 @@ import numpy as np
 
 from ...core import Material, SceneError, SurfaceMaterial
 from ...core.reflectance import blinn_exponent
-from ...core.validation import MAX_COLOUR, value_text
+from ...core.validation import value_text
 from ..compat import node_tree_in_use
 from ..utils.colour import colour_from_blender
 from .shader import ShaderCompiler, surface_material

@@ -328,8 +328,6 @@ class ShaderCompiler:
                              self.owner, frozenset(child.coordinates))
 
     def _options(self, node, spec) -> tuple:
-        from .node_options import OPTION_READERS   # (the readers import the node modules)
-
         return tuple(sorted(node_options(node, spec, self.context).items()))
 
     def _emit(self, name: str, arguments: tuple, options: tuple, outputs: int) -> list:
