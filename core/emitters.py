@@ -133,12 +133,13 @@ def prepare_lights(lights, scene_radius: float) -> tuple[Light, ...]:
     return tuple(prepared)
 
 
-def light_texture(light: Light, points, normal, incoming) -> np.ndarray:
+def light_texture(light: Light, points, normal, incoming, distance) -> np.ndarray:
     """(3, k) what ``light``'s node tree multiplies its colour by at k points (3, k) on it
     (world space), of unit normal (3, k), sending light along unit ``incoming`` (3, k) (the
     shader's wi: from the light towards what it lights), as Cycles evaluates a light's
     shader at its light sample's point: the emission of its program there, with the Object
-    texture coordinate the point in the light's object space and Normal the normal in it."""
+    texture coordinate the point in the light's object space, Normal the normal in it, and
+    the ray length the ``distance`` (k,) to what it lights."""
     matrix = light.matrix.astype(points.dtype)
     k = points.shape[1]
     inverse = np.linalg.inv(np.vstack([light.matrix, [0.0, 0.0, 0.0, 1.0]]))[:3]
@@ -148,7 +149,8 @@ def light_texture(light: Light, points, normal, incoming) -> np.ndarray:
         return lambda: np.repeat(matrix[:, c:c + 1], k, axis=1)
     sources = {"object": lambda: inverse[:, :3] @ points + inverse[:, 3:],
                "object_axis_x": column(0), "object_axis_y": column(1),
-               "object_axis_z": column(2), "object_location": column(3)}
+               "object_axis_z": column(2), "object_location": column(3),
+               "ray_length": lambda: distance[None, :]}
     value = run(light.program, ShadingPoints(points, normal, normal, incoming,
                                              sources=sources))
     return np.broadcast_to(np.maximum(value.emission, 0), points.shape).astype(points.dtype)

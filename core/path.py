@@ -123,7 +123,7 @@ def closures_at(ctx, hits, normal, geometric, front, travelled=None, ray=None) -
         if ray is not None:
             found = {name: (values[rows] if np.ndim(values) else values)
                      for name, values in ray.items()}
-            found["ray_length"] = hits.t[rows] / setup.surface_tables.world_scale
+            found["ray_length"] = hits.t[rows] * setup.surface_tables.world_scale
         points = surface_points(setup.surface_tables, ctx.geometry, take(hits.points, rows),
                                 shading, take(geometric, rows), -take(hits.directions, rows),
                                 ~front[rows], hits.primitive[rows], barycentrics, footprint,
@@ -273,8 +273,7 @@ def _next_event(ctx, setup, closures, choice, points, normal, geometric, to_view
         else:
             sample = sample_light(source, where, u1, u2)
             if source.program is not None:
-                textured = light_at(ctx, source, where + sample.towards * sample.distance,
-                                    sample.towards)
+                textured = light_at(ctx, source, where, sample.towards, sample.distance)
                 sample.radiance = sample.radiance * textured
                 sample.over_pdf = sample.over_pdf * textured
         part = closures.take(rows)
@@ -311,34 +310,37 @@ def _texture_emission(ctx, lights: MeshLights, sample: LightSample, index, baryc
     landed = take(points, rows) + towards * sample.distance[rows]
     radiance = emission_at(ctx, lights.primitives[index[rows]], (1 - b1 - b2, b1, b2),
                            landed, lights.normals[:, index[rows]].astype(points.dtype),
-                           -towards, lights.material[index[rows]])
+                           -towards, lights.material[index[rows]], sample.distance[rows])
     sample.radiance[:, rows] = radiance
     sample.over_pdf[:, rows] = np.where(sample.pdf[rows] > 0,
                                         radiance / np.where(sample.pdf[rows] > 0,
                                                             sample.pdf[rows], 1), 0)
 
 
-def light_at(ctx, light, points, towards) -> np.ndarray:
-    """(3, k) what a light's node tree (``core.emitters.light_texture``) gives at points
-    (3, k) on it (the render's frame) seen along unit ``towards`` (3, k) (from what they
-    light to them): a point light's surface faces what it lights, an area light's is its
+def light_at(ctx, light, origins, towards, distance) -> np.ndarray:
+    """(3, k) what a light's node tree (``core.emitters.light_texture``) gives at the points
+    on it that origins (3, k) (the render's frame) see along unit ``towards`` (3, k) at
+    ``distance`` (k,): a point light's surface faces what it lights, an area light's is its
     emitting side."""
     frame = ctx.paths.frame
-    world = points if frame is None else (points / frame.scale
+    points = origins + towards * distance
+    scale = 1.0 if frame is None else frame.scale
+    world = points if frame is None else (points / scale
                                           + np.asarray(frame.centre, points.dtype)[:, None])
     incoming = -towards
     if light.kind == "area":
         normal = np.repeat(light.direction.astype(points.dtype)[:, None], points.shape[1], 1)
     else:
         normal = incoming
-    return light_texture(light, world, normal, incoming)
+    return light_texture(light, world, normal, incoming, distance / scale)
 
 
-def emission_at(ctx, primitive, barycentrics, points, normal, incoming, material):
+def emission_at(ctx, primitive, barycentrics, points, normal, incoming, material, distance):
     """(3, k) the emission of the materials of table rows ``material`` (k,) at points (3, k)
     on triangles ``primitive`` (k,) at ``barycentrics`` (b0, b1, b2), unit normal (3, k),
-    seen from unit ``incoming`` (3, k) (towards the viewer): what a light sample finds
-    there (Cycles evaluates an emitter's shader at the point its light sample chose)."""
+    seen from unit ``incoming`` (3, k) (towards the viewer) at ``distance`` (k,): what a
+    light sample finds there (Cycles evaluates an emitter's shader at the point its light
+    sample chose)."""
     setup = ctx.paths
     radiance = np.zeros(points.shape, points.dtype)
     for row in np.unique(material):
@@ -350,7 +352,7 @@ def emission_at(ctx, primitive, barycentrics, points, normal, incoming, material
         radiance[:, at] = program_emission(
             program, setup.surface_tables, ctx.geometry, take(points, at), take(normal, at),
             take(incoming, at), primitive[at], tuple(b[at] for b in barycentrics),
-            LIGHT_SAMPLE_RAY)
+            dict(LIGHT_SAMPLE_RAY, ray_length=distance[at] * setup.surface_tables.world_scale))
     return radiance
 
 
@@ -427,9 +429,8 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats,
                 index = np.flatnonzero(found)
                 if light.program is not None:
                     directions = take(batch.directions, index)
-                    radiance[:, index] *= light_at(
-                        ctx, light, take(ray_origins, index) + directions * t_light[index],
-                        directions)
+                    radiance[:, index] *= light_at(ctx, light, take(ray_origins, index),
+                                                   directions, t_light[index])
                 weight = np.where(last_pdf[index] > 0, _power_heuristic(
                     last_pdf[index], pdf[index] * setup.light_probability[light]), 1.0)
                 _add(colour, path[index], _clamp(throughput[:, index] * radiance[:, index]

@@ -146,3 +146,41 @@ def test_a_light_tree_of_constants_scales_the_light_as_in_cycles(linked):
     if linked:
         # Brighter than the light's 100 W alone would make it (the factor is read).
         assert floor[0] > 2 * floor[2] > 0
+
+
+def _falloff_emission(tree, output: str, strength: float, smooth: float):
+    """In ``tree``, an Emission whose Strength is Light Falloff's ``output`` into the output
+    node's Surface."""
+    for node in list(tree.nodes):
+        if not node.bl_idname.startswith("ShaderNodeOutput"):
+            tree.nodes.remove(node)
+    surface = tree.nodes[0].inputs["Surface"]
+    emission = tree.nodes.new("ShaderNodeEmission")
+    falloff = tree.nodes.new("ShaderNodeLightFalloff")
+    falloff.inputs["Strength"].default_value = strength
+    falloff.inputs["Smooth"].default_value = smooth
+    tree.links.new(falloff.outputs[output], emission.inputs["Strength"])
+    tree.links.new(emission.outputs[0], surface)
+
+
+def test_light_falloff_on_an_emitter_and_a_light_matches_cycles():
+    """Light Falloff reads the ray's length in the scene's units: a panel whose strength
+    grows linearly with the distance it is seen from (by the camera, and from the floor it
+    lights), and a point light of constant falloff with a smooth term."""
+    scene = cs.cycles_scene(bounces=0, samples=256)
+    scene.glint.samples = 128
+    _floor(cs.diffuse("floor", (0.8, 0.8, 0.8)))
+    panel = new_material("panel")
+    _falloff_emission(panel.node_tree, "Linear", 1.0, 0.0)
+    # (A panel 0.6 across makes the render's frame twice the scene's units: lengths must be
+    # converted back.)
+    cs.add_plane("panel", (-1.5, 1.0, 0.1), 0.6, panel)
+    light = cs.add_light('POINT', (1.5, 1.0, 0.0), energy=1.0, shadow_soft_size=0.0)
+    light.data.use_nodes = True
+    _falloff_emission(light.data.node_tree, "Constant", 10.0, 1.0)
+    glint, cycles = cs.render_both()
+    (left_glint, left_cycles), (right_glint, right_cycles) = _halves(glint, cycles,
+                                                                     slice(0, cs.HEIGHT))
+    assert left_cycles.min() > 0 and right_cycles.min() > 0
+    for got, want in ((left_glint, left_cycles), (right_glint, right_cycles)):
+        np.testing.assert_allclose(got, want, rtol=MEAN_TOLERANCE)

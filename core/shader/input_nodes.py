@@ -272,3 +272,21 @@ def light_path(points):
     flags = tuple(((code & flag) != 0).astype(points.dtype) for flag in _RAY_FLAGS)
     depths = tuple(point_data.scalar(points, name) for name in _DEPTHS)
     return flags + (point_data.scalar(points, "ray_length"),) + depths
+
+
+@node("ShaderNodeLightFalloff", inputs=(("Strength", FLOAT), ("Smooth", FLOAT)),
+      outputs=(("Quadratic", FLOAT), ("Linear", FLOAT), ("Constant", FLOAT)),
+      reads_points=True)
+def light_falloff(points, strength, smooth):
+    """Cycles' Light Falloff over the integrator's 'ray_length' (what an emitter's shader
+    sees: the distance from the point it lights): Strength as is (quadratic: the light's
+    own inverse square), times the length (linear), times its square (constant); a Smooth
+    above 0 multiplies each by length^2 / (smooth + length^2)."""
+    length = point_data.scalar(points, "ray_length")
+    squared = length * length
+    smooth = np.asarray(smooth, points.dtype)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        soft = np.where((smooth > 0) & np.isfinite(squared),
+                        squared / np.where(smooth + squared > 0, smooth + squared, 1), 1)
+    strength = strength * soft
+    return strength, strength * length, strength * squared
