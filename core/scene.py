@@ -28,7 +28,6 @@ from typing import Literal, Union
 
 import numpy as np
 
-from .cluster import check_address
 from .choices import (ANTI_ALIASING, FILMS, INTEGRATORS, PARALLELISM,  # noqa: F401
                       PIXEL_FILTERS, PRECISIONS, SEMANTICS)   # (defined once there)
 from .reflectance import (MIN_ALPHA, blinn_exponent, dielectric_f0,  # noqa: F401
@@ -36,7 +35,7 @@ from .reflectance import (MIN_ALPHA, blinn_exponent, dielectric_f0,  # noqa: F40
 from .terminator import DEFAULT_GEOMETRY_OFFSET
 from .validation import (BLOCK_ROWS, MAX_COLOUR, MAX_DEPTH, MAX_LIGHT_SAMPLES,  # noqa: F401
                          MAX_FILTER_WIDTH, MAX_MAGNITUDE, MAX_SAMPLES, MAX_SHININESS,
-                         MAX_THREADS, MAX_TILE_SIZE,
+                         MAX_THREADS, MAX_TILE_SIZE, check_address,
                          SceneError, Vec3, row_blocks, usable_triangles, value_text, _at_most_pi,
                          _checked_array, _choice, _colour, _count, _finite, _first_bad, _fraction,
                          _frozen, _frozen_array, _index_text, _LightFields, _non_negative,
