@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene import AreaLight, PointLight, SphereLight, SpotLight, SunLight
+from .light_sources import AreaLight, PointLight, SphereLight, SpotLight, SunLight
 from .vectors import dot, normalize
 
 #: Up to this many light sources, every vertex samples each of them.

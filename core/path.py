@@ -740,8 +740,7 @@ def converged(total, half, count, threshold: float):
 def camera_space(camera, normal):
     """(3, n) world normals in Cycles' camera space (x right, y up, z along the view), the
     space of its Denoising Normal pass."""
-    from .camera import camera_to_world
-    from .scene import BlenderCamera
+    from .camera import BlenderCamera, camera_to_world
     if not isinstance(camera, BlenderCamera):
         return normal
     rotation = camera_to_world(camera)[0].astype(normal.dtype)

@@ -14,7 +14,7 @@ The colour is ``color`` times ``temperature_color`` when "Temperature" is on; it
 the power and is used as is (scene-linear).  Light node trees, per-light visibility, area
 spread and soft falloff are not read.  A negative power subtracts light, as in Cycles; a
 light Cycles cannot use (a NaN power, an object scaled to 0, an area of size 0) emits
-nothing, the core saying so (``core.scene``); a power past ``MAX_POWER`` is clamped to it
+nothing, the core saying so (``core.light_sources``); a power past ``MAX_POWER`` is clamped to it
 (``power_note``; docs/invalid-data.md).
 
 Article semantics (``export_article_light``): a POINT light becomes
