@@ -23,7 +23,6 @@ went on from the camera only straight through Transparent BSDFs.
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 
@@ -716,25 +715,6 @@ def _filter_table(filter_type: str, width: float) -> np.ndarray:
         _FILTER_TABLES[key] = table
     return table
 
-
-
-def min_samples(settings) -> int:
-    """The samples every pixel gets before adaptive sampling may stop it: the setting, or
-    for 0 Cycles' automatic choice from the noise threshold."""
-    if settings.min_samples > 0:
-        return min(settings.min_samples, settings.samples)
-    threshold = max(settings.noise_threshold, 1e-6)
-    return min(settings.samples, max(4, math.ceil(16.0 / threshold ** 0.3)))
-
-
-def converged(total, half, count, threshold: float):
-    """(k,) whether pixels whose sample sums are ``total`` (3, k) and twice the sums of
-    their odd samples ``half`` (3, k) after ``count`` (k,) samples are converged: Cycles'
-    ``film_adaptive_sampling_convergence_check`` (the two halves' estimates differ by less
-    than ``threshold`` relative to the square root of the pixel's brightness)."""
-    difference = np.abs(total - half).sum(axis=0) / count
-    normalise = np.sqrt(np.maximum(total.sum(axis=0), 0) / count)
-    return difference / (1e-4 + normalise) < threshold
 
 
 def camera_space(camera, normal):
