@@ -34,7 +34,7 @@ class TileJob(NamedTuple):
     """One tile's share of a pass: rows y0..y1, columns x0..x1, sample indices
     first..last, and live: which of its pixels take them (a packed bit per pixel in row
     order, bytes), or None for all; passes: the frame has passes, which the job's sums
-    carry (``core.path.render_path_tile``)."""
+    carry (``core.tiles.render_path_tile``)."""
 
     y0: int
     y1: int
