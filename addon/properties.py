@@ -10,8 +10,7 @@ from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorPro
 from ..core import Material, RenderSettings
 from ..core.choices import (ANTI_ALIASING_CHOICES, INTEGRATOR_CHOICES, PARALLELISM_CHOICES,
                             PRECISION_CHOICES, SEMANTICS_CHOICES)
-from ..core.scene import (MAX_COLOUR, MAX_DEPTH, MAX_LIGHT_SAMPLES, MAX_SAMPLES,
-                          MAX_SHININESS)
+from ..core.validation import MAX_COLOUR, MAX_DEPTH, MAX_LIGHT_SAMPLES, MAX_SAMPLES, MAX_SHININESS
 
 DEFAULT_IMAGE_NAME = "Glint Render"
 _ARTICLE_FLOOR = Material()  # the core's default material is the article's floor

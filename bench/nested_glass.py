@@ -24,8 +24,11 @@ import threading
 import time
 
 import core
-from core.scene import (BlenderCamera, RenderSettings, Scene, Sphere, SunLight,
-                        SurfaceMaterial, TriangleMesh)
+from core.camera import BlenderCamera
+from core.light_sources import SunLight
+from core.materials import SurfaceMaterial
+from core.scene import Scene, Sphere, TriangleMesh
+from core.settings import RenderSettings
 
 from .measure import load_average, traced_peak
 

@@ -21,9 +21,12 @@ renders in its own way (a NaN vertex, a light scaled to 0, ...) are rendered as 
 each part saying so in ``Scene.warnings`` (docs/invalid-data.md).
 """
 
-from .scene import (AreaLight, BlenderCamera, Material, PointLight, RenderSettings, Scene,
-                    SceneError, ScreenCamera, Sphere, SphereLight, SphereSet, SpotLight,
-                    SunLight, SurfaceMaterial, TriangleMesh)
+from .camera import BlenderCamera, ScreenCamera
+from .light_sources import AreaLight, PointLight, SphereLight, SpotLight, SunLight
+from .materials import Material, SurfaceMaterial
+from .scene import Scene, Sphere, SphereSet, TriangleMesh
+from .settings import RenderSettings
+from .validation import SceneError
 from .render import RayStats, RenderCancelled, RenderResult, render
 from .article import article_scene, article_settings
 

@@ -22,7 +22,8 @@ from .choices import (ANTI_ALIASING, PARALLELISM, PARALLELISM_CHOICES, PRECISION
                       SEMANTICS, help_text)
 from .png import atomic_file, write_png
 from .render import render
-from .scene import RenderSettings, SceneError
+from .settings import RenderSettings
+from .validation import SceneError
 
 SCENES = {"article": article_scene}
 

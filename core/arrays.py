@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene import PointLight, Scene
+from .light_sources import PointLight
+from .scene import Scene
 
 
 @dataclass(frozen=True)

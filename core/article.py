@@ -6,7 +6,11 @@ The article works in its own coordinates (Y up, camera looking down -Z); Glint k
 
 from __future__ import annotations
 
-from .scene import Material, PointLight, RenderSettings, Scene, ScreenCamera, Sphere
+from .camera import ScreenCamera
+from .light_sources import PointLight
+from .materials import Material
+from .scene import Scene, Sphere
+from .settings import RenderSettings
 
 ARTICLE_WIDTH, ARTICLE_HEIGHT = 300, 200
 ARTICLE_MAX_DEPTH = 3

@@ -49,7 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .reflectance import MIN_ALPHA, dielectric_f0, ior_from_f0
-from .scene import Material, SurfaceMaterial
+from .materials import Material, SurfaceMaterial
 from .vectors import dot, normalize, take
 
 

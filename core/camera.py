@@ -1,4 +1,6 @@
-"""Camera ray generation.
+"""Cameras as a scene describes them (the article's ``ScreenCamera``, Blender's
+``BlenderCamera``: validated on construction, as every part of a scene is, ``core.scene``), and
+the rays they make.
 
 Pixels are addressed in image coordinates: column x in [0, W), row y in [0, H) with row 0 at
 the TOP; the pixel (c, r) covers [c, c + 1) x [r, r + 1), and a sample at (c + 0.5, r + 0.5) is
@@ -12,12 +14,181 @@ camera puts pixel centres at ``linspace`` positions, both ends included.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
+from typing import Literal, Union
 
 import numpy as np
 
-from .scene import BlenderCamera, Camera, ScreenCamera
+from .validation import (SceneError, Vec3, value_text, _choice, _count, _finite, _non_negative,
+                         _positive, _set, _set_label, _vec3)
 from .vectors import normalize, normalize_in_place
+
+PROJECTIONS = ("PERSP", "ORTHO")
+SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
+
+
+@dataclass(frozen=True)
+class ScreenCamera:
+    """The article's camera: an eye looking through a screen rectangle on a plane.
+
+    eye: (3,) position.  The screen lies on the plane z = ``screen_z`` and spans
+    [left, right] x [bottom, top].  Pixel positions are ``linspace(left, right, width)`` and
+    ``linspace(top, bottom, height)``: both ends included, so pixel centres sit ON the screen's
+    edges (unlike Blender's (i + 0.5) / W).  Row 0 is the top.
+    """
+
+    width: int
+    height: int
+    eye: Vec3 = (0.0, 0.0, 1.0)
+    left: float = -1.0
+    right: float = 1.0
+    top: float | None = None      # None: 1 / (width / height), the article's choice
+    bottom: float | None = None   # None: -1 / (width / height)
+    screen_z: float = 0.0
+
+    def __post_init__(self):
+        _count("camera.width", self.width)
+        _count("camera.height", self.height)
+        _set(self, "eye", _vec3("camera.eye", self.eye))
+        ratio = self.width / self.height
+        if self.top is None:
+            _set(self, "top", 1.0 / ratio)
+        if self.bottom is None:
+            _set(self, "bottom", -1.0 / ratio)
+        for name in ("left", "right", "top", "bottom", "screen_z"):
+            _set(self, name, _finite(f"camera.{name}", getattr(self, name)))
+
+
+@dataclass(frozen=True)
+class BlenderCamera:
+    """Blender's camera, with Blender's own conventions (``BKE_camera_params_compute_viewplane``).
+
+    matrix_world: 4x4 camera-to-world matrix, rows of 4 (Blender's ``Object.matrix_world``
+        as nested tuples); any scale in it is removed, as Blender does for the view.
+        The camera looks down its local -Z with +Y up.
+    projection: 'PERSP' or 'ORTHO'.  lens: focal length in mm (perspective);
+        ortho_scale: the view's width or height in scene units (orthographic).
+    sensor_width, sensor_height: mm; sensor_fit: 'AUTO', 'HORIZONTAL' or 'VERTICAL'.
+    shift_x, shift_y: in units of the fitted view size, like Blender.
+    clip_start, clip_end: distances along the view axis (depth planes, as in Cycles and
+        Workbench, not distances along each ray).
+    resolution_x, resolution_y, resolution_percentage: the output is
+        ``int(resolution_x * percentage / 100)`` by ``int(resolution_y * percentage / 100)``.
+    pixel_aspect_x, pixel_aspect_y: non-square pixels.
+    Pixel (i, j) with j = 0 at the bottom has its centre at ((i + 0.5) / W, (j + 0.5) / H).
+    aperture_radius, focus_distance, aperture_blades, aperture_rotation: a thin lens
+        (Cycles' depth of field): rays leave a disc (or, with 3 or more blades, a regular
+        polygon turned by the rotation) of that radius around the eye (orthographic: around
+        the pixel's point on the camera plane) and meet at the plane at focus_distance along
+        the view axis; 0 radius is a pinhole.
+    name: the camera object's name, for warnings.
+
+    A camera through which Cycles renders a black frame (measured: its matrix scaled to 0,
+    clip_end not past clip_start, an orthographic camera of ortho_scale 0, depth of field
+    focused at 0; alpha 1, or 0 with a transparent film) renders one too (``sees_nothing``:
+    ``core.render`` renders nothing through it), with one warning naming the fields; its
+    stored values are then stand-ins that let the view be worked out (an unscaled matrix, a
+    clip range, a scale and a focus of 1).
+    """
+
+    matrix_world: tuple
+    resolution_x: int = 1920
+    resolution_y: int = 1080
+    resolution_percentage: int = 100
+    projection: Literal["PERSP", "ORTHO"] = "PERSP"
+    lens: float = 50.0
+    ortho_scale: float = 6.0
+    sensor_width: float = 36.0
+    sensor_height: float = 24.0
+    sensor_fit: Literal["AUTO", "HORIZONTAL", "VERTICAL"] = "AUTO"
+    shift_x: float = 0.0
+    shift_y: float = 0.0
+    clip_start: float = 0.1
+    clip_end: float = 1000.0
+    pixel_aspect_x: float = 1.0
+    pixel_aspect_y: float = 1.0
+    aperture_radius: float = 0.0     # thin lens: 0 is a pinhole
+    focus_distance: float = 10.0
+    aperture_blades: int = 0
+    aperture_rotation: float = 0.0
+    name: str = ""
+    sees_nothing: bool = field(default=False, init=False, repr=False, compare=False)
+    warnings: tuple = field(default=(), init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        try:
+            rows = tuple(tuple(row) for row in self.matrix_world)
+        except TypeError:
+            raise SceneError(f"camera.matrix_world must be 4x4, got "
+                             f"{value_text(self.matrix_world)}") from None
+        if len(rows) != 4 or any(len(row) != 4 for row in rows):
+            raise SceneError(f"camera.matrix_world must be 4x4, got "
+                             f"{value_text(self.matrix_world)}")
+        _set(self, "matrix_world", tuple(
+            tuple(_finite(f"camera.matrix_world[{r}][{c}]", v) for c, v in enumerate(row))
+            for r, row in enumerate(rows)))
+        _count("camera.resolution_x", self.resolution_x)
+        _count("camera.resolution_y", self.resolution_y)
+        _count("camera.resolution_percentage", self.resolution_percentage)
+        _choice("camera.projection", self.projection, PROJECTIONS)
+        _choice("camera.sensor_fit", self.sensor_fit, SENSOR_FITS)
+        for name in ("lens", "sensor_width", "sensor_height", "pixel_aspect_x",
+                     "pixel_aspect_y", "clip_start"):
+            _set(self, name, _positive(f"camera.{name}", getattr(self, name)))
+        for name in ("shift_x", "shift_y", "aperture_rotation"):
+            _set(self, name, _finite(f"camera.{name}", getattr(self, name)))
+        _set(self, "aperture_radius", _non_negative("camera.aperture_radius",
+                                                    self.aperture_radius))
+        if self.aperture_blades != 0:
+            _count("camera.aperture_blades", self.aperture_blades, minimum=3)
+        if self.width < 1 or self.height < 1:
+            raise SceneError(
+                f"camera resolution {self.resolution_x}x{self.resolution_y} at "
+                f"{self.resolution_percentage}% gives a {self.width}x{self.height} image")
+        blind = []   # why Cycles renders this camera's frame black
+        rows = [list(row) for row in self.matrix_world]
+        axes = [[rows[r][c] for r in range(3)] for c in range(3)]
+        if any(math.sqrt(sum(v * v for v in axis)) < 1e-12 for axis in axes):
+            blind.append("matrix_world is scaled to 0")
+            for r in range(3):
+                rows[r][:3] = [float(r == c) for c in range(3)]
+            _set(self, "matrix_world", tuple(tuple(row) for row in rows))
+        _set(self, "clip_end", _positive("camera.clip_end", self.clip_end))
+        if self.clip_end <= self.clip_start:
+            blind.append(f"clip_end {value_text(self.clip_end)} is not past clip_start "
+                         f"{value_text(self.clip_start)}")
+            _set(self, "clip_end", self.clip_start + 1.0)
+        _set(self, "ortho_scale", _non_negative("camera.ortho_scale", self.ortho_scale))
+        if self.ortho_scale == 0.0:
+            if self.projection == "ORTHO":
+                blind.append("ortho_scale is 0")
+            _set(self, "ortho_scale", 1.0)
+        _set(self, "focus_distance", _non_negative("camera.focus_distance",
+                                                   self.focus_distance))
+        if self.focus_distance == 0.0:
+            if self.aperture_radius > 0.0:
+                blind.append("focus_distance is 0 with depth of field")
+            _set(self, "focus_distance", 1.0)
+        if blind:
+            _set(self, "sees_nothing", True)
+            _set(self, "warnings", (f"{_set_label('camera', self.name)}: {', '.join(blind)}: "
+                                    f"the frame renders black, as in Cycles",))
+
+    @property
+    def width(self) -> int:
+        return int(self.resolution_x * self.resolution_percentage / 100)
+
+    @property
+    def height(self) -> int:
+        return int(self.resolution_y * self.resolution_percentage / 100)
+
+
+Camera = Union[ScreenCamera, BlenderCamera]
+
+
+# --------------------------------------------------------------------------------------------
+# The rays a camera makes
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """Glint's choice lists, defined once: the values the core accepts and what each means.
 
-``core.scene`` validates against these, and every front end builds its choices from them:
+``core.settings`` validates against these, and every front end builds its choices from them:
 ``python -m core`` and ``render.py`` (argparse ``choices``) and the add-on's EnumProperty items
 (identifier ``value.upper()``, so .blend files keep their stored identifiers).  This module
 imports nothing, so render.py can read it before loading the package (``load_choices``).

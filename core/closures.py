@@ -35,14 +35,14 @@ import numpy as np
 
 from .bsdf import (SurfaceArrays, _compensation, _visibility, dielectric_rise,
                    directional_albedo, glossy_albedo)
-from .scene import MIN_ALPHA, dielectric_f0, ior_from_f0
+from .reflectance import MIN_ALPHA, dielectric_f0, ior_from_f0
 from .vectors import dot, normalize, take
 
 #: Lobes, in the order ``lobe_albedos`` stacks them.
 DIFFUSE, GLOSSY, TRANSMISSION, TRANSLUCENT, TRANSPARENT = range(5)
 LOBES = ("diffuse", "glossy", "transmission", "translucent", "transparent")
 #: GGX alpha up to which the glossy lobe is a perfect mirror (Blender's roughness 0.0316:
-#: the exported alpha's floor, ``core.scene.MIN_ALPHA``).
+#: the exported alpha's floor, ``core.reflectance.MIN_ALPHA``).
 DELTA_ALPHA = MIN_ALPHA
 
 

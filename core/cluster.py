@@ -43,7 +43,6 @@ import io
 import os
 import pickle
 import queue
-import re
 import threading
 import time
 import traceback
@@ -78,7 +77,6 @@ KEPT_FRAMES = 2
 #: What Dask's distributed scheduler is installed as, for the line that says it is missing.
 INSTALL_HINT = 'pip install "dask[distributed]"'
 
-_ADDRESS = re.compile(r"^(tcp|tls)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})$")
 _CORE_PACKAGE = __name__.rpartition(".")[0]
 _CORE_FOLDER = os.path.dirname(os.path.abspath(__file__))
 
@@ -87,19 +85,6 @@ class ClusterError(SceneError):
     """The cluster cannot render this frame (no Dask, an unreachable scheduler, no workers,
     a worker running another Glint, a tile that failed there); the message is one line,
     reported as the front ends report a setting they cannot use."""
-
-
-def check_address(name: str, address) -> str:
-    """``address`` if it is empty (render locally) or a Dask scheduler address
-    (``tcp://HOST:PORT`` or ``tls://HOST:PORT``), else a SceneError naming ``name``."""
-    if not isinstance(address, str):
-        raise SceneError(f"{name} must be a string, got {type(address).__name__}")
-    address = address.strip()
-    if address and (_ADDRESS.match(address) is None
-                    or not 0 < int(_ADDRESS.match(address).group(3)) < 65536):
-        raise SceneError(f"{name} must be a Dask scheduler address such as "
-                         f"tcp://HOST:8786 or tls://HOST:8786, got {address!r}")
-    return address
 
 
 def timeout_seconds() -> float:

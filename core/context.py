@@ -14,10 +14,13 @@ import numpy as np
 from .geometry import DEFAULT_POLICY, Aggregate, GeometryPolicy
 from .arrays import scene_arrays
 from .bsdf import SurfaceArrays, surface_arrays, translucent_view
-from .camera import eye_position
+from .camera import BlenderCamera, eye_position
 from .rays import ARTICLE_OFFSET, RAY_EPSILON, RayStats, SharedOrigin, ray_offsets
 from .lights import PreparedLight, fibonacci_sphere, prepare_light
-from .scene import BlenderCamera, PointLight, RenderSettings, Scene, SurfaceMaterial
+from .light_sources import PointLight
+from .materials import SurfaceMaterial
+from .scene import Scene
+from .settings import RenderSettings
 from .vectors import dot
 
 __all__ = ["ARTICLE_OFFSET", "RAY_EPSILON", "RayStats", "ray_offsets", "Lights", "Materials",
@@ -176,7 +179,7 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
     if not article:
         surfaces = surface_arrays(table.entries, dtype)
         blender = [light for light in scene.lights if not isinstance(light, PointLight)]
-        # (A light that emits nothing, ``core.scene``, is not sampled; it still makes the
+        # (A light that emits nothing, ``core.light_sources``, is not sampled; it still makes the
         # scene one of Blender's lights.)
         blender_lights = tuple(prepare_light(light, settings.light_samples, geometry)
                                for light in blender if light.emits)

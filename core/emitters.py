@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene import AreaLight, PointLight, SphereLight, SpotLight, SunLight
+from .light_sources import AreaLight, PointLight, SphereLight, SpotLight, SunLight
 from .shader.points import ShadingPoints
 from .shader.program import run
 from .vectors import dot, normalize

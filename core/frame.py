@@ -38,9 +38,11 @@ import math
 
 import numpy as np
 
-from .camera import eye_position
-from .scene import (MAX_MAGNITUDE, AreaLight, BlenderCamera, RenderSettings, Scene,
-                    SceneError, ScreenCamera, SphereLight, SpotLight, SunLight)
+from .camera import BlenderCamera, ScreenCamera, eye_position
+from .light_sources import AreaLight, SphereLight, SpotLight, SunLight
+from .scene import Scene
+from .settings import RenderSettings
+from .validation import MAX_MAGNITUDE, SceneError
 
 #: Largest extent / smallest radius float64 can render exactly: the hit point's relative
 #: error (~1e-16 * 1500 for offsets, ~2e-13) times this stays below 1e-1 of the radius.

@@ -74,7 +74,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene import AreaLight, SphereLight, SpotLight, SunLight
+from .light_sources import AreaLight, SphereLight, SpotLight, SunLight
 from .vectors import dot, normalize
 
 

@@ -34,7 +34,9 @@ from typing import Optional
 
 import numpy as np
 
-from .scene import RenderSettings, Scene, SceneError
+from .scene import Scene
+from .settings import RenderSettings
+from .validation import SceneError
 
 #: Peak working bytes per ray of a traced bundle (measured ~800, see the module docstring).
 BYTES_PER_BUNDLE_RAY = 1024

@@ -37,8 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import camera_rays, camera_to_world
-from .scene import BlenderCamera
+from .camera import BlenderCamera, camera_rays, camera_to_world
 from .trace import trace_bundle
 
 #: Blender's Depth pass value where nothing was hit.

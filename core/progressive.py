@@ -11,12 +11,13 @@ processes; ``ProgressiveFrame`` adds them into the frame's totals as they land a
 the frame's current mean of that tile on.  A cancelled frame keeps what landed; a time
 limit ends the frame after the pass during which it ran out.
 
-With a noise threshold a pixel stops once ``path.converged`` says so, judged after each pass
+With a noise threshold a pixel stops once ``converged`` says so, judged after each pass
 from its own samples: the image does not depend on tiles or on how they ran.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections import deque
 from typing import NamedTuple
@@ -33,7 +34,7 @@ class TileJob(NamedTuple):
     """One tile's share of a pass: rows y0..y1, columns x0..x1, sample indices
     first..last, and live: which of its pixels take them (a packed bit per pixel in row
     order, bytes), or None for all; passes: the frame has passes, which the job's sums
-    carry (``core.path.render_path_tile``)."""
+    carry (``core.tiles.render_path_tile``)."""
 
     y0: int
     y1: int
@@ -64,6 +65,25 @@ def pass_sizes(samples: int, first: int = 1) -> list[int]:
         done += size
         size = done
     return sizes
+
+
+def min_samples(settings) -> int:
+    """The samples every pixel gets before adaptive sampling may stop it: the setting, or
+    for 0 Cycles' automatic choice from the noise threshold."""
+    if settings.min_samples > 0:
+        return min(settings.min_samples, settings.samples)
+    threshold = max(settings.noise_threshold, 1e-6)
+    return min(settings.samples, max(4, math.ceil(16.0 / threshold ** 0.3)))
+
+
+def converged(total, half, count, threshold: float):
+    """(k,) whether pixels whose sample sums are ``total`` (3, k) and twice the sums of
+    their odd samples ``half`` (3, k) after ``count`` (k,) samples are converged: Cycles'
+    ``film_adaptive_sampling_convergence_check`` (the two halves' estimates differ by less
+    than ``threshold`` relative to the square root of the pixel's brightness)."""
+    difference = np.abs(total - half).sum(axis=0) / count
+    normalise = np.sqrt(np.maximum(total.sum(axis=0), 0) / count)
+    return difference / (1e-4 + normalise) < threshold
 
 
 class WorkQueue:
@@ -112,7 +132,6 @@ class ProgressiveFrame:
         self.totals = np.zeros((height, width, channels), np.float32)
         self.live = np.ones((height, width), bool)
         self.adaptive = settings.noise_threshold > 0
-        from .path import min_samples
         first = min_samples(settings) if self.adaptive else 1
         self.sizes = pass_sizes(settings.samples, first)
         self.started = time.monotonic()
@@ -160,7 +179,6 @@ class ProgressiveFrame:
             return
         totals = self.totals[self.live]
         count = totals[:, 7]
-        from .path import converged
         settled = converged(totals[:, 0:3].T, totals[:, 3:6].T, np.maximum(count, 1),
                             self.settings.noise_threshold)
         rows = np.flatnonzero(self.live.ravel())

@@ -31,7 +31,9 @@ from . import memory
 from .memory import GUIDE_CHANNELS
 from .frame import canonical_scene, scene_frame
 from .precision import choose_precision
-from .scene import RenderSettings, Scene, SceneError
+from .scene import Scene
+from .settings import RenderSettings
+from .validation import SceneError
 from .shading import traces_from_points
 from .tiles import BLOCK, render_tile
 from .trace import traces_bounces

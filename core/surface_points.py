@@ -342,8 +342,7 @@ def camera_coordinates(tables: SurfaceTables, points):
     """((3, k) Cycles' Camera coordinates (camera space: x right, y up, z along the view,
     scene units), (3, k) its Window coordinates ([0, 1] over the frame, z 0)) of canonical
     points."""
-    from .camera import blender_view_plane, camera_to_world
-    from .scene import BlenderCamera
+    from .camera import BlenderCamera, blender_view_plane, camera_to_world
     camera = tables.camera
     result = np.zeros_like(points)
     window = np.zeros_like(points)

@@ -1,6 +1,6 @@
 """The tile kernel: a tile of the image rendered by either integrator (``render_tile``).
 
-The path integrator's tiles are its progressive passes (``core.path``).  The Whitted
+The path integrator's tiles are its progressive passes (``render_path_tile``).  The Whitted
 integrator's anti-aliasing happens inside a tile: 'fixed' traces every pixel with ``samples``
 stratified sub-pixel positions; 'adaptive' traces the tile and a two-pixel apron at pixel
 centres, picks the pixels whose path signature (the surfaces hit and the shadows met at every
@@ -21,14 +21,17 @@ from typing import Optional
 
 import numpy as np
 
-from .camera import camera_rays, has_aperture
+from .camera import BlenderCamera, camera_rays, camera_to_world, has_aperture
 from .colour import linear_to_srgb
 from .context import RayStats, TraceContext
 from .failures import RenderCancelled
 from .geometry.cull import PACKET_SIZE
 from .lights import SampleShares, pixel_shares, pixel_shifts
 from .memory import GUIDE_CHANNELS
-from .path import render_path_tile
+from .passes import PASS_CHANNELS, first_hit_channels
+from .path import filter_offsets, trace_paths
+from .progressive import GUIDE_SUM_CHANNELS, SUM_CHANNELS
+from .sampler import PIXEL_GROUP, pixel_seeds, sample_group
 from .shading import shares_matter, traces_world_occlusion
 from .trace import trace_bundle
 
@@ -329,6 +332,91 @@ def render_tile(ctx: TraceContext, camera, tile, stop: Optional[threading.Event]
         rgba = np.concatenate([rgba, np.zeros(rgba.shape[:2] + (GUIDE_CHANNELS,),
                                               rgba.dtype)], axis=2)
     return rgba, stats
+
+
+def camera_space(camera, normal):
+    """(3, n) world normals in Cycles' camera space (x right, y up, z along the view), the
+    space of its Denoising Normal pass."""
+    if not isinstance(camera, BlenderCamera):
+        return normal
+    rotation = camera_to_world(camera)[0].astype(normal.dtype)
+    local = rotation.T @ normal
+    local[2] *= -1
+    return local
+
+
+def render_path_tile(ctx, camera, job, stop=None):
+    """(sums (h, w, channels), stats) of a ``core.progressive.TileJob``: the tile's live
+    pixels traced with samples job.first..job.last, each positioned by the pixel filter's
+    density; per pixel the sums ``core.progressive`` adds up (radiance, twice the odd
+    samples' radiance, alpha, the count, and with guides their sums), then for a job with
+    passes ``core.passes.PASS_CHANNELS`` more, the passes of what sample 0 hit first (0 in
+    later passes).  A pixel's sums depend only on its own samples: never on the tile."""
+    start = time.perf_counter()
+    settings = ctx.settings
+    dtype = ctx.dtype
+    y0, y1, x0, x1 = job[:4]
+    h, w = y1 - y0, x1 - x0
+    stats = RayStats(tiles=1)
+    cols, rows = _pixel_grid(y0, y1, x0, x1)
+    live = job.live_pixels()
+    if live is not None:
+        chosen = live[rows - y0, cols - x0]
+        cols, rows = cols[chosen], rows[chosen]
+    n = len(cols)
+    seeds = pixel_seeds(cols, rows, settings.seed)
+    bits = ctx.paths.index_bits
+    aperture = has_aperture(camera)
+    channels = SUM_CHANNELS + (GUIDE_SUM_CHANNELS if settings.guides else 0)
+    sums = np.zeros((channels, n))
+    # A frame with passes: its jobs carry them after the sums, filled by the first sample.
+    passes = np.zeros((n, PASS_CHANNELS)) if job.passes else None
+    first_hits = job.passes and job.first == 0
+    count = job.last - job.first
+    per_bundle = max(1, max(1024, settings.tile_size ** 2) // count)
+    for first in range(0, n, per_bundle):
+        if stop is not None and stop.is_set():
+            raise RenderCancelled("render cancelled")
+        chunk = np.arange(first, min(first + per_bundle, n))
+        pixel = np.repeat(chunk, count)
+        sample = np.tile(np.arange(job.first, job.last), len(chunk))
+        u = sample_group(seeds[pixel], sample, PIXEL_GROUP, bits)
+        xs = cols[pixel] + 0.5 + filter_offsets(u[0], settings.filter_type,
+                                                settings.filter_width)
+        ys = rows[pixel] + 0.5 + filter_offsets(u[1], settings.filter_type,
+                                                settings.filter_width)
+        began = time.perf_counter()
+        rays = camera_rays(camera, xs, ys, dtype, u[2:4] if aperture else None)
+        traced = time.perf_counter()
+        result = trace_paths(ctx, rays, seeds[pixel], sample, stats, first_hits=first_hits)
+        if first_hits:
+            # As Cycles' passes: what each pixel's first sample hit.
+            zero = np.flatnonzero(sample == 0)
+            t, primitive, material = (values[zero] for values in result.first_hits)
+            origins = rays.origins if rays.origins.shape[1] == 1 else rays.origins[:, zero]
+            passes[pixel[zero]] = first_hit_channels(
+                camera, origins, rays.directions[:, zero], t, primitive, material,
+                result.normal[:, zero], ctx.paths.frame)
+        stats.seconds_camera += traced - began
+        stats.seconds_bounces += time.perf_counter() - traced
+        odd = (sample & 1).astype(np.float64) * 2
+        columns = [result.colour[0], result.colour[1], result.colour[2],
+                   result.colour[0] * odd, result.colour[1] * odd, result.colour[2] * odd,
+                   result.alpha, None]
+        if channels > SUM_CHANNELS:
+            columns += list(result.albedo) + list(camera_space(camera, result.normal))
+        for row, values in enumerate(columns):
+            if values is not None:
+                sums[row] += np.bincount(pixel, values, n)
+    sums[7] = count
+    if passes is not None:
+        sums = np.concatenate([sums, passes.T])
+    # float32, the sums worker processes hand over (``core.workers``' shared array): a
+    # frame's image is then the same bit for bit on threads and on processes.
+    grid = np.zeros((h, w, len(sums)), np.float32)
+    grid[rows - y0, cols - x0] = sums.T
+    stats.seconds_tiles += time.perf_counter() - start
+    return grid, stats
 
 
 def _render_whitted_tile(ctx: TraceContext, camera, tile, stop=None):

@@ -1,16 +1,18 @@
 """Validation of scene data: the core's limits, and the checks every field of a scene
-description (``core.scene``) goes through, each taking the field's full name so that an
-error names the culprit and the offending value.
+description (``core.scene`` and its parts' modules) goes through, each taking the field's
+full name so that an error names the culprit and the offending value.
 
 Scalars and triples are checked one at a time; arrays (sphere sets, meshes) in whole-array
 operations, naming the first offending index.  The underscored checks are the description
-modules' (``core.scene``); ``SceneError`` and the limits are public.
+modules' (``core.scene``, ``core.materials``, ``core.light_sources``, ``core.camera``,
+``core.settings``); ``SceneError`` and the limits are public.
 """
 
 from __future__ import annotations
 
 import math
 import numbers
+import re
 from typing import Sequence
 
 import numpy as np
@@ -181,6 +183,31 @@ def _fraction(name: str, value) -> float:
     if not 0.0 <= number <= 1.0:
         raise SceneError(f"{name} must be in [0, 1], got {value_text(value)}")
     return number
+
+
+def _set(obj, name: str, value) -> None:
+    object.__setattr__(obj, name, value)  # frozen dataclasses store their normalised values
+
+
+def _set_label(kind: str, name: str) -> str:
+    return f"{kind} {value_text(name)}" if name else kind
+
+
+#: A Dask scheduler's address (``RenderSettings.cluster``, ``core.cluster``).
+_ADDRESS = re.compile(r"^(tcp|tls)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})$")
+
+
+def check_address(name: str, address) -> str:
+    """``address`` if it is empty (render locally) or a Dask scheduler address
+    (``tcp://HOST:PORT`` or ``tls://HOST:PORT``), else a SceneError naming ``name``."""
+    if not isinstance(address, str):
+        raise SceneError(f"{name} must be a string, got {type(address).__name__}")
+    address = address.strip()
+    if address and (_ADDRESS.match(address) is None
+                    or not 0 < int(_ADDRESS.match(address).group(3)) < 65536):
+        raise SceneError(f"{name} must be a Dask scheduler address such as "
+                         f"tcp://HOST:8786 or tls://HOST:8786, got {address!r}")
+    return address
 
 
 # --------------------------------------------------------------------------------------------

@@ -313,7 +313,8 @@ def test_each_choice_list_is_defined_once_in_the_core():
             == value
         assert script_parse_args(["--output", "x.png", "--parallelism", value]
                                  ).parallelism == value
-    from glint.core.scene import RenderSettings, SceneError
+    from glint.core.settings import RenderSettings
+    from glint.core.validation import SceneError
     # One default everywhere: the core's.
     assert core_parse_args(["--output", "x.png"]).parallelism == RenderSettings.parallelism
     assert settings.bl_rna.properties["parallelism"].default == \

@@ -661,7 +661,7 @@ def test_read_mesh_block_helpers_give_the_whole_array_values():
     the area test, the normals' gather and the flat normals where Blender left a corner's zero
     give the same bits as the whole-array formulas."""
     from glint.addon.export import meshes as meshes_module
-    from glint.core.scene import BLOCK_ROWS
+    from glint.core.validation import BLOCK_ROWS
 
     rng = np.random.default_rng(9)
     count = 2 * BLOCK_ROWS + 3

@@ -699,7 +699,7 @@ def test_a_blender_scene_renders_the_same_at_any_position_and_scale(sun, scale):
     (below 1e-5 the camera clips the scene away, in Blender too) and it stores float32, whose
     largest value (3.4e38) bounds the large end: a sun (no distance falloff) over all of it; a
     point light, whose power must grow as scale^2, up to validation's 1e15 W
-    (core.scene.MAX_COLOUR x 1000)."""
+    (core.validation.MAX_COLOUR x 1000)."""
     reference = _scaled_simple_scene(1.0, sun=sun)
     image = _scaled_simple_scene(scale, offset=(100.0, -50.0, 30.0), sun=sun)
     moved = np.abs(image - reference).max(axis=2) > 1 / 255

@@ -11,7 +11,7 @@ import pytest
 
 from addon_support import read_png, simple_scene
 from glint.addon.engine.final import FrameRequest, requesting_frames
-from glint.core.scene import RenderSettings
+from glint.core.settings import RenderSettings
 
 TILE = RenderSettings().tile_size
 

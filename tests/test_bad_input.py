@@ -440,7 +440,7 @@ def test_values_at_the_limits_render_without_nan():
 
 
 def test_the_settings_hard_maximums_are_the_cores_limits():
-    from glint.core import scene as limits
+    from glint.core import validation as limits
 
     from glint.addon.properties import GlintMaterialSettings, GlintRenderSettings
 

@@ -25,7 +25,7 @@ from process_support import sigint_disposition
 
 import core
 from core import cluster
-from core.scene import SceneError
+from core.validation import SceneError
 from test_path_integrator import _box_scene
 
 REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

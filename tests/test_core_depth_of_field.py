@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 
 from core import Material, PointLight, RenderSettings, Scene, Sphere, render
-from core.camera import aperture_points, camera_rays
-from core.scene import BlenderCamera
+from core.camera import BlenderCamera, aperture_points, camera_rays
 
 IDENTITY = tuple(tuple(float(r == c) for c in range(4)) for r in range(4))
 

@@ -204,7 +204,7 @@ def _mesh_of(corner_normals):
 def test_corner_normals_are_normalised_block_by_block_as_whole():
     """Normalised in blocks of BLOCK_ROWS triangles (their temporaries stay small): the same
     bits as the whole-array formula, a new read-only array, the caller's left as it was."""
-    from core.scene import BLOCK_ROWS
+    from core.validation import BLOCK_ROWS
 
     count = 2 * BLOCK_ROWS + 5
     normals = np.random.default_rng(3).normal(size=(count, 3, 3))
@@ -218,7 +218,7 @@ def test_corner_normals_are_normalised_block_by_block_as_whole():
 
 
 def test_a_zero_corner_normal_past_the_first_block_is_named_by_its_own_index():
-    from core.scene import BLOCK_ROWS
+    from core.validation import BLOCK_ROWS
 
     normals = np.ones((BLOCK_ROWS + 10, 3, 3))
     normals[BLOCK_ROWS + 7, 1] = 0.0

@@ -16,7 +16,7 @@ import core
 from core import workers
 from core.failures import RenderCancelled
 from core.tiles import render_tile
-from core.scene import SceneError
+from core.validation import SceneError
 from process_support import all_ended, sigint_disposition
 
 pytestmark = pytest.mark.slow  # every test here takes seconds (child processes)

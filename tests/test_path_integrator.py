@@ -12,9 +12,14 @@ import pytest
 
 import core
 from core import sampler, workers
-from core.path import converged, filter_offsets
-from core.scene import (AreaLight, BlenderCamera, RenderSettings, Scene, SceneError, Sphere,
-                        SurfaceMaterial, TriangleMesh)
+from core.path import filter_offsets
+from core.camera import BlenderCamera
+from core.light_sources import AreaLight
+from core.materials import SurfaceMaterial
+from core.progressive import converged
+from core.scene import Scene, Sphere, TriangleMesh
+from core.settings import RenderSettings
+from core.validation import SceneError
 
 
 def _camera(position, width=32, height=24, lens=50.0) -> BlenderCamera:

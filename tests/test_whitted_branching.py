@@ -14,7 +14,7 @@ import pytest
 
 import core
 from core import trace
-from core.scene import RenderSettings
+from core.settings import RenderSettings
 
 from bench.nested_glass import nested_glass_scene
 

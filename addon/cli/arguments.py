@@ -11,7 +11,7 @@ import sys
 
 from ...core import choices
 from ...core.png import write_protected
-from ...core.scene import MAX_DEPTH, MAX_SAMPLES
+from ...core.validation import MAX_DEPTH, MAX_SAMPLES
 from .report import EXIT_USAGE, PROGRAM, fail
 
 #: Blender's hard limits, checked here (Blender would silently clamp a value outside them):

@@ -17,7 +17,7 @@ program the path integrator evaluates where each light sample leaves the light (
 and area lights; a sun takes its tree's value at rest).  Per-light visibility, area spread
 and soft falloff are not read.  A negative power subtracts light, as in Cycles; a
 light Cycles cannot use (a NaN power, an object scaled to 0, an area of size 0) emits
-nothing, the core saying so (``core.scene``); a power past ``MAX_POWER`` is clamped to it
+nothing, the core saying so (``core.light_sources``); a power past ``MAX_POWER`` is clamped to it
 (``power_note``; docs/invalid-data.md).
 
 Article semantics (``export_article_light``): a POINT light becomes

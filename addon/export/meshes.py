@@ -37,8 +37,7 @@ from typing import Optional
 import numpy as np
 
 from ...core import SceneError, Sphere, SphereSet, TriangleMesh
-from ...core.scene import row_blocks
-from ...core.validation import usable_triangles
+from ...core.validation import row_blocks, usable_triangles
 from ...core.terminator import DEFAULT_GEOMETRY_OFFSET
 from ...core.shader.input_nodes import ATTRIBUTE_PREFIX, RENDER_COLOR
 from ..compat import matrix_bytes
@@ -132,7 +131,7 @@ def read_mesh(mesh) -> MeshArrays:
     attribute and its face (``loop_triangle_polygons``) and slot through the face's
     ``material_index``, so the same values as ``loop_triangles.vertices`` and
     ``.material_index`` without their per-element reads (0.65 and 0.5 s more).  The
-    per-triangle arithmetic runs in blocks (``core.scene.row_blocks``: whole-mesh
+    per-triangle arithmetic runs in blocks (``core.validation.row_blocks``: whole-mesh
     temporaries were fresh pages at every export)."""
     vertices = read_array(mesh.vertices, "co", 3, stored=STORED_FLOAT)
     triangulation = mesh.loop_triangles

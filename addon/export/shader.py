@@ -19,7 +19,7 @@ import inspect
 import numpy as np
 
 from ...core.closures import Closures
-from ...core.scene import SurfaceMaterial
+from ...core.materials import SurfaceMaterial
 from ...core.shader.bsdf_nodes import LobeSum
 from ...core.shader.program import (MAX_INSTRUCTIONS, Coordinate, Instruction, Register,
                                     ShaderProgram, constant_array, evaluate, run)

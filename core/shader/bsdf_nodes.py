@@ -8,7 +8,7 @@ lobe's strength, so that Mix and Add Shader are plain weighted sums, per hit.  A
 roughness become one of their weighted mean roughness, as two diffuse colours become their
 sum (the model's one approximation of a mix; the supported-nodes page says so).
 The lobes and their parameters are ``core.closures``' (see its docstring for what each
-means); the Principled BSDF's are ``core.scene.SurfaceMaterial.principled``'s, per hit.
+means); the Principled BSDF's are ``core.materials.SurfaceMaterial.principled``'s, per hit.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ..closures import Closures
-from ..scene import MIN_ALPHA, dielectric_f0, ior_from_f0
+from ..reflectance import MIN_ALPHA, dielectric_f0, ior_from_f0
 from .registry import CLOSURE, COLOR, FLOAT, VECTOR, node
 
 _COLOURS = ("diffuse", "f0", "f90", "transmission", "emission", "transparency",
@@ -182,7 +182,7 @@ def principled(points, base, metallic, roughness, ior, alpha, normal, level, tin
     lobes.layered_sum = layered
     lobes.layer_f0_sum = layered * np.minimum(1.0, f0_dielectric * tint.max(axis=0))
     # The share of the glossy lobe's rise from f0 to f90 that is the dielectric layer's
-    # (``core.scene.principled_fresnel``, per hit).
+    # (``core.reflectance.principled_fresnel``, per hit).
     rise_dielectric = dielectric * (np.minimum(1.0, 2.0 * level) - f0_dielectric) * tint.mean(
         axis=0)
     rise = rise_dielectric + m * a * (1 - base.mean(axis=0))
