@@ -29,7 +29,37 @@ TILT=NONE
 """
 
 
+#: Type B (the polar axis horizontal): Cycles transposes it and mirrors both 0..90 halves,
+#: so that its table spans horizontal angles 0..180 only (dark beyond) and vertical 0..180.
+#: As in any measured file, the pole (here the file's horizontal 90) has one value: near a
+#: pole the horizontal angle turns fast from pixel to pixel, and a profile that differs
+#: there would make the comparison one of Cycles' sampling jitter.
+TYPE_B = """IESNA:LM-63-2002
+TILT=NONE
+1 1000 1.0 3 3 2 2 0.1 0.1 0.0
+1.0 1.0 60
+0 45 90
+0 40 90
+120 80 20
+90 60 20
+50 30 20
+"""
+#: Type A: vertical angles shift by 90 (-90..90 becomes 0..180); horizontal 0..90 is
+#: mirrored to 90..270.
+TYPE_A = """IESNA:LM-63-2002
+TILT=NONE
+1 1000 1.0 4 3 3 2 0.1 0.1 0.0
+1.0 1.0 60
+-90 -30 30 90
+0 45 90
+10 100 70 5
+10 90 40 0
+10 80 20 10
+"""
+
+
 def _profile_text(body: str = HALF_CIRCLE) -> str:
+    """The file as Windows tools write it (CRLF line ends), which Cycles reads alike."""
     return body.replace("\n", "\r\n")
 
 
@@ -119,6 +149,21 @@ def test_a_quadrant_and_a_missing_360_entry_are_filled_as_cycles_does():
     np.testing.assert_array_equal(profile.intensity[4], profile.intensity[0])
 
 
+@pytest.mark.parametrize("body, h_degrees, v_degrees", [
+    (TYPE_B, [0, 45, 90, 135, 180], [0, 50, 90, 130, 180]),   # transposed, both mirrored
+    (TYPE_A, [90, 135, 180, 225, 270], [0, 60, 120, 180]),   # v + 90, h 180 - h mirrored
+], ids=["B", "A"])
+def test_types_b_and_a_become_cycles_tables(body, h_degrees, v_degrees):
+    profile = parse_ies(body)
+    np.testing.assert_allclose(np.degrees(profile.h_angles), h_degrees, atol=1e-5)
+    np.testing.assert_allclose(np.degrees(profile.v_angles), v_degrees, atol=1e-5)
+    if body is TYPE_B:
+        # Row h 90 is the file's vertical 0: its values at the file's horizontal 90, 40, 0,
+        # 40, 90.
+        np.testing.assert_allclose(profile.intensity[2] / CANDELA_TO_WATT,
+                                   [50, 90, 120, 90, 50], rtol=1e-6)
+
+
 def test_tilt_include_and_commas_are_read_as_cycles_reads_them():
     text = HALF_CIRCLE.replace("TILT=NONE\n", "TILT=INCLUDE\n1\n3\n0,45,90\n1,0.9,0.8\n")
     np.testing.assert_array_equal(parse_ies(text).intensity, parse_ies(HALF_CIRCLE).intensity)
@@ -174,27 +219,30 @@ def _ies_plane_scene(mode: str, ies_path: str | None = None, text=None):
     return scene, ies
 
 
-#: Per pixel, |Glint - Cycles| <= RELATIVE x Cycles + ABSOLUTE.  Cycles samples each pixel
-#: within its 0.01-pixel filter, up to 0.005 pixel = 1.8e-4 rad from the centre Glint
-#: looks through (2.1 degrees a pixel); the profile's intensity changes by at most 4.4 % per
-#: 0.01 rad (100 to 10 cd over 30 degrees), so up to 8e-4 of a pixel's value; measured: 1.1e-3
-#: at most.  ABSOLUTE (2e-4 of the brightest pixel) covers pixels where the profile falls
-#: to 0 near the horizon.
-RELATIVE, ABSOLUTE = 2e-3, 2e-3
+#: Per pixel, |Glint - Cycles| <= RELATIVE x Cycles + ABSOLUTE.  At the same directions the
+#: lookup equals Cycles' to 2e-5 (float32); what the renders add is where Cycles samples a
+#: pixel: within its 0.01-pixel filter, up to 0.005 pixel = 1.8e-4 rad from the centre Glint
+#: looks through (2.1 degrees a pixel).  That moves a value by up to 0.2 % (measured 0.16 %)
+#: away from the pole, and next to it, where the horizontal angle turns 1 / sin(v) times
+#: faster, by up to 0.45 % (measured on the type B file, 2 degrees from its pole).
+#: ABSOLUTE (2e-4 of the brightest pixel) covers values falling to 0 at a profile's edge.
+RELATIVE, ABSOLUTE = 6e-3, 2e-3
 
 
 @pytest.mark.cycles
-def test_an_emission_strength_from_an_ies_texture_matches_cycles_pixel_by_pixel(tmp_path):
+@pytest.mark.parametrize("body", [HALF_CIRCLE, TYPE_B, TYPE_A], ids=["C", "B", "A"])
+def test_an_emission_strength_from_an_ies_texture_matches_cycles_pixel_by_pixel(tmp_path,
+                                                                                 body):
     import cycles_support as cs
 
-    path = tmp_path / "half.ies"
-    path.write_text(_profile_text(), newline="")
+    path = tmp_path / "profile.ies"
+    path.write_text(_profile_text(body), newline="")
     _ies_plane_scene('EXTERNAL', str(path))
     glint, cycles = (image[..., 0] for image in cs.render_both())
     # The view spans the whole profile: its brightest downward cone, every horizontal
-    # angle, and the dark upper side; a turned, mirrored or world-space lookup differs by
-    # far more than the tolerance.
-    assert cycles.max() > 10 and (cycles == 0).any() and (cycles > 0).mean() > 0.9
+    # angle, and a dark side; a turned, mirrored or world-space lookup differs by far more
+    # than the tolerance.
+    assert cycles.max() > 5 and (cycles == 0).any() and (cycles > 0).mean() > 0.1
     np.testing.assert_array_equal(glint == 0, cycles == 0)
     np.testing.assert_array_less(np.abs(glint - cycles), RELATIVE * cycles + ABSOLUTE)
 
