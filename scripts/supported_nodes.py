@@ -22,8 +22,9 @@ PAGE = os.path.join(REPOSITORY, "docs", "supported-nodes.md")
 #: supported nodes come from.
 CATEGORIES = ("Input", "Shader", "Texture", "Color", "Vector", "Converter")
 _MODULE_CATEGORIES = {"input_nodes": "Input", "bsdf_nodes": "Shader", "textures": "Texture",
-                      "images": "Texture", "sky": "Texture", "colour_nodes": "Color",
-                      "vector_nodes": "Vector", "converter_nodes": "Converter"}
+                      "images": "Texture", "ies": "Texture", "sky": "Texture",
+                      "colour_nodes": "Color", "vector_nodes": "Vector",
+                      "converter_nodes": "Converter"}
 #: Nodes Glint does not evaluate, by category (the rest by name: Tex* are textures, BSDFs
 #: and volumes are shaders, anything else a converter).
 _INPUTS = {"ShaderNodeAmbientOcclusion", "ShaderNodeBevel", "ShaderNodeCameraData",

@@ -111,3 +111,15 @@ def test_texture_bench_times_every_case_on_a_tiny_frame(capsys):
     rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| ")]
     assert len(rows) == 1 + len(textures.cases(textures.frame_points(2, 1)))
     assert textures.frame_points(4, 2).shape == (3, 8)
+
+
+def test_node_tree_bench_times_a_constant_and_a_twenty_node_material_on_a_tiny_frame(capsys):
+    from bench import node_tree
+
+    assert node_tree.main(["--width", "16", "--height", "8", "--repeats", "1"]) == 0
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| ")]
+    assert len(rows) == 3       # the header and two materials
+    constant, tree = rows[1].split(" | "), rows[2].split(" | ")
+    # The constant material is no program; the tree folds its RGB node and keeps the other
+    # 19 as instructions (the Bump's height is a program of its own, inside the Bump's).
+    assert constant[1] == "0" and tree[1] == "19"

@@ -28,6 +28,7 @@ from mathutils import Color, Matrix
 
 from ...core.shader.colour_models import CYCLES_XYZ_TO_REC709, IDENTITY
 from ...core.shader.colour_nodes import RAMP_TABLE_SIZE
+from ...core.shader.ies import IESError, parse_ies
 from ..compat import sky_model
 
 
@@ -179,6 +180,8 @@ def owner_name(node, context=None) -> str:
     if owner:
         return owner
     tree = node.id_data
+    # An export reads the evaluated copy of a tree; the materials hold the original.
+    tree = getattr(tree, "original", None) or tree
     for kind, collection in (("material", bpy.data.materials), ("world", bpy.data.worlds),
                              ("light", bpy.data.lights)):
         for item in collection:
@@ -204,6 +207,37 @@ def environment_texture_options(node, context) -> dict:
     """Environment Texture: its image as ImageData."""
     return dict(image=_image(node, context), interpolation=node.interpolation,
                 projection=node.projection)
+
+
+def ies_texture_options(node, context=None) -> dict:
+    """IES Texture: its file (the Text datablock in Internal mode, the file at its path,
+    relative to the .blend, in External mode) parsed into ``core.shader.ies.IESProfile``.
+    A file that is missing or cannot be parsed gives no profile (Fac = 100 x Strength, as
+    in Cycles), with one warning naming the node and what uses it."""
+    if node.mode == 'EXTERNAL':
+        source = f"file '{node.filepath}'"
+        try:
+            with open(bpy.path.abspath(node.filepath, library=node.id_data.library),
+                      "rb") as file:
+                # IES files are ASCII; Latin-1 reads any byte, as Cycles reads bytes.
+                text, problem = file.read().decode("latin-1"), ""
+        except OSError as error:
+            text, problem = None, f"cannot be read ({error.strerror or error})"
+    elif node.ies is None:
+        source, text, problem = "Internal mode", None, "has no text"
+    else:
+        source, text, problem = f"text '{node.ies.name}'", node.ies.as_string(), ""
+    profile = None
+    if text is not None:
+        try:
+            profile = parse_ies(text)
+        except IESError as error:
+            problem = f"is not an IES file Cycles reads: {error}"
+    note = getattr(context, "note", None)
+    if profile is None and note is not None:
+        note(f"{owner_name(node, context)}: IES Texture '{node.name}': {source} {problem}; "
+             f"its Fac is 100 x Strength in every direction, as in Cycles")
+    return dict(profile=profile)
 
 
 def sky_texture(node) -> dict:
@@ -245,6 +279,7 @@ OPTION_READERS = {
     "ShaderNodeBlackbody": blackbody,
     "ShaderNodeWavelength": wavelength,
     "ShaderNodeTexSky": sky_texture,
+    "ShaderNodeTexIES": ies_texture_options,
 }
 OPTION_READERS.update({node_type: texture_mapping for node_type in (
     "ShaderNodeTexNoise", "ShaderNodeTexVoronoi", "ShaderNodeTexWave", "ShaderNodeTexMagic",

@@ -4,4 +4,4 @@ as Cycles' SVM runs a node graph compiled to a list of operations over a stack."
 
 # Importing the node modules registers their nodes in ``registry.NODES``.
 from . import (bsdf_nodes, colour_nodes, conversions, converter_nodes,  # noqa: E402,F401
-               images, input_nodes, sky, textures, vector_nodes)
+               ies, images, input_nodes, sky, textures, vector_nodes)

@@ -19,6 +19,10 @@ it applies only when the integrator gives no source of that name (``point_data``
   columns: Vector Transform and Texture Coordinate's Normal; world space without them),
   'object_location', 'object_color' (white without), 'object_alpha' (1 without),
   'object_index', 'material_index' (pass indices), 'object_random'.
+* 'object_incoming': 'incoming' taken into the object's space as a normal (by the transpose
+  of the world matrix's 3 x 3 part, normalised), what Cycles links to an IES Texture's
+  unlinked Vector (Geometry Incoming through a world-to-object Vector Transform); made from
+  'incoming' and the object axes, so world space without them.
 * Attribute: '<prefix>:<name>' and '<prefix>_alpha:<name>' (alpha 1 without) with prefix
   'attribute', 'object_attribute', 'instancer_attribute' or 'view_layer_attribute' by the
   node's type.
@@ -32,6 +36,11 @@ from __future__ import annotations
 
 
 import numpy as np
+
+from .point_data import ObjectFrame
+
+#: The derived coordinate an IES Texture's unlinked Vector reads (module docstring).
+OBJECT_INCOMING = "object_incoming"
 
 
 class ShadingPoints:
@@ -97,17 +106,21 @@ class ShadingPoints:
 
     def coordinate(self, name: str) -> np.ndarray:
         """(3, n) the texture coordinate ``name``: 'position' and 'normal' and 'incoming'
-        are the attributes above; others ('generated', 'object', 'uv', 'uv:<map name>',
-        'camera', 'window', 'reflection') come from the sources the integrator gave,
-        made on first use.  A name with no source is zero, as Cycles reads an attribute a
-        mesh does not have."""
+        are the attributes above, 'object_incoming' is made from them (module docstring);
+        others ('generated', 'object', 'uv', 'uv:<map name>', 'camera', 'window',
+        'reflection') come from the sources the integrator gave, made on first use.  A
+        name with no source is zero, as Cycles reads an attribute a mesh does not have."""
         if name in ("normal", "incoming") or (name == "position"
                                                and "position" not in self._sources):
             return getattr(self, name)
         made = self._made.get(name)
         if made is None:
             source = self._sources.get(name)
-            made = (source() if source is not None
-                    else np.zeros((3, len(self)), self.dtype))
+            if source is not None:
+                made = source()
+            elif name == OBJECT_INCOMING:
+                made = ObjectFrame(self).to_object(self.incoming, "NORMAL")
+            else:
+                made = np.zeros((3, len(self)), self.dtype)
             self._made[name] = made
         return made

@@ -32,7 +32,7 @@ SOCKET_TYPES = (FLOAT, VECTOR, COLOR, CLOSURE)
 
 #: What an unlinked Vector input of a texture means (Cycles' defaults): the name of a
 #: ``ShadingPoints`` coordinate.
-IMPLICIT_COORDINATES = ("generated", "uv", "normal", "position", "incoming")
+IMPLICIT_COORDINATES = ("generated", "uv", "normal", "position", "incoming", "object_incoming")
 
 
 @dataclass(frozen=True)
