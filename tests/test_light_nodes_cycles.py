@@ -184,3 +184,32 @@ def test_light_falloff_on_an_emitter_and_a_light_matches_cycles():
     assert left_cycles.min() > 0 and right_cycles.min() > 0
     for got, want in ((left_glint, left_cycles), (right_glint, right_cycles)):
         np.testing.assert_allclose(got, want, rtol=MEAN_TOLERANCE)
+
+
+def test_a_point_light_shaped_by_an_ies_profile_matches_cycles():
+    """IES Texture in a light's tree with its Vector unlinked (Cycles: the direction the
+    light leaves in, in the light's space): a profile uneven in horizontal angle lights the
+    floor unevenly, the same way in both."""
+    import bpy
+
+    from test_shader_ies import HALF_CIRCLE, _profile_text
+
+    scene = cs.cycles_scene(bounces=0, samples=64)
+    scene.glint.samples = 16
+    _floor(cs.diffuse("floor", (0.8, 0.8, 0.8)))
+    light = cs.add_light('POINT', (0.0, 1.0, 0.5), rotation=(0.0, 0.0, 0.6), energy=20.0,
+                         shadow_soft_size=0.0)
+    light.data.use_nodes = True
+    tree = light.data.node_tree
+    ies = tree.nodes.new("ShaderNodeTexIES")
+    ies.mode = 'INTERNAL'
+    ies.ies = bpy.data.texts.new("profile.ies")
+    ies.ies.from_string(_profile_text(HALF_CIRCLE))
+    tree.links.new(ies.outputs["Fac"], tree.nodes["Emission"].inputs["Strength"])
+    glint, cycles = cs.render_both()
+    (left_glint, left_cycles), (right_glint, right_cycles) = _halves(glint, cycles,
+                                                                     slice(18, cs.HEIGHT))
+    # The profile reaches the floor: its two halves differ.
+    assert abs(left_cycles[0] / right_cycles[0] - 1) > 0.1
+    for got, want in ((left_glint, left_cycles), (right_glint, right_cycles)):
+        np.testing.assert_allclose(got, want, rtol=MEAN_TOLERANCE)
