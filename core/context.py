@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import DEFAULT_POLICY, Aggregate, GeometryPolicy
+from .geometry import ARTICLE_RULES, DEFAULT_POLICY, HIT_RULES, Aggregate, GeometryPolicy
 from .arrays import scene_arrays
 from .bsdf import SurfaceArrays, surface_arrays, translucent_view
 from .camera import eye_position
@@ -151,7 +151,8 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
         root_formula = "textbook" if article else "stable"
     # (Whether an origin's bins pay depends on how many rays leave it: about one a pixel
     # for the eye and each light sample.)
-    geometry = Aggregate(arrays.spheres, arrays.triangles, dtype, article=article,
+    geometry = Aggregate(arrays.spheres, arrays.triangles, dtype,
+                         rules=ARTICLE_RULES if article else HIT_RULES,
                          root_formula=root_formula, threads=threads,
                          rays_per_origin=scene.camera.width * scene.camera.height,
                          policy=geometry_policy)
