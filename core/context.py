@@ -79,14 +79,13 @@ class LightTerms:
 
 
 @dataclass(frozen=True)
-class LookContext:
-    """What the default semantics' Blender look needs (``core.bsdf``, ``core.lights``): the
-    material table's lobes, Blender's lights prepared for sampling, and whether anything in
-    the scene is physically based (else the article's model runs alone, unchanged)."""
+class PhysicalModel:
+    """What the physically based model in Cycles' units needs (``core.bsdf``,
+    ``core.lights``): the material table's lobes and Blender's lights prepared for
+    sampling."""
 
     surfaces: SurfaceArrays
     lights: tuple[PreparedLight, ...]
-    active: bool
     translucent: SurfaceArrays | None = None   # ``bsdf.translucent_view``: None if none is
 
 
@@ -103,14 +102,10 @@ class TraceContext:
     background: np.ndarray               # (3,) float64, seen where rays escape
     ambient: np.ndarray                  # (3,) float64 scene ambient (default semantics)
     path_gain_bound: float               # max colour one bounce can add per unit weight
-    look: LookContext | None = None      # default semantics only
+    # The physically based model where it shades this frame (default semantics, something
+    # in the scene physically based or one of Blender's lights), else None: Blinn-Phong alone.
+    physical: PhysicalModel | None = None
     paths: object = None                 # core.path.PathSetup: the path integrator's frame
-
-    @property
-    def active_look(self) -> LookContext | None:
-        """Blender's look where it shades this frame (default semantics, something in the
-        scene physically based or a Blender light), else None: the article's model alone."""
-        return self.look if self.look is not None and self.look.active else None
 
     @functools.cached_property
     def light_terms(self) -> tuple:
@@ -172,7 +167,7 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
         gain = float(max(per_material.max(), arrays.background.max()))
     else:
         gain = float(arrays.background.max())
-    look = None
+    physical = None
     paths = None
     if not article:
         surfaces = surface_arrays(table.entries, dtype)
@@ -181,10 +176,9 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
         # scene one of Blender's lights.)
         blender_lights = tuple(prepare_light(light, settings.light_samples, geometry)
                                for light in blender if light.emits)
-        look = LookContext(surfaces, blender_lights,
-                           active=bool(blender) or surfaces.any_physical,
-                           translucent=translucent_view(surfaces))
-        if look.active:
+        if blender or surfaces.any_physical:
+            physical = PhysicalModel(surfaces, blender_lights,
+                                     translucent=translucent_view(surfaces))
             # Blender's lights have no bound on what a bounce adds (watts, not the article's
             # unit intensities): paths then stop only where their weight is zero.
             gain = np.inf
@@ -200,7 +194,7 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
         materials=materials,
         eye=eye, camera_origin=geometry.shared_origin(eye) if perspective else None,
         background=arrays.background, ambient=arrays.ambient, path_gain_bound=gain,
-        look=look, paths=paths,
+        physical=physical, paths=paths,
     )
 
 

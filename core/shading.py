@@ -128,31 +128,32 @@ def light_blocked(ctx: TraceContext, origin, directions, distance, exclude, stat
 def traces_from_points(ctx: TraceContext) -> bool:
     """Whether the shading may trace occlusion rays that leave its hit points
     (``_rays_blocked``, which the aggregate answers by occlusion trails): a sun's and the
-    world's (default semantics with Blender's look), and any light's from the lifted points
-    of smooth triangles (``core.terminator``).  Every other shadow segment (the article's,
+    world's (the physically based model's), and any light's from the lifted points of
+    smooth triangles (``core.terminator``).  Every other shadow segment (the article's,
     a point, spot, sphere or area light sample's) leaves the light."""
     if ctx.article:
         return False
-    look = ctx.active_look
+    physical = ctx.physical
     world = traces_world_occlusion(ctx)
-    if look is not None and (world or any(light.kind == "sun" for light in look.lights)):
+    if physical is not None and (world or any(light.kind == "sun"
+                                              for light in physical.lights)):
         return True
-    lit = len(ctx.lights) > 0 or (look is not None and bool(look.lights))
+    lit = len(ctx.lights) > 0 or (physical is not None and bool(physical.lights))
     return ctx.geometry.lifts_terminator and lit
 
 
 def traces_world_occlusion(ctx: TraceContext) -> bool:
     """Whether the shading may trace the world's occlusion rays (``_world_occlusion``): the
-    default semantics with Blender's look, a world that is not black, and ``_traces_world``
-    (so whether camera rays need their pixels' ``world_shift``)."""
-    return (not ctx.article and ctx.active_look is not None and _traces_world(ctx)
+    physically based model, a world that is not black, and ``_traces_world`` (so whether
+    camera rays need their pixels' ``world_shift``)."""
+    return (not ctx.article and ctx.physical is not None and _traces_world(ctx)
             and bool(np.any(ctx.ambient)))
 
 
 def _traces_world(ctx: TraceContext) -> bool:
-    """Whether Blender's look traces the world's occlusion rays (``_world_occlusion``) where
-    the world is not black: world samples asked for, and more than the one primitive a
-    point lies on to block them."""
+    """Whether the physically based model traces the world's occlusion rays
+    (``_world_occlusion``) where the world is not black: world samples asked for, and more
+    than the one primitive a point lies on to block them."""
     return bool(ctx.settings.world_samples) and len(ctx.geometry) > 1
 
 
@@ -160,11 +161,11 @@ def shares_matter(ctx: TraceContext) -> bool:
     """Whether an anti-aliasing sample's share of the soft lights' samples (``shares`` of
     ``shade``) can change what it traces: not in article semantics (point lights), nor in
     the default semantics' Blinn-Phong when every light is a point (one sample each); always
-    assumed with Blender's look (its lights and the world's occlusion sample by shares).
-    Where it cannot, a pixel's centre is its AA sample 0 (``core.render``)."""
+    assumed with the physically based model (its lights and the world's occlusion sample by
+    shares).  Where it cannot, a pixel's centre is its AA sample 0 (``core.render``)."""
     if ctx.article:
         return False
-    if ctx.active_look is not None:
+    if ctx.physical is not None:
         return True
     return any(len(samples) > 1 for samples in ctx.lights.samples)
 
@@ -200,7 +201,7 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
         return _shade_article(ctx, points, normals, materials, stats)
     colour, goes_on, shadow_code = _shade_default(ctx, points, normals, directions, exclude,
                                                   materials, shares, stats, terminator)
-    if ctx.active_look is not None:
+    if ctx.physical is not None:
         blender_colour, shadow_code = _shade_blender_lights(ctx, points, normals, directions,
                                                             materials, exclude, shadow_code,
                                                             shares, stats,
@@ -217,14 +218,14 @@ def shade_translucent(ctx: TraceContext, points, normals, directions, materials,
                       world_shift: np.ndarray | None = None,
                       world_noise: np.ndarray | None = None):
     """(radiance (3, m), shadow_code (m,) uint64) the translucent points pass through from
-    their back hemisphere (default semantics, ``ctx.look.translucent`` set; arguments as for
-    ``shade``, with exclude_back the primitive each segment reaching a point through its
-    surface ignores, ``Aggregate.exclusions`` of the other side; shadow_code: which lights
-    each point sees through its surface, 0 for points that are not translucent): the
-    Blender lights on the other side (shadow segments crossing the surface: a closed
-    sphere's own far side blocks them, as in Cycles' direct light) and the world seen
-    there, each times translucency / pi (``bsdf.translucent_view``)."""
-    view = ctx.look.translucent
+    their back hemisphere (``ctx.physical.translucent`` set; arguments as for ``shade``,
+    with exclude_back the primitive each segment reaching a point through its surface
+    ignores, ``Aggregate.exclusions`` of the other side; shadow_code: which lights each point
+    sees through its surface, 0 for points that are not translucent): the Blender lights
+    on the other side (shadow segments crossing the surface: a closed sphere's own far side
+    blocks them, as in Cycles' direct light) and the world seen there, each times
+    translucency / pi (``bsdf.translucent_view``)."""
+    view = ctx.physical.translucent
     colour = np.zeros_like(points)
     shadow_code = np.zeros(points.shape[1], np.uint64)
     chosen = np.flatnonzero(view.diffuse[:, materials].max(axis=0) > 0)
@@ -572,7 +573,7 @@ def _world_occlusion(ctx, points, normals, materials, offset, exclude, shares, s
     max(world_samples, S), each point tracing its share of them.  spread: (m,) to fill, for
     points tracing every direction, with the share's binomial standard deviation
     sqrt(h' (1 - h') / k), h' = (k h + 1) / (k + 2) (``shade``'s world_noise)."""
-    physical = ctx.look.surfaces.physical[materials]
+    physical = ctx.physical.surfaces.physical[materials]
     hidden = np.zeros(points.shape[1], points.dtype)
     chosen = np.flatnonzero(physical)
     if len(chosen) == 0:
@@ -651,11 +652,11 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
     Each light appends a digit to ``shadow_code`` for adaptive anti-aliasing: not reached,
     blocked, partly visible or visible.  (Not quarters of visibility as for the article's
     lights: an area light's penumbra changes smoothly from pixel to pixel, and every pixel of
-    it would count as an edge.)  surfaces: the lobes to shade with (default: the look's);
+    it would count as an edge.)  surfaces: the lobes to shade with (default: the model's);
     world_terms: False leaves the world's terms out; terminator, world_shift, world_noise:
     as for ``shade``."""
-    look = ctx.look
-    surfaces = look.surfaces if surfaces is None else surfaces
+    physical = ctx.physical
+    surfaces = physical.surfaces if surfaces is None else surfaces
     dtype = points.dtype
     m = points.shape[1]
     to_view = -directions
@@ -670,7 +671,7 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
                                    stats, terminator, world_shift, spread) * (seen_diffuse * world)
         if spread is not None:
             world_noise += spread * (seen_diffuse * world)
-    for light in look.lights:
+    for light in physical.lights:
         scale = _column(light.scale, dtype)
         shadow_code = shadow_code * np.uint64(_CODE_BASE)
         visibility = np.zeros(m, dtype)
