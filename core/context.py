@@ -1,7 +1,9 @@
 """Everything a render precomputes once and every tile reads, in three layouts: the scene's
 geometry (``core.geometry.Aggregate``), its lights (``Lights``: positions, intensities,
 sample points of soft lights and the geometry's terms at each) and its material table
-(``Materials``), plus the settings and the bound that lets paths stop early.
+(``Materials``), plus the settings, the bound that lets paths stop early, the Whitted
+integrator's shading model (the article's, ``core.article``, or Glint's own,
+``core.shading``) and the physically based model (``PhysicalModel``).
 """
 
 from __future__ import annotations
@@ -13,11 +15,13 @@ import numpy as np
 
 from .geometry import ARTICLE_RULES, DEFAULT_POLICY, HIT_RULES, Aggregate, GeometryPolicy
 from .arrays import scene_arrays
+from .article import ARTICLE_SHADING
 from .bsdf import SurfaceArrays, surface_arrays, translucent_view
 from .camera import eye_position
 from .rays import ARTICLE_OFFSET, RAY_EPSILON, RayStats, SharedOrigin, ray_offsets
 from .lights import PreparedLight, fibonacci_sphere, prepare_light
 from .scene import BlenderCamera, PointLight, RenderSettings, Scene, SurfaceMaterial
+from .shading import WHITTED_SHADING, WhittedShading
 from .vectors import dot
 
 __all__ = ["ARTICLE_OFFSET", "RAY_EPSILON", "RayStats", "ray_offsets", "Lights", "Materials",
@@ -93,7 +97,7 @@ class PhysicalModel:
 class TraceContext:
     settings: RenderSettings
     dtype: np.dtype
-    article: bool
+    shading: WhittedShading              # the Whitted integrator's shading model (semantics)
     geometry: Aggregate
     lights: Lights
     materials: Materials
@@ -188,7 +192,8 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
     materials = Materials(cast(table.ambient.T), cast(table.diffuse.T), cast(table.specular.T),
                           cast(table.exponent), cast(table.reflection))
     return TraceContext(
-        settings=settings, dtype=np.dtype(dtype), article=article, geometry=geometry,
+        settings=settings, dtype=np.dtype(dtype),
+        shading=ARTICLE_SHADING if article else WHITTED_SHADING, geometry=geometry,
         lights=Lights(lights.positions, lights.ambient, lights.diffuse, lights.specular,
                       lights.radii, tuple(samples), origins),
         materials=materials,

@@ -29,7 +29,7 @@ from .failures import RenderCancelled
 from .bsdf import held_share, scatter
 from .rays import RayBatch
 from .sampler import hash_u32
-from .shading import shade, shade_translucent
+from .shading import shade_translucent
 from .vectors import facing, take
 
 _SIGNATURE_PRIME = np.uint64(1_000_003)
@@ -130,15 +130,15 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
     emission = np.zeros((3, n), dtype) if record_emission else None
     film = ctx.settings.film
     background = ctx.background.astype(dtype)[:, None]
-    add_background = not ctx.article and background.any()
+    shading = ctx.shading   # the article's or Glint's own (``core.shading``)
+    add_background = shading.sees_background and background.any()
     reflection = ctx.materials.reflection
     physical = ctx.physical
     max_depth = ctx.settings.max_depth
     cutoff = ctx.settings.contribution_cutoff
 
     path = np.arange(n)
-    shares = None if ctx.article else rays.shares   # the article's lights are points
-    world_shift = None if ctx.article else rays.world_shift
+    shares, world_shift = rays.shares, rays.world_shift
     # How noisy each centre's world occlusion is (``BundleResult.world_noise``), for adaptive
     # AA's edge test.
     world_noise = (np.zeros((3, n), dtype) if signature is not None and world_shift is not None
@@ -177,7 +177,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
 
         points, directions, primitive = hits.points, hits.directions, hits.primitive
         geometric, normals, front, cos_in = hits.normals, hits.shading, hits.front, hits.cos_in
-        if not ctx.article and not front.all():
+        if shading.shades_seen_side and not front.all():
             # Shade the side the ray sees: inside a sphere, behind a triangle, the normal
             # faces the other way.
             normals = facing(normals, front)
@@ -187,16 +187,16 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
             primary.primitive[path], primary.material[path] = primitive, hits.material
             if primary_only:
                 break
-        exclude = None if ctx.article else geometry.exclusions(primitive, front)
+        exclude = geometry.exclusions(primitive, front) if geometry.rules.excludes else None
         point_shares = None if shares is None else shares.take(path)
         point_shift = None if world_shift is None else world_shift[path]
         noise = None if world_noise is None else np.zeros_like(points)
-        illumination, goes_on, shadow_code = shade(ctx, points, normals, directions,
-                                                   hits.material, exclude, stats,
-                                                   shares=point_shares,
-                                                   terminator=hits.terminator,
-                                                   world_shift=point_shift,
-                                                   world_noise=noise)
+        illumination, goes_on, shadow_code = shading.shade(ctx, points, normals, directions,
+                                                           hits.material, exclude, stats,
+                                                           shares=point_shares,
+                                                           terminator=hits.terminator,
+                                                           world_shift=point_shift,
+                                                           world_noise=noise)
         if physical is not None and physical.translucent is not None:
             through, code = shade_translucent(ctx, points, normals, directions, hits.material,
                                               geometry.exclusions(primitive, ~front), stats,
