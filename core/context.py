@@ -1,7 +1,9 @@
 """Everything a render precomputes once and every tile reads, in three layouts: the scene's
 geometry (``core.geometry.Aggregate``), its lights (``Lights``: positions, intensities,
 sample points of soft lights and the geometry's terms at each) and its material table
-(``Materials``), plus the settings and the bound that lets paths stop early.
+(``Materials``), plus the settings, the bound that lets paths stop early, the Whitted
+integrator's shading model (the article's, ``core.article``, or Glint's own,
+``core.shading``) and the physically based model (``PhysicalModel``).
 """
 
 from __future__ import annotations
@@ -11,8 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import DEFAULT_POLICY, Aggregate, GeometryPolicy
+from .geometry import ARTICLE_RULES, DEFAULT_POLICY, HIT_RULES, Aggregate, GeometryPolicy
 from .arrays import scene_arrays
+from .article import ARTICLE_SHADING
 from .bsdf import SurfaceArrays, surface_arrays, translucent_view
 from .camera import BlenderCamera, eye_position
 from .rays import ARTICLE_OFFSET, RAY_EPSILON, RayStats, SharedOrigin, ray_offsets
@@ -21,6 +24,7 @@ from .light_sources import PointLight
 from .materials import SurfaceMaterial
 from .scene import Scene
 from .settings import RenderSettings
+from .shading import WHITTED_SHADING, WhittedShading
 from .vectors import dot
 
 __all__ = ["ARTICLE_OFFSET", "RAY_EPSILON", "RayStats", "ray_offsets", "Lights", "Materials",
@@ -82,14 +86,13 @@ class LightTerms:
 
 
 @dataclass(frozen=True)
-class LookContext:
-    """What the default semantics' Blender look needs (``core.bsdf``, ``core.lights``): the
-    material table's lobes, Blender's lights prepared for sampling, and whether anything in
-    the scene is physically based (else the article's model runs alone, unchanged)."""
+class PhysicalModel:
+    """What the physically based model in Cycles' units needs (``core.bsdf``,
+    ``core.lights``): the material table's lobes and Blender's lights prepared for
+    sampling."""
 
     surfaces: SurfaceArrays
     lights: tuple[PreparedLight, ...]
-    active: bool
     translucent: SurfaceArrays | None = None   # ``bsdf.translucent_view``: None if none is
 
 
@@ -97,7 +100,7 @@ class LookContext:
 class TraceContext:
     settings: RenderSettings
     dtype: np.dtype
-    article: bool
+    shading: WhittedShading              # the Whitted integrator's shading model (semantics)
     geometry: Aggregate
     lights: Lights
     materials: Materials
@@ -106,14 +109,10 @@ class TraceContext:
     background: np.ndarray               # (3,) float64, seen where rays escape
     ambient: np.ndarray                  # (3,) float64 scene ambient (default semantics)
     path_gain_bound: float               # max colour one bounce can add per unit weight
-    look: LookContext | None = None      # default semantics only
+    # The physically based model where it shades this frame (default semantics, something
+    # in the scene physically based or one of Blender's lights), else None: Blinn-Phong alone.
+    physical: PhysicalModel | None = None
     paths: object = None                 # core.path.PathSetup: the path integrator's frame
-
-    @property
-    def active_look(self) -> LookContext | None:
-        """Blender's look where it shades this frame (default semantics, something in the
-        scene physically based or a Blender light), else None: the article's model alone."""
-        return self.look if self.look is not None and self.look.active else None
 
     @functools.cached_property
     def light_terms(self) -> tuple:
@@ -154,7 +153,8 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
         root_formula = "textbook" if article else "stable"
     # (Whether an origin's bins pay depends on how many rays leave it: about one a pixel
     # for the eye and each light sample.)
-    geometry = Aggregate(arrays.spheres, arrays.triangles, dtype, article=article,
+    geometry = Aggregate(arrays.spheres, arrays.triangles, dtype,
+                         rules=ARTICLE_RULES if article else HIT_RULES,
                          root_formula=root_formula, threads=threads,
                          rays_per_origin=scene.camera.width * scene.camera.height,
                          policy=geometry_policy)
@@ -174,7 +174,7 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
         gain = float(max(per_material.max(), arrays.background.max()))
     else:
         gain = float(arrays.background.max())
-    look = None
+    physical = None
     paths = None
     if not article:
         surfaces = surface_arrays(table.entries, dtype)
@@ -183,10 +183,9 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
         # scene one of Blender's lights.)
         blender_lights = tuple(prepare_light(light, settings.light_samples, geometry)
                                for light in blender if light.emits)
-        look = LookContext(surfaces, blender_lights,
-                           active=bool(blender) or surfaces.any_physical,
-                           translucent=translucent_view(surfaces))
-        if look.active:
+        if blender or surfaces.any_physical:
+            physical = PhysicalModel(surfaces, blender_lights,
+                                     translucent=translucent_view(surfaces))
             # Blender's lights have no bound on what a bounce adds (watts, not the article's
             # unit intensities): paths then stop only where their weight is zero.
             gain = np.inf
@@ -196,13 +195,14 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
     materials = Materials(cast(table.ambient.T), cast(table.diffuse.T), cast(table.specular.T),
                           cast(table.exponent), cast(table.reflection))
     return TraceContext(
-        settings=settings, dtype=np.dtype(dtype), article=article, geometry=geometry,
+        settings=settings, dtype=np.dtype(dtype),
+        shading=ARTICLE_SHADING if article else WHITTED_SHADING, geometry=geometry,
         lights=Lights(lights.positions, lights.ambient, lights.diffuse, lights.specular,
                       lights.radii, tuple(samples), origins),
         materials=materials,
         eye=eye, camera_origin=geometry.shared_origin(eye) if perspective else None,
         background=arrays.background, ambient=arrays.ambient, path_gain_bound=gain,
-        look=look, paths=paths,
+        physical=physical, paths=paths,
     )
 
 

@@ -102,7 +102,7 @@ def closures_at(ctx, hits, normal, geometric, front, travelled=None, ray=None) -
     travelled: (k,) how far each hit's path has come (its footprint's growth); ray: what the
     Light Path node reads of the rays that found them ({'ray_type': codes, depths: (k,)
     each or a number}; None: camera rays), their lengths added here."""
-    closures = Closures.from_table(ctx.look.surfaces, hits.material)
+    closures = Closures.from_table(ctx.physical.surfaces, hits.material)
     setup = ctx.paths
     if not setup.programs:
         return closures
@@ -345,7 +345,7 @@ def emission_at(ctx, primitive, barycentrics, points, normal, incoming, material
         program = setup.programs.get(int(row))
         at = np.flatnonzero(material == row)
         if program is None:
-            radiance[:, at] = ctx.look.surfaces.emission[:, [row]]
+            radiance[:, at] = ctx.physical.surfaces.emission[:, [row]]
             continue
         radiance[:, at] = program_emission(
             program, setup.surface_tables, ctx.geometry, take(points, at), take(normal, at),

@@ -1,18 +1,11 @@
-"""Blinn-Phong shading and light visibility, for m shaded points at a time.
+"""The Whitted integrator's shading of m hit points at a time, and light visibility: the
+shading model of the default semantics (``WhittedShading``; the article's, every quirk kept,
+is ``core.article.ArticleShading``, which shares its interface).
 
 Both semantics use the article's model: for each light,
 ``ka Ia + kd Id (L.N) + ks Is (N.H) ** (shininess / 4)``.
 
-Article semantics, every quirk kept:
-  * dot products are not clamped (a point facing away from the light gets negative diffuse);
-  * H = normalize(L + V) with V towards the CAMERA position, on every bounce;
-  * the shadow ray starts at P + 1e-5 N and the point is in shadow if a sphere is hit (both
-    roots positive) nearer than |light - P|; a shadowed point adds nothing, not even ambient,
-    and ends the path (with several lights: a light that is blocked adds nothing, and the path
-    ends where every light is blocked);
-  * the lights' radii are ignored (the article's light is a point).
-
-Default semantics, each quirk fixed:
+Default semantics, each of the article's quirks (``core.article``) fixed:
   * L.N and N.H are clamped at 0, and a light behind the surface adds no diffuse or
     specular (and so needs no shadow ray);
   * V points back along the incoming ray (where the light is seen from), not at the camera;
@@ -50,19 +43,22 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .bsdf import diffuse_seen, environment, light_response
-from .context import TraceContext
+
+if TYPE_CHECKING:   # (``core.context`` picks the shading model: it imports this module)
+    from .context import TraceContext
 from .lights import (SampleShares, area_sample_irradiance, centre_irradiance,
                      cosine_directions, share_weights, shifted_cosine_direction)
-from .rays import ARTICLE_OFFSET, RayBatch, RayStats, ray_offsets, timed
+from .rays import RayBatch, RayStats, ray_offsets, timed
 from .terminator import TerminatorLift
-from .vectors import dot, length, normalize, normalize_in_place, take
+from .vectors import dot, normalize, normalize_in_place, take
 
 #: One digit of a shadow code per light: unlit (0) or visibility 0, 1/4, .., 1 (1 .. 5).
-_CODE_BASE = 6
+SHADOW_CODE_BASE = 6
 
 
 def _power(base, exponent):
@@ -95,7 +91,7 @@ def _whole_power(base, n: int):
     return np.ones_like(base) if result is None else result
 
 
-def _specular_power(materials, exponents, base):
+def specular_power(materials, exponents, base):
     """base ** the materials' exponents (m,) (``_power``), with one whole exponent shared by
     the material table (the article's) recognised once per call, not per point."""
     if len(exponents) and exponents.min() == exponents.max():
@@ -106,65 +102,59 @@ def _specular_power(materials, exponents, base):
 
 
 def light_blocked(ctx: TraceContext, origin, directions, distance, exclude, stats: RayStats,
-                  *, start=None, end=None):
+                  *, end):
     """Whether the segments from a light sample towards m points are blocked, (m,) bool.
 
     origin: the sample's ``SharedOrigin`` (``ctx.lights.origins``).  directions: (3, m) unit
     vectors from the light towards the points; distance: (m,) how far the points are.
-    Default semantics: blocked if a primitive other than ``exclude`` (m,) (-1: none) is
-    crossed in (0, distance - end), end (m,) the offset.  Article semantics (the points are
-    the shifted points S, start (m,) = |light - P|): blocked if the reversed ray S -> light
-    meets a sphere (both roots positive) nearer than ``start``, i.e. its far root from the
-    light lies in (distance - start, distance).
+    Blocked if a primitive other than ``exclude`` (m,) (-1: none) is crossed in
+    (0, distance - end), end (m,) the offset.  (The article's test:
+    ``core.article.article_light_blocked``.)
     """
     light = origin.position[:, None]      # float64: the geometry's culling works in it
-    if ctx.article:
-        segments = RayBatch(light, directions, distance - start, distance, origin)
-    else:
-        segments = RayBatch(light, directions, 0.0, distance - end, origin, exclude)
+    segments = RayBatch(light, directions, 0.0, distance - end, origin, exclude)
     return ctx.geometry.occluded(segments, stats)
 
 
 def traces_from_points(ctx: TraceContext) -> bool:
     """Whether the shading may trace occlusion rays that leave its hit points
     (``_rays_blocked``, which the aggregate answers by occlusion trails): a sun's and the
-    world's (default semantics with Blender's look), and any light's from the lifted points
-    of smooth triangles (``core.terminator``).  Every other shadow segment (the article's,
-    a point, spot, sphere or area light sample's) leaves the light."""
-    if ctx.article:
-        return False
-    look = ctx.active_look
+    world's (the physically based model's), and any light's from the lifted points of
+    smooth triangles (``core.terminator``).  Every other shadow segment (the article's,
+    a point, spot, sphere or area light sample's) leaves the light.  (None in article
+    semantics: its hit rules lift nothing, ``HitRules.lifts_terminator``.)"""
+    physical = ctx.physical
     world = traces_world_occlusion(ctx)
-    if look is not None and (world or any(light.kind == "sun" for light in look.lights)):
+    if physical is not None and (world or any(light.kind == "sun"
+                                              for light in physical.lights)):
         return True
-    lit = len(ctx.lights) > 0 or (look is not None and bool(look.lights))
+    lit = len(ctx.lights) > 0 or (physical is not None and bool(physical.lights))
     return ctx.geometry.lifts_terminator and lit
 
 
 def traces_world_occlusion(ctx: TraceContext) -> bool:
     """Whether the shading may trace the world's occlusion rays (``_world_occlusion``): the
-    default semantics with Blender's look, a world that is not black, and ``_traces_world``
-    (so whether camera rays need their pixels' ``world_shift``)."""
-    return (not ctx.article and ctx.active_look is not None and _traces_world(ctx)
+    physically based model, a world that is not black, and ``_traces_world`` (so whether
+    camera rays need their pixels' ``world_shift``)."""
+    return (ctx.physical is not None and _traces_world(ctx)
             and bool(np.any(ctx.ambient)))
 
 
 def _traces_world(ctx: TraceContext) -> bool:
-    """Whether Blender's look traces the world's occlusion rays (``_world_occlusion``) where
-    the world is not black: world samples asked for, and more than the one primitive a
-    point lies on to block them."""
+    """Whether the physically based model traces the world's occlusion rays
+    (``_world_occlusion``) where the world is not black: world samples asked for, and more
+    than the one primitive a point lies on to block them."""
     return bool(ctx.settings.world_samples) and len(ctx.geometry) > 1
 
 
 def shares_matter(ctx: TraceContext) -> bool:
     """Whether an anti-aliasing sample's share of the soft lights' samples (``shares`` of
-    ``shade``) can change what it traces: not in article semantics (point lights), nor in
-    the default semantics' Blinn-Phong when every light is a point (one sample each); always
-    assumed with Blender's look (its lights and the world's occlusion sample by shares).
-    Where it cannot, a pixel's centre is its AA sample 0 (``core.render``)."""
-    if ctx.article:
-        return False
-    if ctx.active_look is not None:
+    ``shade``) can change what it traces: not for Blinn-Phong when every light is a point
+    (one sample each; in article semantics always: the article's lights are points); always
+    assumed with the physically based model (its lights and the world's occlusion sample by
+    shares).  Where it cannot, a pixel's centre is its AA sample 0 (``core.render``), and
+    anti-aliasing samples trace every light sample (``core.tiles``)."""
+    if ctx.physical is not None:
         return True
     return any(len(samples) > 1 for samples in ctx.lights.samples)
 
@@ -174,7 +164,8 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
           stats: RayStats, *, shares: SampleShares | None = None,
           terminator: TerminatorLift | None = None, world_shift: np.ndarray | None = None,
           world_noise: np.ndarray | None = None):
-    """(colour (3, m), goes_on (m,), shadow_code (m,) uint64) at m hit points.
+    """(colour (3, m), goes_on (m,), shadow_code (m,) uint64) at m hit points: the default
+    semantics' shading (``WhittedShading.shade``).
 
     goes_on: whether the path continues (article shadows end it).  shadow_code: which lights
     each point sees (a digit per light, soft visibility in quarters), so that adaptive
@@ -196,11 +187,9 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
     anti-aliasing's edge test allows for (``core.render``); or None.
     (Light through translucent surfaces: ``shade_translucent``.)
     """
-    if ctx.article:
-        return _shade_article(ctx, points, normals, materials, stats)
     colour, goes_on, shadow_code = _shade_default(ctx, points, normals, directions, exclude,
                                                   materials, shares, stats, terminator)
-    if ctx.active_look is not None:
+    if ctx.physical is not None:
         blender_colour, shadow_code = _shade_blender_lights(ctx, points, normals, directions,
                                                             materials, exclude, shadow_code,
                                                             shares, stats,
@@ -211,20 +200,41 @@ def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
     return colour, goes_on, shadow_code
 
 
+class WhittedShading:
+    """The Whitted integrator's shading model in default semantics (module docstring):
+    Blinn-Phong with the article's quirks fixed, plus the physically based model where
+    ``ctx.physical`` is set.  Chosen once per frame (``TraceContext.shading``), as the
+    geometry's hit rules are; ``core.article.ArticleShading`` overrides what differs."""
+
+    #: Rays that escape see the scene's background (``trace_bundle``).
+    sees_background = True
+    #: Hits are shaded on the side the ray sees (a sphere's inside, a triangle's back), not
+    #: on their outward normal's.
+    shades_seen_side = True
+    #: What a sample carries is a display value, clipped to [0, 1] sample by sample
+    #: (``core.tiles``), rather than radiance.
+    display_values = False
+    #: (colour, goes_on, shadow_code) at m hit points: ``shade``'s arguments and answer.
+    shade = staticmethod(shade)
+
+
+WHITTED_SHADING = WhittedShading()
+
+
 @timed("seconds_shading")
 def shade_translucent(ctx: TraceContext, points, normals, directions, materials,
                       exclude_back, stats: RayStats, *, shares: SampleShares | None = None,
                       world_shift: np.ndarray | None = None,
                       world_noise: np.ndarray | None = None):
     """(radiance (3, m), shadow_code (m,) uint64) the translucent points pass through from
-    their back hemisphere (default semantics, ``ctx.look.translucent`` set; arguments as for
-    ``shade``, with exclude_back the primitive each segment reaching a point through its
-    surface ignores, ``Aggregate.exclusions`` of the other side; shadow_code: which lights
-    each point sees through its surface, 0 for points that are not translucent): the
-    Blender lights on the other side (shadow segments crossing the surface: a closed
-    sphere's own far side blocks them, as in Cycles' direct light) and the world seen
-    there, each times translucency / pi (``bsdf.translucent_view``)."""
-    view = ctx.look.translucent
+    their back hemisphere (``ctx.physical.translucent`` set; arguments as for ``shade``,
+    with exclude_back the primitive each segment reaching a point through its surface
+    ignores, ``Aggregate.exclusions`` of the other side; shadow_code: which lights each point
+    sees through its surface, 0 for points that are not translucent): the Blender lights
+    on the other side (shadow segments crossing the surface: a closed sphere's own far side
+    blocks them, as in Cycles' direct light) and the world seen there, each times
+    translucency / pi (``bsdf.translucent_view``)."""
+    view = ctx.physical.translucent
     colour = np.zeros_like(points)
     shadow_code = np.zeros(points.shape[1], np.uint64)
     chosen = np.flatnonzero(view.diffuse[:, materials].max(axis=0) > 0)
@@ -237,7 +247,7 @@ def shade_translucent(ctx: TraceContext, points, normals, directions, materials,
     light, shadow_code[chosen] = _shade_blender_lights(
         ctx, where, back, take(directions, chosen), material, exclude,
         np.zeros(len(chosen), np.uint64), shares, stats, surfaces=view, world_terms=False)
-    world = _column(ctx.ambient, points.dtype)
+    world = column(ctx.ambient, points.dtype)
     if world.any():
         seen = 1.0
         if ctx.settings.world_samples:
@@ -251,7 +261,8 @@ def shade_translucent(ctx: TraceContext, points, normals, directions, materials,
     return colour, shadow_code
 
 
-def _column(values, dtype):
+def column(values, dtype):
+    """values (3,) as a (3, 1) column in ``dtype``, to broadcast over a (3, m) bundle."""
     return np.asarray(values, dtype)[:, None]
 
 
@@ -270,20 +281,20 @@ def _shade_default(ctx, points, normals, directions, exclude, materials, shares,
     m = points.shape[1]
     # ka (sum Ia + world), per material, then per point: the same products.
     colour = take(ctx.materials.ambient
-                  * _column(lights.ambient.sum(axis=0) + ctx.ambient, dtype), materials)
+                  * column(lights.ambient.sum(axis=0) + ctx.ambient, dtype), materials)
     shadow_code = np.zeros(m, np.uint64)
     offset = ray_offsets(points)
     exponents = ctx.materials.exponent
     for light in range(len(lights)):
         table = ctx.light_terms[light]
-        from_light = points - _column(lights.positions[light], dtype)
+        from_light = points - column(lights.positions[light], dtype)
         distance = normalize_in_place(from_light)
         cos_light = -dot(normals, from_light)
         # No shadow ray where the light cannot add anything.
         lit = cos_light > 0
         lit &= table.reflective.take(materials)
         lit = np.flatnonzero(lit)
-        shadow_code *= np.uint64(_CODE_BASE)
+        shadow_code *= np.uint64(SHADOW_CODE_BASE)
         if len(lit) == 0:
             continue
         everywhere = len(lit) == m
@@ -302,9 +313,9 @@ def _shade_default(ctx, points, normals, directions, exclude, materials, shares,
             if len(samples) == 1:
                 towards, reach = lit_from_light, pick_row(distance)
             elif part is None:
-                towards, reach = normalize(lit_points - _column(sample, dtype))
+                towards, reach = normalize(lit_points - column(sample, dtype))
             else:
-                towards, reach = normalize(take(lit_points, part) - _column(sample, dtype))
+                towards, reach = normalize(take(lit_points, part) - column(sample, dtype))
             ahead = (lambda a: a) if part is None else (lambda a: a[part])
             ignored, ends = ahead(pick_row(exclude)), ahead(pick_row(offset))
             traced.append((index, part, _ShadowRays(towards, ignored, ends, origin=origin,
@@ -322,7 +333,7 @@ def _shade_default(ctx, points, normals, directions, exclude, materials, shares,
         normalize_in_place(half)
         cos_half = np.maximum(dot(lit_normals, half), 0)
         lit_materials = pick_row(materials)
-        spread = _specular_power(lit_materials, exponents, cos_half)
+        spread = specular_power(lit_materials, exponents, cos_half)
         lit_cos = pick_row(cos_light)
         for row in range(3):
             # visibility (kd Id (L.N) + ks Is (N.H)^e)
@@ -343,54 +354,6 @@ def _shade_default(ctx, points, normals, directions, exclude, materials, shares,
         else:
             shadow_code[lit] += code
     return colour, np.ones(m, bool), shadow_code
-
-
-def _shade_article(ctx, points, normals, materials, stats):
-    """The article's shading (module docstring) at m points.  Per light, every product of a
-    material's coefficient and the light's intensity comes from the table (``LightTerms``),
-    the vectors are normalised in place, and the terms are summed row by row: the same
-    values as the article's expression, in fewer passes."""
-    lights = ctx.lights
-    dtype = points.dtype
-    m = points.shape[1]
-    shifted = ARTICLE_OFFSET * normals
-    shifted += points
-    to_camera = _column(ctx.eye, dtype) - points
-    normalize_in_place(to_camera)
-    colour = None
-    goes_on = np.zeros(m, bool)
-    shadow_code = np.zeros(m, np.uint64)
-    exponents = ctx.materials.exponent
-    for light in range(len(lights)):
-        position = _column(lights.positions[light], dtype)
-        from_light = shifted - position
-        shifted_distance = normalize_in_place(from_light)
-        blocked = light_blocked(ctx, lights.origins[light][0], from_light, shifted_distance,
-                                None, stats, start=length(position - points))
-        # H = normalize(to_light + to_camera), with to_light = -from_light.
-        half = to_camera - from_light
-        normalize_in_place(half)
-        lit = -dot(from_light, normals)        # the article's -(L.N) with L from the light
-        spread = _specular_power(materials, exponents, dot(normals, half))
-        table = ctx.light_terms[light]
-        unblocked = ~blocked
-        term = np.empty_like(points)
-        for row in range(3):
-            # ka Ia - kd Id (from_light . N) + ks Is (N.H)^e, as the article adds them
-            part = table.ambient[row].take(materials)
-            diffuse = table.diffuse[row].take(materials)
-            diffuse *= lit
-            part += diffuse   # (- kd Id (f.N) is + kd Id (-(f.N)) exactly)
-            specular = table.specular[row].take(materials)
-            specular *= spread
-            part += specular
-            np.multiply(part, unblocked, out=term[row])
-        colour = term if colour is None else np.add(colour, term, out=colour)
-        goes_on |= unblocked
-        shadow_code = shadow_code * np.uint64(_CODE_BASE) + unblocked.astype(np.uint64)
-    if colour is None:
-        colour = np.zeros_like(points)
-    return colour, goes_on, shadow_code
 
 
 def _rays_blocked(ctx, points, towards, offset, reach, exclude, stats):
@@ -572,7 +535,7 @@ def _world_occlusion(ctx, points, normals, materials, offset, exclude, shares, s
     max(world_samples, S), each point tracing its share of them.  spread: (m,) to fill, for
     points tracing every direction, with the share's binomial standard deviation
     sqrt(h' (1 - h') / k), h' = (k h + 1) / (k + 2) (``shade``'s world_noise)."""
-    physical = ctx.look.surfaces.physical[materials]
+    physical = ctx.physical.surfaces.physical[materials]
     hidden = np.zeros(points.shape[1], points.dtype)
     chosen = np.flatnonzero(physical)
     if len(chosen) == 0:
@@ -651,15 +614,15 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
     Each light appends a digit to ``shadow_code`` for adaptive anti-aliasing: not reached,
     blocked, partly visible or visible.  (Not quarters of visibility as for the article's
     lights: an area light's penumbra changes smoothly from pixel to pixel, and every pixel of
-    it would count as an edge.)  surfaces: the lobes to shade with (default: the look's);
+    it would count as an edge.)  surfaces: the lobes to shade with (default: the model's);
     world_terms: False leaves the world's terms out; terminator, world_shift, world_noise:
     as for ``shade``."""
-    look = ctx.look
-    surfaces = look.surfaces if surfaces is None else surfaces
+    physical = ctx.physical
+    surfaces = physical.surfaces if surfaces is None else surfaces
     dtype = points.dtype
     m = points.shape[1]
     to_view = -directions
-    world = _column(ctx.ambient if world_terms else np.zeros(3), dtype)
+    world = column(ctx.ambient if world_terms else np.zeros(3), dtype)
     colour = np.zeros((3, m), dtype)
     colour += environment(surfaces, materials, normals, to_view, world)
     offset = ray_offsets(points)
@@ -670,9 +633,9 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
                                    stats, terminator, world_shift, spread) * (seen_diffuse * world)
         if spread is not None:
             world_noise += spread * (seen_diffuse * world)
-    for light in look.lights:
-        scale = _column(light.scale, dtype)
-        shadow_code = shadow_code * np.uint64(_CODE_BASE)
+    for light in physical.lights:
+        scale = column(light.scale, dtype)
+        shadow_code = shadow_code * np.uint64(SHADOW_CODE_BASE)
         visibility = np.zeros(m, dtype)
         reached = np.zeros(m, bool)
         if light.kind == "area":
@@ -730,7 +693,7 @@ def _shade_blender_lights(ctx, points, normals, directions, materials, exclude, 
                 if weights is not None:
                     facing = np.flatnonzero(weights[sample] > 0)
                     from_sample, reach = normalize(take(lit_points, facing)
-                                                   - _column(position, dtype))
+                                                   - column(position, dtype))
                     ignored, ends = exclude[lit[facing]], offset[lit[facing]]
                     traced.append((facing, _ShadowRays(from_sample, ignored, ends,
                                                        origin=light.terms[sample], reach=reach),

@@ -109,7 +109,7 @@ def _trace_positions(ctx: TraceContext, camera, xs, ys, stats, lens=None, shares
     stats.seconds_camera += traced - start
     stats.seconds_bounces += time.perf_counter() - traced
     rgb = result.colour.T
-    if ctx.article:   # clipped in place (np.clip's wrapper costs ~30 us a bundle)
+    if ctx.shading.display_values:   # in place (np.clip's wrapper costs ~30 us a bundle)
         np.minimum(np.maximum(rgb, 0, out=rgb), 1, out=rgb)
     noise = None if result.world_noise is None else result.world_noise.T
     return rgb, result.alpha, result.signature, noise
@@ -184,7 +184,8 @@ def _sample_bundles(ctx, camera, cols, rows, count, ks, stats, stop=None):
         xs = (cols[part, None] + offsets[None, :, 0]).ravel()
         ys = (rows[part, None] + offsets[None, :, 1]).ravel()
         lens = lens_samples(cols[part], rows[part], offsets) if aperture else None
-        shares = pixel_shares(cols[part], rows[part], count)   # (per bundle: its memory)
+        # (Per bundle: its memory.  None where they change nothing, ``shares_matter``.)
+        shares = pixel_shares(cols[part], rows[part], count) if shares_matter(ctx) else None
         if shares is not None and k < count:
             shares = SampleShares(shares.slot.reshape(-1, count)[:, ks].ravel(), count)
         colour, hit, _, _ = _trace_positions(ctx, camera, xs, ys, stats, lens, shares, stop)
@@ -222,7 +223,7 @@ def _display(ctx: TraceContext, rgb, coverage) -> np.ndarray:
     1 + ln(radiance) / 2.4 above it (the curve's own slope at 1, continued in stops as
     view transforms such as AgX and Filmic show highlights: an edge between two highlights
     stays an edge, while a highlight's smooth gradient counts no more than a midtone's)."""
-    if ctx.article:
+    if ctx.shading.display_values:
         display = rgb
     else:
         radiance = np.maximum(rgb, 0)

@@ -29,7 +29,7 @@ from .failures import RenderCancelled
 from .bsdf import held_share, scatter
 from .rays import RayBatch
 from .sampler import hash_u32
-from .shading import shade, shade_translucent
+from .shading import shade_translucent
 from .vectors import facing, take
 
 _SIGNATURE_PRIME = np.uint64(1_000_003)
@@ -110,8 +110,8 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
                  record_primary: bool = False, record_emission: bool = False,
                  primary_only: bool = False, stop=None) -> BundleResult:
     """Follow the bundle: article semantics as the article does (one mirror ray per hit, a
-    scalar weight); default semantics with Blender's look (``ctx.look``) with colour weights
-    and, where ``core.bsdf`` says so, several secondary rays per hit (mirror, refraction,
+    scalar weight); the physically based model (``ctx.physical``) with colour weights and,
+    where ``core.bsdf`` says so, several secondary rays per hit (mirror, refraction,
     straight through).  record_emission: also sum, into ``BundleResult.emission``, the
     emission the camera's path meets (module docstring: the camera ray and what it sees
     straight through Transparent BSDFs, weighted; not what mirrors or refraction show), as
@@ -130,25 +130,25 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
     emission = np.zeros((3, n), dtype) if record_emission else None
     film = ctx.settings.film
     background = ctx.background.astype(dtype)[:, None]
-    add_background = not ctx.article and background.any()
+    shading = ctx.shading   # the article's or Glint's own (``core.shading``)
+    add_background = shading.sees_background and background.any()
     reflection = ctx.materials.reflection
-    look = ctx.active_look
+    physical = ctx.physical
     max_depth = ctx.settings.max_depth
     cutoff = ctx.settings.contribution_cutoff
 
     path = np.arange(n)
-    shares = None if ctx.article else rays.shares   # the article's lights are points
-    world_shift = None if ctx.article else rays.world_shift
+    shares, world_shift = rays.shares, rays.world_shift
     # How noisy each centre's world occlusion is (``BundleResult.world_noise``), for adaptive
     # AA's edge test.
     world_noise = (np.zeros((3, n), dtype) if signature is not None and world_shift is not None
                    and shares is None else None)
     unique = True   # every path index appears once (until rays split)
     camera_path = np.ones(n, bool)   # per ray of the batch: the camera's view (docstring)
-    holdouts = look is not None and look.surfaces.any_holdout
+    holdouts = physical is not None and physical.surfaces.any_holdout
     # (n,) in article semantics and for the article's materials alone; (3, n) colour weights
-    # for Blender's look.
-    weight = np.ones((3, n) if look is not None else n, dtype)
+    # for the physically based model.
+    weight = np.ones((3, n) if physical is not None else n, dtype)
     batch = RayBatch(rays.origins, rays.directions, rays.t_min, rays.t_max,
                      ctx.camera_origin if rays.shared_origin else None)
     stats.camera_rays += n
@@ -177,7 +177,7 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
 
         points, directions, primitive = hits.points, hits.directions, hits.primitive
         geometric, normals, front, cos_in = hits.normals, hits.shading, hits.front, hits.cos_in
-        if not ctx.article and not front.all():
+        if shading.shades_seen_side and not front.all():
             # Shade the side the ray sees: inside a sphere, behind a triangle, the normal
             # faces the other way.
             normals = facing(normals, front)
@@ -187,17 +187,17 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
             primary.primitive[path], primary.material[path] = primitive, hits.material
             if primary_only:
                 break
-        exclude = None if ctx.article else geometry.exclusions(primitive, front)
+        exclude = geometry.exclusions(primitive, front) if geometry.rules.excludes else None
         point_shares = None if shares is None else shares.take(path)
         point_shift = None if world_shift is None else world_shift[path]
         noise = None if world_noise is None else np.zeros_like(points)
-        illumination, goes_on, shadow_code = shade(ctx, points, normals, directions,
-                                                   hits.material, exclude, stats,
-                                                   shares=point_shares,
-                                                   terminator=hits.terminator,
-                                                   world_shift=point_shift,
-                                                   world_noise=noise)
-        if look is not None and look.translucent is not None:
+        illumination, goes_on, shadow_code = shading.shade(ctx, points, normals, directions,
+                                                           hits.material, exclude, stats,
+                                                           shares=point_shares,
+                                                           terminator=hits.terminator,
+                                                           world_shift=point_shift,
+                                                           world_noise=noise)
+        if physical is not None and physical.translucent is not None:
             through, code = shade_translucent(ctx, points, normals, directions, hits.material,
                                               geometry.exclusions(primitive, ~front), stats,
                                               shares=point_shares, world_shift=point_shift,
@@ -207,17 +207,18 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
         illumination *= weight
         held_object = None
         if holdouts and camera_path.any():
-            held_object = _hold_out(look.surfaces, hits.material, camera_path, path, weight,
-                                    transparency, unique)
+            held_object = _hold_out(physical.surfaces, hits.material, camera_path, path,
+                                    weight, transparency, unique)
             if held_object is not None:
                 illumination[:, held_object] = 0
                 if noise is not None:
                     noise[:, held_object] = 0
-        if emission is not None and look is not None and look.surfaces.any_emission:
+        if emission is not None and physical is not None and physical.surfaces.any_emission:
             seen = np.flatnonzero(camera_path)
             if held_object is not None:
                 seen = np.setdiff1d(seen, held_object, assume_unique=True)
-            _accumulate(emission, path[seen], take(look.surfaces.emission, hits.material[seen])
+            _accumulate(emission, path[seen],
+                        take(physical.surfaces.emission, hits.material[seen])
                         * weight[:, seen], unique, False)
         _accumulate(colour, path, illumination, unique, depth == 0 and len(path) == n)
         if noise is not None:
@@ -226,10 +227,10 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
             signature[path] = signature[path] * _SIGNATURE_PRIME + shadow_code
 
         bounces_left = max_depth - depth - 1
-        if look is not None:
+        if physical is not None:
             if bounces_left == 0:
                 break
-            batch = _secondary_rays(ctx, look, hits, normals, cos_in, path, weight,
+            batch = _secondary_rays(ctx, physical, hits, normals, cos_in, path, weight,
                                     bounces_left, cutoff, camera_path, held_object,
                                     _arrived_from(batch), BRANCH_BUDGET * n)
             if batch is None:
@@ -267,14 +268,14 @@ def trace_bundle(ctx: TraceContext, rays: CameraRays, stats: RayStats,
 def traces_bounces(ctx: TraceContext) -> bool:
     """Whether the frame's rays may leave hit points as secondary rays (``trace_bundle``):
     bounces allowed (max_depth > 1) and a material that sends rays on, a mirror weight
-    (the article's ``reflection``) or, with Blender's look, a mirror lobe, transmission or
-    transparency (``core.bsdf.scatter``'s branches)."""
+    (the article's ``reflection``) or, with the physically based model, a mirror lobe,
+    transmission or transparency (``core.bsdf.scatter``'s branches)."""
     if ctx.settings.max_depth <= 1:
         return False
-    look = ctx.active_look
-    if look is None:
+    physical = ctx.physical
+    if physical is None:
         return bool(np.any(ctx.materials.reflection > 0))
-    surfaces = look.surfaces
+    surfaces = physical.surfaces
     return bool(np.any(surfaces.reflection > 0) or surfaces.mirror.any()
                 or surfaces.any_through)
 
@@ -299,17 +300,17 @@ def _hold_out(surfaces, materials, camera_path, path, weight, transparency, uniq
     return viewed[whole] if whole.any() else None
 
 
-def _secondary_rays(ctx, look, hits, normals, cos_in, path, weight, bounces_left, cutoff,
+def _secondary_rays(ctx, physical, hits, normals, cos_in, path, weight, bounces_left, cutoff,
                     camera_path, held_object=None, arrived_from=None, budget=np.inf):
-    """The next bounce's rays for Blender's look (``core.bsdf.scatter``), or None:
-    (RayBatch, path (k,), weight (3, k), camera_path (k,)).  Mirror rays leave on the side
-    the ray came from; refracted and straight-through rays on the other
+    """The next bounce's rays of the physically based model (``core.bsdf.scatter``), or
+    None: (RayBatch, path (k,), weight (3, k), camera_path (k,)).  Mirror rays leave on the
+    side the ray came from; refracted and straight-through rays on the other
     (``Aggregate.spawn``).  camera_path (m,): which hits the camera sees (module docstring);
     held_object: indices of hits on holdout objects, which only pass their transparency on;
     arrived_from: ``RayBatch.arrived_from`` of the rays spawned.  budget: the most rays the
     bounce may spawn by splitting; beyond it each hit sends one of its branches on
     (``_one_branch_each``)."""
-    branches = scatter(look.surfaces, normals, hits.directions, cos_in, hits.material,
+    branches = scatter(physical.surfaces, normals, hits.directions, cos_in, hits.material,
                        hits.front)
     blocked = None
     if held_object is not None:

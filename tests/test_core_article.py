@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 import core
-from core import shading
 from core.context import make_context
 from core.png import decode_png
 from core.precision import choose_precision
@@ -176,8 +175,8 @@ def test_default_specular_follows_the_ray_not_the_camera():
     ks_term = {}
     for semantics in ("default", "article"):
         ctx = make_context(scene, core.RenderSettings(semantics=semantics), np.float64)
-        colour, _, _ = shading.shade(ctx, point, normal, incoming, np.array([0]),
-                                  np.array([True]), RayStats())
+        colour, _, _ = ctx.shading.shade(ctx, point, normal, incoming, np.array([0]),
+                                         np.array([True]), RayStats())
         ks_term[semantics] = colour[0, 0] - 0.1 - 0.6 * np.sqrt(0.5)
     assert ks_term["default"] == pytest.approx(1.0, abs=1e-12)
     assert ks_term["article"] < 0.01

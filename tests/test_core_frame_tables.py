@@ -219,7 +219,7 @@ def test_blenders_look_bounces_only_off_mirrors_and_through_surfaces(surface, bo
     scene = dataclasses.replace(scene, sphere_sets=(dataclasses.replace(
         cloud, materials=(material, material)),))
     ctx = make_context(scene, core.RenderSettings(max_depth=3), np.float64)
-    assert ctx.active_look is not None
+    assert ctx.physical is not None
     assert traces_bounces(ctx) == bounces
     ctx.geometry.build_frame_tables(ctx.camera_origin.position, bounces=traces_bounces(ctx),
                                     trails=False, threads=1)

@@ -12,5 +12,7 @@ construction (``hits``), and what they share (``cells``: cube-map cells and Mort
 
 from .aggregate import ROOT_FORMULAS, Aggregate
 from .policy import DEFAULT_POLICY, GeometryPolicy
+from .rules import ARTICLE_RULES, HIT_RULES, HitRules
 
-__all__ = ["Aggregate", "DEFAULT_POLICY", "GeometryPolicy", "ROOT_FORMULAS"]
+__all__ = ["Aggregate", "ARTICLE_RULES", "DEFAULT_POLICY", "GeometryPolicy", "HIT_RULES",
+           "HitRules", "ROOT_FORMULAS"]

@@ -33,7 +33,7 @@ from .cull import FlatSpheres, FlatTriangles
 from .hits import surface_interaction
 from .pairs import subset
 from .policy import DEFAULT_POLICY, GeometryPolicy
-from .rules import ARTICLE_RULES, HIT_RULES
+from .rules import HitRules
 from .spheres import OriginTerms, Spheres
 from .threads import run_on, thread_pool
 from .tree import TreeAccelerator
@@ -46,23 +46,22 @@ ROOT_FORMULAS = ("textbook", "stable")
 class Aggregate:
     """All of a scene's geometry, in the render precision ``dtype``.
 
-    spheres, triangles: the scene's primitives (``core.arrays``); article: the article's hit
-    rules (``rules.ARTICLE_RULES``); root_formula: 'textbook' or 'stable'
-    (``ROOT_FORMULAS``); threads: how many threads the tree may be built on (the same tree
-    for any number); rays_per_origin: how many rays a frame traces from one shared origin
+    spheres, triangles: the scene's primitives (``core.arrays``); rules: the hit rules
+    (``rules.HIT_RULES``, Glint's own, or ``rules.ARTICLE_RULES``); root_formula: 'textbook'
+    or 'stable' (``ROOT_FORMULAS``); threads: how many threads the tree may be built on (the
+    same tree for any number); rays_per_origin: how many rays a frame traces from one shared origin
     (the eye, a light sample), as far as the caller knows (``make_context``: the pixels; 0:
     unknown), which decides whether a shared origin's depth-ordered or parallel bins pay;
     policy: the thresholds that choose the strategies (``GeometryPolicy``).
     """
 
     def __init__(self, spheres: SphereArrays, triangles: TriangleArrays, dtype, *,
-                 article: bool, root_formula: str, threads: int = 1,
+                 rules: HitRules, root_formula: str, threads: int = 1,
                  rays_per_origin: int = 0, policy: GeometryPolicy = DEFAULT_POLICY):
         if root_formula not in ROOT_FORMULAS:
             raise ValueError(f"root_formula must be one of {ROOT_FORMULAS}, got {root_formula!r}")
         self.dtype = np.dtype(dtype)
-        self.article = article
-        self.rules = ARTICLE_RULES if article else HIT_RULES
+        self.rules = rules
         self.root_formula = root_formula
         self.policy = policy
         self.spheres, self.triangles = spheres, triangles

@@ -1,5 +1,5 @@
 """The hit rules: which roots of a sphere count as a hit or a blocker, and how rays leave
-the surfaces they hit.  Chosen once per aggregate (``Aggregate(article=)``) and asked by the
+the surfaces they hit.  Chosen once per aggregate (``Aggregate(rules=)``) and asked by the
 kernels, instead of a flag every kernel tests.
 
 ``HIT_RULES`` (Glint's own): a ray hits the nearest root beyond its t_min (from inside a
