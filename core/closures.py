@@ -404,7 +404,6 @@ def sample(closures: Closures, choice: LobeChoice, normal, to_view, entering, u_
     weight = np.zeros((3, k), dtype)
     through = np.zeros(k, bool)
     reflected = to_view * -1 + normal * (2 * dot(normal, to_view))
-    cos_o = np.clip(dot(normal, to_view), 1e-6, 1)
 
     diffuse = lobe == DIFFUSE
     directions[:, diffuse] = cosine_hemisphere(normal[:, diffuse], u1[diffuse], u2[diffuse])

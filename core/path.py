@@ -396,7 +396,6 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats,
     min_pdf = np.full(n, np.inf, dtype)    # for Filter Glossy
     travelled = np.zeros(n, dtype)         # the path's length so far (ray footprints)
     ray_type = np.full(n, RAY_CAMERA, np.int64)   # the Light Path node's flags of the ray
-    origins = rays.origins
     batch = RayBatch(rays.origins, rays.directions, rays.t_min, rays.t_max,
                      ctx.camera_origin if rays.shared_origin else None)
     stats.camera_rays += n
