@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .geometry import ARTICLE_RULES, DEFAULT_POLICY, HIT_RULES, Aggregate, GeometryPolicy
-from .arrays import scene_arrays
+from .arrays import LightArrays, scene_arrays
 from .article import ARTICLE_SHADING
 from .bsdf import SurfaceArrays, surface_arrays, translucent_view
 from .camera import BlenderCamera, eye_position
@@ -45,22 +45,13 @@ class Materials:
 
 
 @dataclass(frozen=True)
-class Lights:
-    """L point lights, float64: positions (L, 3), ambient / diffuse / specular (L, 3)
-    intensities, radii (L,); per light, its sample points ``samples[l]`` (S, 3) (one, the
-    centre, for a point light) and the geometry's shared-origin terms at each,
-    ``origins[l]`` (S SharedOrigin)."""
+class Lights(LightArrays):
+    """The scene's L point lights (``core.arrays.LightArrays``), and per light its sample
+    points ``samples[l]`` (S, 3) (one, the centre, for a point light) and the geometry's
+    shared-origin terms at each, ``origins[l]`` (S SharedOrigin)."""
 
-    positions: np.ndarray
-    ambient: np.ndarray
-    diffuse: np.ndarray
-    specular: np.ndarray
-    radii: np.ndarray
-    samples: tuple
-    origins: tuple
-
-    def __len__(self) -> int:
-        return len(self.radii)
+    samples: tuple = ()
+    origins: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -198,7 +189,7 @@ def make_context(scene: Scene, settings: RenderSettings, dtype, *,
         settings=settings, dtype=np.dtype(dtype),
         shading=ARTICLE_SHADING if article else WHITTED_SHADING, geometry=geometry,
         lights=Lights(lights.positions, lights.ambient, lights.diffuse, lights.specular,
-                      lights.radii, tuple(samples), origins),
+                      lights.radii, samples=tuple(samples), origins=origins),
         materials=materials,
         eye=eye, camera_origin=geometry.shared_origin(eye) if perspective else None,
         background=arrays.background, ambient=arrays.ambient, path_gain_bound=gain,
