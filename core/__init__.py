@@ -24,7 +24,8 @@ each part saying so in ``Scene.warnings`` (docs/invalid-data.md).
 from .scene import (AreaLight, BlenderCamera, Material, PointLight, RenderSettings, Scene,
                     SceneError, ScreenCamera, Sphere, SphereLight, SphereSet, SpotLight,
                     SunLight, SurfaceMaterial, TriangleMesh)
-from .render import RayStats, RenderCancelled, RenderResult, render
+from .failures import RenderCancelled
+from .render import RayStats, RenderResult, render
 from .article import article_scene, article_settings
 
 __all__ = [
