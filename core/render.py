@@ -208,7 +208,7 @@ class _Plan:
 
     dtype: np.dtype          # the render's precision
     image_dtype: np.dtype
-    threads: int
+    threads: int             # tiles at once: threads or worker processes
     tiles: list              # (y0, y1, x0, x1) each, rows from the top
     where: str               # 'threads', 'processes' or 'cluster'
     #: Why tiles meant for the cluster run on this machine (the Emission pass), else None.
