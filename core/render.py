@@ -304,8 +304,9 @@ def _run(landing, plan: _Plan, ctx, camera, settings, should_cancel) -> tuple:
             fallback = _fallback_line(str(error))
         # No tile has landed yet: the same jobs on threads, below.
     count = 1 if len(plan.tiles) == 1 else plan.threads
-    image = threads.render_tiles(ctx, camera, landing.jobs(), landing.shape, landing.dtype,
-                                 count, landing.land, should_cancel, beside=landing.beside)
+    image = threads.render_tiles(ctx, camera, landing.jobs(), landing.shape_here,
+                                 landing.dtype, count, landing.land, should_cancel,
+                                 beside=landing.beside)
     return image, "threads", fallback
 
 
@@ -319,9 +320,10 @@ def _refuse_non_finite(tile) -> None:
 class _Landing:
     """Where a frame's tiles land, on the calling thread, whichever scheduler rendered them
     (``_run``): the frame's stats, passes, ``on_tile`` and ``progress``.  A scheduler takes
-    ``jobs()``, renders them into an image of ``shape`` and ``dtype``, and hands each to
-    ``land`` (threads, which run ``beside`` on the tile's thread first) or ``land_from_afar``
-    (worker processes, a cluster) as (job, pixels, stats, done, finite)."""
+    ``jobs()``, renders them into an image of ``shape`` and ``dtype`` (threads: of
+    ``shape_here``, None for none), and hands each to ``land`` (threads, which run
+    ``beside`` on the tile's thread first) or ``land_from_afar`` (worker processes, a
+    cluster) as (job, pixels, stats, done, finite)."""
 
     beside = None
 
@@ -347,6 +349,7 @@ class _TileLanding(_Landing):
     def __init__(self, ctx, camera, settings, plan: _Plan, *rest):
         super().__init__(ctx, camera, settings, plan, *rest)
         self.shape, self.dtype = self.image_shape, plan.image_dtype
+        self.shape_here = self.shape
 
     def jobs(self) -> list:
         return self.tiles
@@ -392,6 +395,7 @@ class _ProgressiveLanding(_Landing):
         self.shape = (height, width,
                       self.queue.frame.channels + (PASS_CHANNELS if self.carried else 0))
         self.dtype = np.float32   # the sums as they travel (``ProgressiveFrame.land``)
+        self.shape_here = None    # on threads, a tile's sums land from the tile itself
 
     def _first_pass(self) -> WorkQueue:
         return WorkQueue(ProgressiveFrame(self.settings, self.tiles, self.image,
@@ -406,9 +410,9 @@ class _ProgressiveLanding(_Landing):
         return self.queue
 
     def land(self, job, sums, tile_stats, done, finite) -> None:
-        """A job's sums as they arrived (float32)."""
+        """A job's sums as they arrived (float32 from afar, the tile's own on threads)."""
         frame = self.queue.frame
-        sums = np.array(sums, np.float64)
+        sums = np.asarray(sums, np.float64)
         if not (finite and np.isfinite(sums).all()):
             _refuse_non_finite(job)
         first_pass = job.first == 0

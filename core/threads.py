@@ -35,16 +35,18 @@ class _Asked:
 
 
 def render_tiles(ctx, camera, tiles, shape, dtype, count: int, finish, should_cancel=None,
-                 beside=None) -> np.ndarray:
+                 beside=None) -> np.ndarray | None:
     """The (H, W, C) image of ``shape`` and ``dtype`` with ``tiles`` rendered into it on
     ``count`` threads; finish(tile, pixels, stats, done, finite) is called on this thread as
     each tile lands, as ``core.workers.render_tiles`` calls it: pixels the tile's view of
     the image, finite whether the values it was made from are all finite (a tile that is
-    not is left out of the image).  tiles: a list, or a deque-like queue that ``finish``
-    may extend (a progressive frame's ``WorkQueue``).  beside(tile, stats): more of a tile's
-    work, done on the thread that rendered it before it lands (a frame's passes).  Raises
+    not is left out of the image).  shape None: no image, pixels the tile's own values
+    (for a caller that adds them into its own totals, where an image would be one more
+    frame of memory).  tiles: a list, or a deque-like queue that ``finish`` may extend (a
+    progressive frame's ``WorkQueue``).  beside(tile, stats): more of a tile's work, done
+    on the thread that rendered it before it lands (a frame's passes).  Raises
     RenderCancelled when ``should_cancel()`` answers True."""
-    image = np.zeros(shape, dtype)
+    image = None if shape is None else np.zeros(shape, dtype)
     pending = tiles if hasattr(tiles, "popleft") else deque(tiles)
     done = 0
 
@@ -62,9 +64,12 @@ def render_tiles(ctx, camera, tiles, shape, dtype, count: int, finish, should_ca
         rgba, stats = result
         y0, y1, x0, x1 = tile[:4]
         finite = bool(np.isfinite(rgba).all())
+        done += 1
+        if image is None:
+            finish(tile, rgba, stats, done, finite)
+            return
         if finite:
             image[y0:y1, x0:x1] = rgba
-        done += 1
         finish(tile, image[y0:y1, x0:x1], stats, done, finite)
 
     _run_on_threads(next_tile, run, land, count, should_cancel)
