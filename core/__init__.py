@@ -27,7 +27,8 @@ from .materials import Material, SurfaceMaterial
 from .scene import Scene, Sphere, SphereSet, TriangleMesh
 from .settings import RenderSettings
 from .validation import SceneError
-from .render import RayStats, RenderCancelled, RenderResult, render
+from .failures import RenderCancelled
+from .render import RayStats, RenderResult, render
 from .article import article_scene, article_settings
 
 __all__ = [

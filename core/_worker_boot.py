@@ -1,4 +1,5 @@
-"""First code a Glint render worker process runs: ``python _worker_boot.py FD`` (``core.workers``).
+"""First code a Glint render worker process runs: ``python _worker_boot.py FD`` (``core.workers``
+starts it).
 
 The worker must import ``core`` under the very name the parent imported it as, so that the
 pickled context's classes resolve to the same modules: ``core`` from a checkout,
@@ -37,7 +38,7 @@ def load_core(name: str, folder: str):
 
 def main(descriptor: int) -> None:
     """Connect to the parent over the socket ``descriptor``, take its settings (sys.path and
-    where core is), import core and serve tiles (``core.workers.worker_loop``)."""
+    where core is), import core and serve tiles (``core.worker_process.worker_loop``)."""
     import signal
     from multiprocessing.connection import Connection
 
@@ -54,8 +55,8 @@ def main(descriptor: int) -> None:
     own = list(sys.path)
     sys.path[:] = own + [entry for entry in setup["sys_path"] if entry not in own]
     load_core(setup["core_name"], setup["core_folder"])
-    workers = importlib.import_module(setup["core_name"] + ".workers")
-    workers.worker_loop(connection, setup)
+    worker = importlib.import_module(setup["core_name"] + ".worker_process")
+    worker.worker_loop(connection, setup)
 
 
 if __name__ == "__main__":

@@ -374,7 +374,7 @@ def frame_data(ctx, camera) -> tuple:
     """What is scattered once per frame: (the core's name here, the pickle of (ctx, camera),
     its large arrays' bytes as uint8 arrays (sent without a copy into the pickle), which of
     them are read-only)."""
-    from .workers import pickle_out_of_band
+    from .shared_memory import pickle_out_of_band
 
     payload, buffers = pickle_out_of_band((ctx, camera), OUT_OF_BAND_BYTES)
     arrays = [np.frombuffer(buffer.raw(), np.uint8) for buffer in buffers]

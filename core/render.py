@@ -1,20 +1,17 @@
 """``render``: a scene in, an (H, W, 4) image out, tile by tile.
 
 The frame's orchestrator: it plans the memory, builds the trace context, cuts the frame into
-tiles and runs them on this thread, a thread pool, worker processes (``core.workers``) or a
-Dask cluster (``core.cluster``).  Tiles bound the working memory whatever the resolution and
-are the unit of parallelism: each writes only its own slice of the image, so the result does
-not depend on how they ran.  A tile itself is ``core.tiles``'s.
+tiles, picks a scheduler (a thread pool, ``core.threads``; worker processes,
+``core.workers``; a Dask cluster, ``core.cluster``) and runs it, the tiles landing here as
+they finish.  Tiles bound the working memory whatever the resolution and are the unit of
+parallelism: each writes only its own slice of the image, so the result does not depend on
+how they ran.  A tile itself is ``core.tiles``'s.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import functools
-import itertools
 import os
-import threading
-from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Callable, Optional
 
@@ -23,7 +20,7 @@ import numpy as np
 from .camera import has_aperture
 from .colour import linear_to_srgb
 from .context import RayStats, make_context, path_traced
-from .failures import RenderCancelled, RenderError
+from .failures import RenderError
 from .passes import PASS_CHANNELS, PrimaryPasses, fill_tile_passes, store_first_hits
 from .progressive import ProgressiveFrame, WorkQueue
 from .geometry import DEFAULT_POLICY, GeometryPolicy
@@ -35,24 +32,9 @@ from .scene import Scene
 from .settings import RenderSettings
 from .validation import SceneError
 from .shading import traces_from_points
-from .tiles import BLOCK, render_tile
+from .tiles import BLOCK
 from .trace import traces_bounces
-from . import allocator, cluster, workers
-
-
-#: How often the thread loop polls should_cancel while tiles are running.
-CANCEL_POLL_SECONDS = 0.1
-
-
-class _Asked:
-    """A tile's ``stop`` on the render's own thread: ``is_set`` asks ``should_cancel``, as a
-    threading.Event set by the thread loop would answer."""
-
-    def __init__(self, should_cancel):
-        self.should_cancel = should_cancel
-
-    def is_set(self) -> bool:
-        return self.should_cancel is not None and bool(self.should_cancel())
+from . import allocator, cluster, threads, workers
 
 
 @dataclass
@@ -208,9 +190,39 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
         scene = Scene(camera=scene.camera)
     world = None if settings.semantics == "article" else scene_frame(scene)  # for passes
     scene = canonical_scene(scene, settings)  # positions and units stop mattering
+    plan = _plan(scene, settings, image_dtype, reserve_bytes, passes, geometry_policy)
+    if plan.where == "processes":
+        workers.prestart(plan.threads)  # they start while the context is built
+    ctx = _context(scene, settings, plan, world, geometry_policy)
+    primary = _primary_passes(passes, scene.camera)
+    kind = _ProgressiveLanding if ctx.paths is not None else _TileLanding
+    landing = kind(ctx, scene.camera, settings, plan, primary, world, on_tile, progress,
+                   on_pass)
+    image, parallelism, fallback = _run(landing, plan, ctx, scene.camera, settings,
+                                        should_cancel)
+    return _result(landing.image_from(image), landing.stats, plan.dtype, scene, settings,
+                   parallelism=parallelism, passes=primary, fallback=fallback)
+
+
+@dataclass
+class _Plan:
+    """How a frame runs, settled before anything large is allocated."""
+
+    dtype: np.dtype          # the render's precision
+    image_dtype: np.dtype
+    threads: int             # tiles at once: threads or worker processes
+    tiles: list              # (y0, y1, x0, x1) each, rows from the top
+    where: str               # 'threads', 'processes' or 'cluster'
+    #: Why tiles meant for the cluster run on this machine (the Emission pass), else None.
+    kept_here: Optional[str] = None
+
+
+def _plan(scene, settings, image_dtype, reserve_bytes, passes, geometry_policy) -> _Plan:
+    """The frame's precision, tiles and scheduler; raises memory.NotEnoughMemory where the
+    render cannot fit (``core.memory``)."""
     dtype = choose_precision(scene, settings.precision)
     width, height = scene.camera.width, scene.camera.height
-    threads = settings.threads or os.cpu_count() or 1
+    count = settings.threads or os.cpu_count() or 1   # (tiles at once: threads or workers)
     image_dtype = dtype if image_dtype is None else np.dtype(image_dtype)
     if passes:  # the passes' arrays, beside the image
         per_pixel = PrimaryPasses.BYTES_PER_PIXEL
@@ -218,237 +230,218 @@ def render(scene: Scene, settings: Optional[RenderSettings] = None, *,
             per_pixel += PrimaryPasses.EMISSION_BYTES_PER_PIXEL
         reserve_bytes += per_pixel * width * height
     tiles = _tiles(width, height, settings.tile_size)
-    # Passes are filled in this process, beside each tile (``work``) or, where the tiles go
-    # to worker processes, as each lands (``land``): their trace stops at the first hits,
-    # a small part of a tile's work.  The Emission pass follows whole camera paths, so it
-    # keeps the tiles here.
+    # Passes are filled in this process, beside each tile on its thread or, where the tiles
+    # go to worker processes or a cluster, as each lands (``_TileLanding``): their trace
+    # stops at the first hits, a small part of a tile's work.  The Emission pass follows
+    # whole camera paths, so it keeps the tiles here.
     emission_pass = isinstance(passes, PrimaryPasses) and passes.emission is not None
     on_cluster = bool(settings.cluster) and not emission_pass
     kept_here = (f"the Emission pass is rendered on this machine, not on the cluster at "
                  f"{settings.cluster}") if settings.cluster and emission_pass else None
     tree = geometry_policy.builds_tree(scene.sphere_count, scene.triangle_count)
     in_processes = not emission_pass and not on_cluster and _in_processes(
-        settings, width * height, len(tiles), threads, tree, path_traced(scene, settings))
-    memory_plan = memory.plan(scene, settings, image_dtype, threads, reserve_bytes)
+        settings, width * height, len(tiles), count, tree, path_traced(scene, settings))
+    memory_plan = memory.plan(scene, settings, image_dtype, count, reserve_bytes)
     if in_processes:  # plus the workers' interpreters and the scene's shared copy
         memory_plan = dataclasses.replace(memory_plan, other=memory_plan.other + workers.
-                                          planned_bytes(threads, memory_plan.scene))
+                                          planned_bytes(count, memory_plan.scene))
     memory.check(memory_plan, width, height)
     if in_processes:
-        workers.prestart(threads)  # they start while the context is built
-        tiles = _even_tail(tiles, threads)
-    ctx = make_context(scene, settings, dtype, threads=threads,   # (the tree: on threads)
-                       frame=world, geometry_policy=geometry_policy)
-    # What the frame's tiles would each build on first use (in every worker process), built
-    # once here on the render's threads: the eye's bins, the occlusion trails' tables.
+        tiles = _even_tail(tiles, count)
+    where = "cluster" if on_cluster else "processes" if in_processes else "threads"
+    return _Plan(dtype, image_dtype, count, tiles, where, kept_here)
+
+
+def _context(scene, settings, plan, world, geometry_policy):
+    """The frame's TraceContext, with what its tiles would each build on first use (in every
+    worker process) built once here on the render's threads: the eye's bins, the occlusion
+    trails' tables."""
+    ctx = make_context(scene, settings, plan.dtype, threads=plan.threads,   # (the tree: on
+                       frame=world, geometry_policy=geometry_policy)        # threads)
     shared_eye = ctx.camera_origin is not None and not has_aperture(scene.camera)
     tracing_paths = ctx.paths is not None
     ctx.geometry.build_frame_tables(ctx.camera_origin.position if shared_eye else None,
                                     bounces=tracing_paths or traces_bounces(ctx),
                                     trails=tracing_paths or traces_from_points(ctx),
-                                    threads=threads)
-    shape = (height, width, 4 + (GUIDE_CHANNELS if settings.guides else 0))
-    stats = RayStats()
+                                    threads=plan.threads)
+    return ctx
+
+
+def _primary_passes(passes, camera) -> Optional[PrimaryPasses]:
+    """The passes the frame fills: the caller's PrimaryPasses (of the image's size), new
+    ones for passes=True, else None."""
+    width, height = camera.width, camera.height
     if isinstance(passes, PrimaryPasses):
         if passes.depth.shape != (height, width):
             raise SceneError(f"passes are {passes.depth.shape[1]}x{passes.depth.shape[0]}, "
                              f"the image {width}x{height}")
-        primary = passes
-    else:
-        primary = PrimaryPasses.empty(width, height) if passes else None
+        return passes
+    return PrimaryPasses.empty(width, height) if passes else None
 
-    def fill_passes(tile, tile_stats):
-        """A tile's passes, if asked for: beside the tile on a thread, or here as it lands
-        from a worker process."""
-        if primary is not None:
-            fill_tile_passes(primary, ctx, scene.camera, tile, tile_stats, world)
 
-    if tracing_paths:
-        return _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype,
-                                   threads, in_processes, fill_passes, primary, on_tile,
-                                   progress, should_cancel, on_pass, on_cluster, kept_here)
-
-    def work(ctx, camera, tile, stop=None):
-        rgba, tile_stats = render_tile(ctx, camera, tile, stop)
-        fill_passes(tile, tile_stats)
-        return rgba, tile_stats
-
-    def land(tile, pixels, tile_stats, done, finite, worker_tile=False):
-        """A finished tile: pixels its (h, w, 4) view of the image, finite whether the
-        values it was made from are all finite (workers check their own tiles, sparing this
-        process a pass over the image); worker_tile: rendered by ``core.workers`` (its
-        passes are not filled yet)."""
-        if not finite:  # never a silently wrong picture, even from a bug
-            y0, y1, x0, x1 = tile
-            raise RenderError(f"pixels {x0}-{x1 - 1} x {y0}-{y1 - 1} came out NaN or "
-                              f"infinite; please report this scene")
-        if worker_tile:
-            fill_passes(tile, tile_stats)
-        stats.add(tile_stats)
-        if on_tile is not None:
-            on_tile(tile, pixels[..., :4])
-        if progress is not None:
-            progress(done / len(tiles))
-
-    def finish(tile, rgba, tile_stats, done):
-        """A tile rendered in this process: into the image, then landed."""
-        y0, y1, x0, x1 = tile
-        finite = bool(np.isfinite(rgba).all())
-        if finite:
-            image[y0:y1, x0:x1] = rgba
-        land(tile, image[y0:y1, x0:x1], tile_stats, done, finite)
-
-    if on_cluster:   # (tiles land as worker processes' do: their passes filled here)
-        image = cluster.render_tiles(settings.cluster, ctx, scene.camera, tiles, shape,
-                                     image_dtype, functools.partial(land, worker_tile=True),
+def _run(landing, plan: _Plan, ctx, camera, settings, should_cancel) -> tuple:
+    """(image, parallelism, fallback): the frame's jobs run by the scheduler the plan chose,
+    each landing here as it finishes: a cluster (``core.cluster``), worker processes
+    (``core.workers``) or threads (``core.threads``), which take over from worker processes
+    that cannot start.  image: the one the scheduler filled."""
+    if plan.where == "cluster":
+        image = cluster.render_tiles(settings.cluster, ctx, camera, landing.jobs(),
+                                     landing.shape, landing.dtype, landing.land_from_afar,
                                      should_cancel)
-        return _result(image, stats, dtype, scene, settings, parallelism="cluster",
-                       passes=primary)
-    fallback = kept_here
-    if in_processes:
+        return image, "cluster", None
+    fallback = plan.kept_here
+    if plan.where == "processes":
         try:
             # The workers write their tiles straight into the image they share with this
             # process, which is the result (core.workers: no copy of any tile here).
             image, unavailable = workers.render_tiles(
-                ctx, scene.camera, tiles, shape, image_dtype, threads,
-                functools.partial(land, worker_tile=True), should_cancel)
+                ctx, camera, landing.jobs(), landing.shape, landing.dtype, plan.threads,
+                landing.land_from_afar, should_cancel)
             if unavailable is not None:  # the workers failed after some tiles landed
-                return _result(image, stats, dtype, scene, settings, parallelism="threads",
-                               passes=primary, fallback=_fallback_line(unavailable))
-            return _result(image, stats, dtype, scene, settings, parallelism="processes",
-                           passes=primary)
+                return image, "threads", _fallback_line(unavailable)
+            return image, "processes", None
         except workers.WorkersBusy:
             pass  # another render (a viewport) has them: threads, without a word
         except workers.ProcessesUnavailable as error:
             fallback = _fallback_line(str(error))
-        # No tile has landed yet: the same tiles on threads, below.
-
-    image = np.zeros(shape, image_dtype)
-
-    queue = iter(tiles)
-    tile_numbers = itertools.count(1)
-    _run_on_threads(lambda: next(queue, None),
-                    lambda tile, stop: work(ctx, scene.camera, tile, stop),
-                    lambda tile, result: finish(tile, *result, next(tile_numbers)),
-                    1 if len(tiles) == 1 else threads, should_cancel)
-    return _result(image, stats, dtype, scene, settings, passes=primary, fallback=fallback)
+        # No tile has landed yet: the same jobs on threads, below.
+    count = 1 if len(plan.tiles) == 1 else plan.threads
+    image = threads.render_tiles(ctx, camera, landing.jobs(), landing.shape_here,
+                                 landing.dtype, count, landing.land, should_cancel,
+                                 beside=landing.beside)
+    return image, "threads", fallback
 
 
-def _render_progressive(ctx, scene, settings, tiles, shape, image_dtype, dtype, threads,
-                        in_processes, fill_passes, primary, on_tile, progress,
-                        should_cancel, on_pass=None, on_cluster=False,
-                        fallback=None) -> RenderResult:
-    """A path-traced frame, pass by pass (``core.progressive``), its tiles' passes on
-    worker processes, a cluster or threads like any frame's tiles."""
-    image = np.zeros(shape, image_dtype)
-    # The passes of what each pixel's first sample hit come with the tiles' sums; the
-    # Emission pass follows whole camera paths of its own (``fill_passes``).
-    carried = primary is not None and primary.emission is None
-    frame = ProgressiveFrame(settings, tiles, image, guides=settings.guides, passes=carried)
-    queue = WorkQueue(frame)
-    stats = RayStats()
-    total_samples = settings.samples
+def _refuse_non_finite(tile) -> None:
+    """Never a silently wrong picture, even from a bug."""
+    y0, y1, x0, x1 = tile[:4]
+    raise RenderError(f"pixels {x0}-{x1 - 1} x {y0}-{y1 - 1} came out NaN or "
+                      f"infinite; please report this scene")
 
-    def landed(job, sums, tile_stats, first_pass):
-        if not np.isfinite(sums).all():   # never a silently wrong picture, even from a bug
-            y0, y1, x0, x1 = job[:4]
-            raise RenderError(f"pixels {x0}-{x1 - 1} x {y0}-{y1 - 1} came out NaN or "
-                              f"infinite; please report this scene")
-        if carried:
+
+class _Landing:
+    """Where a frame's tiles land, on the calling thread, whichever scheduler rendered them
+    (``_run``): the frame's stats, passes, ``on_tile`` and ``progress``.  A scheduler takes
+    ``jobs()``, renders them into an image of ``shape`` and ``dtype`` (threads: of
+    ``shape_here``, None for none), and hands each to ``land`` (threads, which run
+    ``beside`` on the tile's thread first) or ``land_from_afar`` (worker processes, a
+    cluster) as (job, pixels, stats, done, finite)."""
+
+    beside = None
+
+    def __init__(self, ctx, camera, settings, plan: _Plan, primary, world, on_tile,
+                 progress, on_pass):
+        self.ctx, self.camera, self.settings = ctx, camera, settings
+        self.tiles = plan.tiles
+        self.primary, self.world = primary, world
+        self.on_tile, self.progress, self.on_pass = on_tile, progress, on_pass
+        self.stats = RayStats()
+        self.image_shape = (camera.height, camera.width,
+                            4 + (GUIDE_CHANNELS if settings.guides else 0))
+
+    def fill_passes(self, tile, tile_stats) -> None:
+        """A tile's passes, if asked for."""
+        if self.primary is not None:
+            fill_tile_passes(self.primary, self.ctx, self.camera, tile, tile_stats, self.world)
+
+
+class _TileLanding(_Landing):
+    """A Whitted frame (``core.tiles``): the scheduler's image is the frame's."""
+
+    def __init__(self, ctx, camera, settings, plan: _Plan, *rest):
+        super().__init__(ctx, camera, settings, plan, *rest)
+        self.shape, self.dtype = self.image_shape, plan.image_dtype
+        self.shape_here = self.shape
+
+    def jobs(self) -> list:
+        return self.tiles
+
+    def beside(self, tile, tile_stats) -> None:
+        """On threads, a tile's passes are filled beside it, on its thread."""
+        self.fill_passes(tile, tile_stats)
+
+    def land(self, tile, pixels, tile_stats, done, finite, passes_filled=True) -> None:
+        """A finished tile: pixels its (h, w, C) view of the image, finite whether the
+        values it was made from are all finite (the schedulers check their own tiles,
+        sparing this thread a pass over the image); passes_filled: by ``beside``."""
+        if not finite:
+            _refuse_non_finite(tile)
+        if not passes_filled:
+            self.fill_passes(tile, tile_stats)
+        self.stats.add(tile_stats)
+        if self.on_tile is not None:
+            self.on_tile(tile, pixels[..., :4])
+        if self.progress is not None:
+            self.progress(done / len(self.tiles))
+
+    def land_from_afar(self, tile, pixels, tile_stats, done, finite) -> None:
+        """A tile from worker processes or a cluster: its passes are filled as it lands."""
+        self.land(tile, pixels, tile_stats, done, finite, passes_filled=False)
+
+    def image_from(self, scheduled: np.ndarray) -> np.ndarray:
+        return scheduled
+
+
+class _ProgressiveLanding(_Landing):
+    """A path-traced frame, pass by pass (``core.progressive``): each job's sums land in the
+    frame's totals and refresh its image; a pass's last job makes the next pass's jobs."""
+
+    def __init__(self, ctx, camera, settings, plan: _Plan, *rest):
+        super().__init__(ctx, camera, settings, plan, *rest)
+        self.image = np.zeros(self.image_shape, plan.image_dtype)
+        # The passes of what each pixel's first sample hit come with the tiles' sums; the
+        # Emission pass follows whole camera paths of its own (``fill_passes``).
+        self.carried = self.primary is not None and self.primary.emission is None
+        self.queue, self.handed_out = self._first_pass(), False
+        height, width = self.image_shape[:2]
+        self.shape = (height, width,
+                      self.queue.frame.channels + (PASS_CHANNELS if self.carried else 0))
+        self.dtype = np.float32   # the sums as they travel (``ProgressiveFrame.land``)
+        self.shape_here = None    # on threads, a tile's sums land from the tile itself
+
+    def _first_pass(self) -> WorkQueue:
+        return WorkQueue(ProgressiveFrame(self.settings, self.tiles, self.image,
+                                          guides=self.settings.guides, passes=self.carried))
+
+    def jobs(self) -> WorkQueue:
+        """The frame's jobs from its first pass: anew for threads taking over from worker
+        processes that could not start (none of their jobs landed)."""
+        if self.handed_out:
+            self.queue = self._first_pass()
+        self.handed_out = True
+        return self.queue
+
+    def land(self, job, sums, tile_stats, done, finite) -> None:
+        """A job's sums as they arrived (float32 from afar, the tile's own on threads)."""
+        frame = self.queue.frame
+        sums = np.asarray(sums, np.float64)
+        if not (finite and np.isfinite(sums).all()):
+            _refuse_non_finite(job)
+        first_pass = job.first == 0
+        if self.carried:
             if first_pass:
-                store_first_hits(primary, job[:4], sums[..., -PASS_CHANNELS:])
+                store_first_hits(self.primary, job[:4], sums[..., -PASS_CHANNELS:])
             sums = sums[..., :-PASS_CHANNELS]
         elif first_pass:
-            fill_passes(job[:4], tile_stats)
+            self.fill_passes(job[:4], tile_stats)
         view = frame.land(job, sums)
-        stats.add(tile_stats)
-        if on_tile is not None:
-            on_tile(job[:4], view[..., :4])
-        if progress is not None:
+        self.stats.add(tile_stats)
+        if self.on_tile is not None:
+            self.on_tile(job[:4], view[..., :4])
+        if self.progress is not None:
             before = frame.done_samples - frame.sizes[frame.passes_made - 1]
-            share = 1 - frame.outstanding / max(len(tiles), 1)
-            progress(min(1.0, (before + share * (frame.done_samples - before))
-                         / total_samples))
-        if on_pass is not None and frame.pass_complete():
-            on_pass(frame.done_samples, image)
-        queue.refill()
+            share = 1 - frame.outstanding / max(len(self.tiles), 1)
+            self.progress(min(1.0, (before + share * (frame.done_samples - before))
+                              / self.settings.samples))
+        if self.on_pass is not None and frame.pass_complete():
+            self.on_pass(frame.done_samples, self.image)
+        self.queue.refill()
 
-    def finish(job, sums, tile_stats, done, finite):
-        """A job from worker processes or a cluster: its sums as they arrived (float32)."""
-        landed(job, np.array(sums, np.float64), tile_stats, job.first == 0)
+    land_from_afar = land   # (the Emission pass is filled as its first pass lands anywhere)
 
-    sums_shape = (shape[0], shape[1], frame.channels + (PASS_CHANNELS if carried else 0))
-    if on_cluster:
-        cluster.render_tiles(settings.cluster, ctx, scene.camera, queue, sums_shape,
-                             np.float32, finish, should_cancel)
-        return _result(image, stats, dtype, scene, settings, passes=primary,
-                       parallelism="cluster")
-    if in_processes:
-        try:
-            _, unavailable = workers.render_tiles(ctx, scene.camera, queue, sums_shape,
-                                                  np.float32, threads, finish, should_cancel)
-            return _result(image, stats, dtype, scene, settings, passes=primary,
-                           parallelism="threads" if unavailable else "processes",
-                           fallback=_fallback_line(unavailable) if unavailable else None)
-        except workers.WorkersBusy:
-            pass
-        except workers.ProcessesUnavailable as error:
-            fallback = _fallback_line(str(error))
-        queue = WorkQueue(ProgressiveFrame(settings, tiles, image, guides=settings.guides,
-                                           passes=carried))
-        frame = queue.frame
-
-    _run_on_threads(lambda: queue.popleft() if queue else None,
-                    lambda job, stop: render_tile(ctx, scene.camera, job, stop),
-                    lambda job, result: landed(job, *result, job.first == 0),
-                    1 if len(tiles) == 1 else threads, should_cancel)
-    return _result(image, stats, dtype, scene, settings, passes=primary, fallback=fallback)
-
-
-def _run_on_threads(next_job, run, land, threads: int, should_cancel) -> None:
-    """Run every job ``next_job()`` hands out (None: none now; landing one may make more)
-    as ``run(job, stop)`` and give its result to ``land(job, result)`` on this thread as it
-    finishes: on this thread alone for one thread, else on a pool of ``threads`` with a few
-    jobs in flight, so that a cancel (``should_cancel()``) is honoured promptly.  ``stop``
-    tells a running job to raise RenderCancelled at its next bundle of rays."""
-    def cancelled():
-        return should_cancel is not None and should_cancel()
-
-    if threads == 1:
-        asked = _Asked(should_cancel)   # (a deep tile polls it between bounces)
-        while True:
-            if cancelled():
-                raise RenderCancelled("render cancelled")
-            job = next_job()
-            if job is None:
-                return
-            land(job, run(job, asked))
-    stop = threading.Event()
-    with ThreadPoolExecutor(max_workers=threads) as pool:
-        pending = {}
-        try:
-            while True:
-                while len(pending) < 2 * threads:
-                    job = next_job()
-                    if job is None:
-                        break
-                    pending[pool.submit(run, job, stop)] = job
-                if not pending:
-                    return
-                # Wake up regularly to poll should_cancel while long tiles run.
-                finished, _ = wait(pending, timeout=CANCEL_POLL_SECONDS,
-                                   return_when=FIRST_COMPLETED)
-                for future in finished:
-                    land(pending.pop(future), future.result())
-                if cancelled():
-                    raise RenderCancelled("render cancelled")
-        except BaseException:
-            # Cancelled, a tile failed, or an exception (KeyboardInterrupt) arrived: stop
-            # the other tiles at their next bundle instead of finishing them.
-            stop.set()
-            for future in pending:
-                future.cancel()
-            raise
+    def image_from(self, scheduled: np.ndarray) -> np.ndarray:
+        """The frame's image (the scheduler's held the sums as they travelled)."""
+        return self.image
 
 
 def _result(image, stats, dtype, scene, settings, **extra) -> RenderResult:

@@ -1,4 +1,6 @@
-"""Tiles rendered in worker processes, so that both cores work past the GIL.
+"""Tiles rendered in worker processes, so that both cores work past the GIL: the parent's
+side, its pool of workers and a frame's run on them (``render_tiles``).  A worker's own side
+is ``core.worker_process``; what they share without a copy, ``core.shared_memory``.
 
 A thread pool gains little (the render holds the GIL in about half of its ~750 NumPy calls a
 tile), so large renders run their tiles in ``count`` worker processes instead:
@@ -23,11 +25,11 @@ tile), so large renders run their tiles in ``count`` worker processes instead:
   ends: pickled (a few kB for the article's scene), except that arrays of SHARED_ARRAY_BYTES
   or more (a big scene's spheres, triangles and tree, and the tables the render built for
   the frame: ``Aggregate.build_frame_tables``) go out of band (pickle protocol 5)
-  into one anonymous file that every worker maps copy-on-write (``_SharedPayload``), so a
+  into one anonymous file that every worker maps copy-on-write (``core.shared_memory``), so a
   million-sphere scene is written once, not serialized into every worker's socket, and its
   pages exist once in memory however many workers read them.
 * the parent sends tile rectangles, at most two in flight per worker; a worker renders a
-  tile with the same ``core.render.render_tile`` as a thread would and writes its pixels
+  tile with the same ``core.tiles.render_tile`` as a thread would and writes its pixels
   straight into the render's image, then answers with the tile's RayStats and whether its
   values are all finite.  The image is a frame's memory (``_Frame``: a memfd, or an unlinked
   temporary file, mapped by the parent and every worker; its descriptor goes to each worker
@@ -62,21 +64,20 @@ import atexit
 import itertools
 import mmap
 import os
-import pickle
 import socket
 import subprocess
 import sys
-import tempfile
 import threading
 import time
-import traceback
 import weakref
 from collections import deque
 from multiprocessing.connection import Connection
 from multiprocessing.connection import wait as wait_for
-from multiprocessing.reduction import recv_handle, send_handle
+from multiprocessing.reduction import send_handle
 
 import numpy as np
+
+from .shared_memory import _SharedPayload, _anonymous_file, _frame_image, _map
 
 #: How often the parent polls should_cancel while workers run (seconds).
 CANCEL_POLL_SECONDS = 0.1
@@ -100,12 +101,6 @@ MIN_PIXELS = 300_000
 #: threads' wall time (5.2 vs 7.3 s, 2.9 vs 5.1 s, two free cores): two threads in one
 #: process gain little over one (the GIL).
 TREE_SAMPLE_WEIGHT = 10
-#: A context's arrays of at least this many bytes reach the workers through shared memory
-#: (``_SharedPayload``); smaller ones travel inside the pickle (a page per array and a slice
-#: of the file would cost more than copying them).
-SHARED_ARRAY_BYTES = 64 * 2 ** 10
-#: Each shared array starts at a multiple of this within the file (a cache line).
-SHARED_ALIGNMENT = 64
 #: Frame memory is kept for later renders up to this size each (a 1920 x 1080 float64 image
 #: is 63 MiB); a larger frame's memory lives only as long as its image.
 KEEP_SHARED_BYTES = 256 * 2 ** 20
@@ -157,107 +152,6 @@ class WorkersBusy(ProcessesUnavailable):
     reason to tell the user."""
 
 
-class _StopFlag:
-    """threading.Event's ``is_set`` over one byte of shared memory (what render_tile polls)."""
-
-    def __init__(self, buffer):
-        self._buffer = buffer
-
-    def is_set(self) -> bool:
-        return self._buffer[0] != 0
-
-
-def _anonymous_file(size: int, label: str = "glint-frame") -> int:
-    """A descriptor of ``size`` zero bytes that no name refers to, so nothing can leak when a
-    process dies: a memfd on Linux, an unlinked temporary file elsewhere (label: what
-    /proc shows of it)."""
-    if hasattr(os, "memfd_create"):
-        descriptor = os.memfd_create(label, os.MFD_CLOEXEC)
-    else:
-        descriptor, path = tempfile.mkstemp(prefix=label + "-")
-        os.unlink(path)
-    try:
-        os.ftruncate(descriptor, size)
-    except OSError:
-        os.close(descriptor)
-        raise
-    return descriptor
-
-
-def _map(descriptor: int, size: int, populate: bool = False) -> mmap.mmap:
-    """The file ``descriptor`` mapped shared; populate: map every page at once (one system
-    call instead of a page fault per 4 KiB page)."""
-    flags = mmap.MAP_SHARED | (getattr(mmap, "MAP_POPULATE", 0) if populate else 0)
-    return mmap.mmap(descriptor, size, flags=flags)
-
-
-class _SharedPayload:
-    """A pickled object whose large arrays live outside the pickle, in one anonymous file:
-    ``payload`` the pickle (protocol 5), ``layout`` ((offset, bytes, read-only) of each
-    out-of-band buffer in pickling order), ``size`` the file's, ``descriptor`` the file (None
-    when nothing went out of band).  ``close()`` lets the parent's descriptor go (the
-    workers' mappings keep the memory)."""
-
-    def __init__(self, obj):
-        self.payload, buffers = pickle_out_of_band(obj)
-        self.layout, offset = [], 0
-        for buffer in buffers:
-            self.layout.append((offset, buffer.raw().nbytes, buffer.raw().readonly))
-            offset += -(-buffer.raw().nbytes // SHARED_ALIGNMENT) * SHARED_ALIGNMENT
-        self.size = offset
-        self.descriptor = None
-        if buffers:
-            self.descriptor = _anonymous_file(self.size, "glint-scene")
-            try:
-                for (start, _, _), buffer in zip(self.layout, buffers):
-                    _write_all(self.descriptor, buffer.raw(), start)
-            except OSError:
-                self.close()
-                raise
-
-    def close(self) -> None:
-        if self.descriptor is not None:
-            os.close(self.descriptor)
-            self.descriptor = None
-
-
-def pickle_out_of_band(obj, min_bytes: int = SHARED_ARRAY_BYTES
-                       ) -> tuple[bytes, list[pickle.PickleBuffer]]:
-    """(pickle, buffers): ``obj`` pickled with protocol 5, its buffers (arrays' data) of at
-    least ``min_bytes`` left out of the pickle, to travel beside it without a copy into it;
-    ``pickle.loads(pickle, buffers=...)`` takes them back in the same order."""
-    buffers = []
-
-    def in_band(buffer: pickle.PickleBuffer) -> bool:
-        if buffer.raw().nbytes < min_bytes:
-            return True
-        buffers.append(buffer)
-        return False
-
-    return pickle.dumps(obj, protocol=5, buffer_callback=in_band), buffers
-
-
-def _write_all(descriptor: int, data: memoryview, offset: int) -> None:
-    while len(data):
-        written = os.pwrite(descriptor, data, offset)
-        data, offset = data[written:], offset + written
-
-
-def _shared_loads(payload: bytes, mapping, layout) -> object:
-    """The object a ``_SharedPayload`` pickled, its large arrays over ``mapping`` (the
-    payload's file mapped copy-on-write: the worker may write to them, privately), read-only
-    where the parent's were (a scene's frozen arrays stay frozen)."""
-    view = memoryview(mapping) if mapping is not None else None
-    return pickle.loads(payload, buffers=[
-        view[start:start + size].toreadonly() if readonly else view[start:start + size]
-        for start, size, readonly in layout])
-
-
-def _frame_image(mapping, shape, dtype) -> np.ndarray:
-    """The (H, W, 4) image of ``dtype`` at the start of ``mapping``."""
-    return np.frombuffer(mapping, np.dtype(dtype), count=int(np.prod(shape))).reshape(shape)
-
-
 def _python_executable() -> str | None:
     """The Python that workers run: sys.executable if it is a Python program, else None."""
     executable = sys.executable
@@ -267,137 +161,6 @@ def _python_executable() -> str | None:
         return None   # e.g. an embedding program that left sys.executable as itself
     return executable
 
-
-# ------------------------------------------------------------------------------------------
-# The worker side
-
-class _Job:
-    """One render as a worker sees it: its context, camera and the frame's image."""
-
-    def __init__(self, mapping, shape, dtype_name: str, payload: bytes, shared, layout):
-        self.image = _frame_image(mapping, tuple(shape), dtype_name)
-        self.shared = shared          # the context's large arrays (or None)
-        self.ctx, self.camera = _shared_loads(payload, shared, layout)
-
-    def close(self) -> None:
-        self.image = self.ctx = self.camera = None
-        if self.shared is not None:
-            try:
-                self.shared.close()
-            except BufferError:       # an array still refers to it: freed with the array
-                pass
-            self.shared = None
-
-
-def worker_loop(connection, setup: dict) -> None:
-    """Run in a worker: serve renders until the parent sends None or goes away.
-
-    First the control page's descriptor (its byte 0 is the stop byte).  Messages in:
-    ('render', frame id, frame bytes, shape, dtype, whether the frame's descriptor follows,
-    shared bytes, shared layout), [the frame's descriptor,] [the shared arrays' descriptor
-    (when shared bytes > 0),] then the pickled (context, camera) as bytes
-    (``_SharedPayload``); a tile (y0, y1, x0, x1);
-    ('end', ids of the frames to keep mapped); None.  Answers: ('ready',), ('done', tile,
-    stats, whether every value is finite), ('cancelled', tile), ('error', tile, exception,
-    traceback text), ('ended',)."""
-    from . import allocator
-
-    allocator.configure()
-    with allocator.small_pages():     # for good: the process is Glint's (core.allocator)
-        _serve(connection)
-
-
-def _serve(connection) -> None:
-    """``worker_loop``'s renders, one after the other."""
-    from .failures import RenderCancelled
-    from .tiles import render_tile
-
-    try:
-        control = _received_mapping(connection, mmap.PAGESIZE)
-    except (EOFError, OSError):
-        return
-    stop = _StopFlag(control)
-    frames: dict[int, mmap.mmap] = {}      # frame id -> its mapping, kept between renders
-    job = None
-    try:
-        while True:
-            try:
-                message = connection.recv()
-            except (EOFError, OSError):
-                return                      # the parent is gone
-            if message is None:
-                return
-            if message[0] == "render":
-                _, frame, size, shape, dtype_name, sent, shared_size, layout = message
-                try:
-                    if sent:
-                        frames[frame] = _received_mapping(connection, size)
-                    shared = _received_mapping(connection, shared_size, private=True) \
-                        if shared_size else None
-                    payload = connection.recv_bytes()
-                    if job is not None:       # a render whose end never came
-                        job.close()
-                    job = _Job(frames[frame], shape, dtype_name, payload, shared, layout)
-                except Exception as error:
-                    job = None
-                    _send_error(connection, None, error)
-                    continue
-                connection.send(("ready",))
-            elif message[0] == "end":
-                if job is not None:
-                    job.close()
-                    job = None
-                for frame in set(frames) - set(message[1]):
-                    frames.pop(frame).close()  # the parent let this frame go
-                connection.send(("ended",))
-            elif job is None or stop.is_set():
-                connection.send(("cancelled", message))
-            else:
-                tile = message
-                try:
-                    rgba, stats = render_tile(job.ctx, job.camera, tile, stop)
-                    y0, y1, x0, x1 = tile[:4]
-                    job.image[y0:y1, x0:x1] = rgba     # straight into the caller's image
-                    connection.send(("done", tile, stats, bool(np.isfinite(rgba).all())))
-                except RenderCancelled:
-                    connection.send(("cancelled", tile))
-                except Exception as error:
-                    _send_error(connection, tile, error)
-    finally:
-        if job is not None:
-            job.close()
-        for mapping in frames.values():
-            mapping.close()
-
-
-def _received_mapping(connection, size: int, private: bool = False) -> mmap.mmap:
-    """The descriptor the parent sends next over ``connection``, mapped (and closed: the
-    mapping keeps the memory); private: copy-on-write (writes stay in this process)."""
-    descriptor = recv_handle(connection)
-    try:
-        if private:
-            return mmap.mmap(descriptor, size, flags=mmap.MAP_PRIVATE,
-                             prot=mmap.PROT_READ | mmap.PROT_WRITE)
-        return _map(descriptor, size)
-    finally:
-        os.close(descriptor)
-
-
-def _send_error(connection, tile, error: BaseException) -> None:
-    text = "".join(traceback.format_exception(type(error), error, error.__traceback__))
-    try:
-        pickle.loads(pickle.dumps(error))      # survives the trip as itself?
-        payload = error
-    except Exception:
-        payload = RuntimeError(f"{type(error).__name__}: {error}")
-    try:
-        connection.send(("error", tile, payload, text))
-    except (OSError, ValueError):
-        pass
-
-
-# ------------------------------------------------------------------------------------------
-# The parent side
 
 class _Worker:
     def __init__(self, process, connection):

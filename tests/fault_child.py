@@ -49,13 +49,14 @@ def disk_fills_up(atomic_path):
 
 
 def inject(stage: str, core, job=None) -> None:
-    # The modules by name: ``core.render`` is also the function the package exports.
-    render_module = sys.modules[core.__name__ + ".render"]
+    # The modules by name (``core.render`` is also the function the package exports); a
+    # frame's tiles run here on threads (``core.threads``).
+    threads_module = sys.modules[core.__name__ + ".threads"]
     png_module = sys.modules[core.__name__ + ".png"]
     if stage == "export":
         job.export_scene = fail("export")
     elif stage == "tile":
-        render_module.render_tile = fail("a tile ran out of memory", MemoryError)
+        threads_module.render_tile = fail("a tile ran out of memory", MemoryError)
     elif stage == "hand-over":
         job.JobResult = fail("hand-over")
     elif stage == "write" and job is None:

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import core
-from core import workers
+from core import shared_memory, workers
 from core.context import make_context
 from core.progressive import ProgressiveFrame, WorkQueue
 from core.geometry import DEFAULT_POLICY, bins, bvh
@@ -113,7 +113,7 @@ def test_workers_get_the_frames_tables_and_build_none(small_renders_in_processes
         shared = real_payload(obj)
         mapping = mmap.mmap(shared.descriptor, shared.size, flags=mmap.MAP_PRIVATE,
                             prot=mmap.PROT_READ | mmap.PROT_WRITE)
-        loaded.append((workers._shared_loads(shared.payload, mapping, shared.layout),
+        loaded.append((shared_memory._shared_loads(shared.payload, mapping, shared.layout),
                        shared.layout))
         return shared
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import core
-from core import workers
+from core import shared_memory, workers
 from core.failures import RenderCancelled
 from core.tiles import render_tile
 from core.validation import SceneError
@@ -342,10 +342,10 @@ def test_large_arrays_reach_the_workers_through_shared_memory(small_renders_in_p
     from core.render import canonical_scene, choose_precision, make_context
     canonical = canonical_scene(scene, settings)
     ctx = make_context(canonical, settings, choose_precision(canonical, settings.precision))
-    shared = workers._SharedPayload((ctx, canonical.camera))
+    shared = shared_memory._SharedPayload((ctx, canonical.camera))
     try:
         assert shared.size >= count * 3 * 8           # at least the centres went out of band
-        assert all(size >= workers.SHARED_ARRAY_BYTES for _, size, _ in shared.layout)
+        assert all(size >= shared_memory.SHARED_ARRAY_BYTES for _, size, _ in shared.layout)
         assert len(shared.payload) < shared.size / 10
     finally:
         shared.close()
@@ -357,19 +357,19 @@ def test_shared_arrays_load_writable_and_copy_on_write():
     stays private), read-only where they were frozen."""
     import mmap
 
-    big = np.arange(workers.SHARED_ARRAY_BYTES // 8 * 3, dtype=np.float64).reshape(3, -1)
+    big = np.arange(shared_memory.SHARED_ARRAY_BYTES // 8 * 3, dtype=np.float64).reshape(3, -1)
     small = np.arange(10)
-    frozen = np.ones(workers.SHARED_ARRAY_BYTES)
+    frozen = np.ones(shared_memory.SHARED_ARRAY_BYTES)
     frozen.flags.writeable = False
-    shared = workers._SharedPayload({"big": big, "small": small, "view": big[1],
-                                     "frozen": frozen})
+    shared = shared_memory._SharedPayload({"big": big, "small": small, "view": big[1],
+                                           "frozen": frozen})
     try:
         assert len(shared.layout) == 3     # big, its row and frozen; small stays in band
         loads = []
         for _ in range(2):
             mapping = mmap.mmap(shared.descriptor, shared.size, flags=mmap.MAP_PRIVATE,
                                 prot=mmap.PROT_READ | mmap.PROT_WRITE)
-            loads.append(workers._shared_loads(shared.payload, mapping, shared.layout))
+            loads.append(shared_memory._shared_loads(shared.payload, mapping, shared.layout))
     finally:
         shared.close()
     first, second = loads

@@ -32,8 +32,8 @@ import glint.addon.operators as operators  # noqa: E402
 
 pytestmark = pytest.mark.slow  # every test here takes seconds (child processes)
 
-# The module, not the function ``glint.core.render`` that the package exports under its name.
-core_render = sys.modules["glint.core.render"]
+# The module whose tiles the add-on's small renders run (on threads).
+core_threads = sys.modules["glint.core.threads"]
 FAULT_CHILD = os.path.join(REPOSITORY, "tests", "fault_child.py")
 
 
@@ -49,7 +49,7 @@ def _raise(error):
 
 ADDON_FAULTS = {
     "export": (job, "export_scene", Injected("injected fault: export")),
-    "tile": (core_render, "render_tile", MemoryError("injected fault: tile")),
+    "tile": (core_threads, "render_tile", MemoryError("injected fault: tile")),
     "hand-over": (job, "JobResult", Injected("injected fault: hand-over")),
 }
 
