@@ -51,6 +51,7 @@ from collections import OrderedDict, deque
 
 import numpy as np
 
+from .failures import CANCEL_POLL_SECONDS, RenderCancelled, RenderError
 from .validation import SceneError
 from .version import VERSION
 
@@ -63,8 +64,6 @@ WORKER_DISTRIBUTION = "glint-raytracer-core"
 #: the environment variable GLINT_CLUSTER_TIMEOUT sets another.
 DEFAULT_TIMEOUT_SECONDS = 30.0
 TIMEOUT_VARIABLE = "GLINT_CLUSTER_TIMEOUT"
-#: How often the submitter polls should_cancel while tiles run (seconds).
-CANCEL_POLL_SECONDS = 0.1
 #: Arrays of at least this many bytes travel beside the frame's pickle, not inside it.
 OUT_OF_BAND_BYTES = 64 * 2 ** 10
 #: Tasks a pass's tiles are dealt into per worker (``task_groups``): enough for the
@@ -249,7 +248,6 @@ def run_tiles(frame, key: str, tiles: bytes, dtype: str, sender_identity):
     unpickled by the submitter."""
     from . import allocator
     from .progressive import TileJob
-    from .failures import RenderCancelled
     from .tiles import render_tile
 
     if tuple(sender_identity) != identity():
@@ -413,7 +411,6 @@ def render_tiles(address: str, ctx, camera, tiles, shape, dtype, finish, should_
     ``WorkQueue``).  Raises ClusterError (one line) where the cluster cannot render it,
     RenderCancelled when ``should_cancel()`` answers True."""
     from .rays import RayStats
-    from .failures import RenderCancelled, RenderError
 
     connection = client(address)
     workers = _check_workers(connection, address)

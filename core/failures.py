@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+#: How often a scheduler waiting on its tiles (threads, worker processes, a cluster) polls
+#: ``should_cancel`` (seconds): a cancel is honoured within about this.
+CANCEL_POLL_SECONDS = 0.1
+
 
 class RenderCancelled(Exception):
     """``should_cancel()`` answered True; the render stopped between tiles."""

@@ -16,11 +16,9 @@ from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
 import numpy as np
 
-from .failures import RenderCancelled
+from .failures import CANCEL_POLL_SECONDS, RenderCancelled
 from .tiles import render_tile
 
-#: How often the thread loop polls should_cancel while tiles are running.
-CANCEL_POLL_SECONDS = 0.1
 
 
 class _Asked:

@@ -77,10 +77,9 @@ from multiprocessing.reduction import send_handle
 
 import numpy as np
 
+from .failures import CANCEL_POLL_SECONDS, RenderCancelled, RenderError
 from .shared_memory import _SharedPayload, _anonymous_file, _frame_image, _map
 
-#: How often the parent polls should_cancel while workers run (seconds).
-CANCEL_POLL_SECONDS = 0.1
 #: A worker must be ready (imported, context loaded) within this, else processes are
 #: declared unavailable and the render falls back to threads.
 START_TIMEOUT_SECONDS = 60.0
@@ -405,7 +404,6 @@ class _Render:
         process renders tiles itself, so a cold start costs the frame nothing but the tiles
         it did not help with."""
         global unavailable_reason
-        from .failures import RenderCancelled
 
         self.pending = tiles if hasattr(tiles, "popleft") else deque(tiles)
         by_connection = {w.connection: w for w in self.workers}
@@ -470,7 +468,6 @@ class _Render:
     def finish_here(self, finish, should_cancel) -> None:
         """The workers are gone after some tiles landed: the tiles they had and those never
         sent, rendered in this process (as one thread would; two threads gain nothing)."""
-        from .failures import RenderCancelled
 
         for worker in self.workers:
             self.pending.extendleft(reversed(worker.in_flight))
@@ -492,7 +489,6 @@ class _Render:
 
     def _died(self, worker: _Worker):
         """A worker went away during the render: a RenderError naming its exit code."""
-        from .failures import RenderError
 
         _pool.drop(worker)
         self.workers.remove(worker)
