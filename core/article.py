@@ -16,8 +16,6 @@ The article's shading is Blinn-Phong (``core.shading``), every quirk kept:
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from .camera import ScreenCamera
@@ -28,9 +26,6 @@ from .scene import Scene, Sphere
 from .settings import RenderSettings
 from .shading import SHADOW_CODE_BASE, WhittedShading, column, specular_power
 from .vectors import dot, length, normalize_in_place
-
-if TYPE_CHECKING:
-    from .context import TraceContext
 
 ARTICLE_WIDTH, ARTICLE_HEIGHT = 300, 200
 ARTICLE_MAX_DEPTH = 3
@@ -70,7 +65,7 @@ def article_settings(**overrides) -> RenderSettings:
     return RenderSettings(**values)
 
 
-def article_light_blocked(ctx: TraceContext, origin, directions, distance, start,
+def article_light_blocked(ctx, origin, directions, distance, start,
                           stats: RayStats):
     """Whether the article's shadow rays of m points are blocked, (m,) bool.  origin: the
     light's ``SharedOrigin``; directions: (3, m) unit vectors from the light towards the
@@ -84,7 +79,7 @@ def article_light_blocked(ctx: TraceContext, origin, directions, distance, start
 
 
 @timed("seconds_shading")
-def shade_article(ctx: TraceContext, points, normals, directions, materials, exclude,
+def shade_article(ctx, points, normals, directions, materials, exclude,
                   stats: RayStats, *, shares=None, terminator=None, world_shift=None,
                   world_noise=None):
     """The article's shading (module docstring) at m points, with ``core.shading.shade``'s

@@ -2,6 +2,9 @@
 shading model of the default semantics (``WhittedShading``; the article's, every quirk kept,
 is ``core.article.ArticleShading``, which shares its interface).
 
+Every function takes the frame's ``core.context.TraceContext`` as ``ctx`` (which picks the
+shading model, so this module does not import it).
+
 Both semantics use the article's model: for each light,
 ``ka Ia + kd Id (L.N) + ks Is (N.H) ** (shininess / 4)``.
 
@@ -43,14 +46,10 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .bsdf import diffuse_seen, environment, light_response
-
-if TYPE_CHECKING:   # (``core.context`` picks the shading model: it imports this module)
-    from .context import TraceContext
 from .lights import (SampleShares, area_sample_irradiance, centre_irradiance,
                      cosine_directions, share_weights, shifted_cosine_direction)
 from .rays import RayBatch, RayStats, ray_offsets, timed
@@ -101,7 +100,7 @@ def specular_power(materials, exponents, base):
     return _power(base, exponents.take(materials))
 
 
-def light_blocked(ctx: TraceContext, origin, directions, distance, exclude, stats: RayStats,
+def light_blocked(ctx, origin, directions, distance, exclude, stats: RayStats,
                   *, end):
     """Whether the segments from a light sample towards m points are blocked, (m,) bool.
 
@@ -116,7 +115,7 @@ def light_blocked(ctx: TraceContext, origin, directions, distance, exclude, stat
     return ctx.geometry.occluded(segments, stats)
 
 
-def traces_from_points(ctx: TraceContext) -> bool:
+def traces_from_points(ctx) -> bool:
     """Whether the shading may trace occlusion rays that leave its hit points
     (``_rays_blocked``, which the aggregate answers by occlusion trails): a sun's and the
     world's (the physically based model's), and any light's from the lifted points of
@@ -132,7 +131,7 @@ def traces_from_points(ctx: TraceContext) -> bool:
     return ctx.geometry.lifts_terminator and lit
 
 
-def traces_world_occlusion(ctx: TraceContext) -> bool:
+def traces_world_occlusion(ctx) -> bool:
     """Whether the shading may trace the world's occlusion rays (``_world_occlusion``): the
     physically based model, a world that is not black, and ``_traces_world`` (so whether
     camera rays need their pixels' ``world_shift``)."""
@@ -140,14 +139,14 @@ def traces_world_occlusion(ctx: TraceContext) -> bool:
             and bool(np.any(ctx.ambient)))
 
 
-def _traces_world(ctx: TraceContext) -> bool:
+def _traces_world(ctx) -> bool:
     """Whether the physically based model traces the world's occlusion rays
     (``_world_occlusion``) where the world is not black: world samples asked for, and more
     than the one primitive a point lies on to block them."""
     return bool(ctx.settings.world_samples) and len(ctx.geometry) > 1
 
 
-def shares_matter(ctx: TraceContext) -> bool:
+def shares_matter(ctx) -> bool:
     """Whether an anti-aliasing sample's share of the soft lights' samples (``shares`` of
     ``shade``) can change what it traces: not for Blinn-Phong when every light is a point
     (one sample each; in article semantics always: the article's lights are points); always
@@ -160,7 +159,7 @@ def shares_matter(ctx: TraceContext) -> bool:
 
 
 @timed("seconds_shading")
-def shade(ctx: TraceContext, points, normals, directions, materials, exclude,
+def shade(ctx, points, normals, directions, materials, exclude,
           stats: RayStats, *, shares: SampleShares | None = None,
           terminator: TerminatorLift | None = None, world_shift: np.ndarray | None = None,
           world_noise: np.ndarray | None = None):
@@ -222,7 +221,7 @@ WHITTED_SHADING = WhittedShading()
 
 
 @timed("seconds_shading")
-def shade_translucent(ctx: TraceContext, points, normals, directions, materials,
+def shade_translucent(ctx, points, normals, directions, materials,
                       exclude_back, stats: RayStats, *, shares: SampleShares | None = None,
                       world_shift: np.ndarray | None = None,
                       world_noise: np.ndarray | None = None):
