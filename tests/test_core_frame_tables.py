@@ -65,7 +65,7 @@ def _counting(monkeypatch):
         return build(cls, *args, by_depth=by_depth, **kwargs)
 
     monkeypatch.setattr(bins.OriginBins, "build", classmethod(built))
-    for name in ("_trail_tables", "_sibling_tables", "_leaf_fill", "_nearest_levels"):
+    for name in ("trail_tables", "sibling_tables", "leaf_fill", "nearest_levels"):
         table = counted(name, getattr(bvh.BVH, name).func)
         cached = functools.cached_property(table)
         cached.__set_name__(bvh.BVH, name)
@@ -124,12 +124,12 @@ def test_workers_get_the_frames_tables_and_build_none(small_renders_in_processes
     geometry, tree = ctx.geometry, ctx.geometry.tree.bvh
     eye = [b for b in geometry.bins.held.values() if b is not None]
     assert [b.by_depth for b in eye] == [True]
-    assert {"_trail_tables", "_sibling_tables", "_leaf_fill", "_nearest_levels"} \
+    assert {"trail_tables", "sibling_tables", "leaf_fill", "nearest_levels"} \
         <= set(vars(tree))
     assert geometry.tree.holds_leaf_spheres
     # The tables' large arrays travelled out of band, in the shared file.
     shipped = {size for _, size, _ in layout}
-    assert eye[0].primitives.nbytes in shipped and tree._sibling_tables[0].nbytes in shipped
+    assert eye[0].primitives.nbytes in shipped and tree.sibling_tables[0].nbytes in shipped
     assert geometry.tree.leaf_spheres()[0].nbytes in shipped
 
     counts = _counting(monkeypatch)
@@ -148,8 +148,8 @@ def test_a_render_on_threads_builds_each_table_once(monkeypatch):
     counts = _counting(monkeypatch)
     core.render(_cloud_scene(SUN), core.RenderSettings(threads=2, parallelism="threads",
                                                        tile_size=32))
-    assert counts == {"bins (or refused)": 1, "depth bins": 1, "_trail_tables": 1,
-                      "_sibling_tables": 1, "_leaf_fill": 1, "_nearest_levels": 1,
+    assert counts == {"bins (or refused)": 1, "depth bins": 1, "trail_tables": 1,
+                      "sibling_tables": 1, "leaf_fill": 1, "nearest_levels": 1,
                       "leaf spheres": 1}
 
 
@@ -171,7 +171,7 @@ def test_a_frame_builds_only_the_tables_its_rays_use(case):
     geometry.build_frame_tables(ctx.camera_origin.position, bounces=traces_bounces(ctx),
                                 trails=traces_from_points(ctx), threads=2)
     tree = vars(geometry.tree.bvh)
-    assert ("_trail_tables" in tree) == ("_sibling_tables" in tree) == (case == "sun")
+    assert ("trail_tables" in tree) == ("sibling_tables" in tree) == (case == "sun")
     assert bool(geometry.bins.held) == (case != "few pixels")
     assert geometry.tree.holds_leaf_spheres == (case not in ("mirrors off", "matte"))
 

@@ -22,7 +22,7 @@ before it (a hit found already, a segment's end) is never intersected.
 The answer is the tree's, not an approximation of it: the pairs go through the very kernels
 the tree's leaves use (``BVH.traverse``'s ``visit`` and ``accept`` contract), each cell lists
 its primitives in id order, and a ray's nearest hit is its least distance, ties to the lower
-primitive id, as ``BVH._visit_leaves`` picks them.
+primitive id, as the tree's leaf visits pick them (``bvh_traverse._visit_leaves``).
 
 Whether bins pay is decided twice.  Per origin, before anything is listed: the entries the
 boxes would make are counted from their cell ranges (each cell's count by 2-D difference
