@@ -12,7 +12,7 @@ import dataclasses
 
 import core
 from core.context import RayStats, make_context
-from core.geometry import DEFAULT_POLICY, bins
+from core.geometry import DEFAULT_POLICY, bins_build
 from core.geometry.bins import OriginBins
 from core.geometry.cells import direction_cells
 from core.rays import RayBatch
@@ -221,9 +221,9 @@ def test_bins_are_refused_where_they_do_not_pay_or_would_be_too_large():
     cloud = make_context(_cloud_scene(), core.RenderSettings(), np.float64).geometry
     eye = (0.0, 0.0, 12.0)
     sparse = OriginBins.build(eye, *cloud.tree.boxes)
-    assert sparse is not None and sparse.cells == bins.CELLS
+    assert sparse is not None and sparse.cells == bins_build.CELLS
     coarser = OriginBins.build(eye, *cloud.tree.boxes, max_entries=sparse.entries - 1)
-    assert coarser.cells == bins.CELLS // 2 and coarser.entries < sparse.entries
+    assert coarser.cells == bins_build.CELLS // 2 and coarser.entries < sparse.entries
     assert OriginBins.build(eye, *cloud.tree.boxes, max_entries=1000) is None
 
 

@@ -15,7 +15,7 @@ import dataclasses
 
 import core
 from core.context import RayStats, make_context
-from core.geometry import DEFAULT_POLICY, bins
+from core.geometry import DEFAULT_POLICY, bins_build
 from core.geometry.bins import OriginBins
 from core.geometry.cells import direction_cells
 from core.rays import RayBatch
@@ -81,9 +81,10 @@ def test_every_hit_lies_beyond_its_entrys_near_in_its_cell():
         met = np.flatnonzero(np.isfinite(t[row]))
         face, rest = divmod(int(cell), grid.cells ** 2)
         listed = grid.cell_entries(cell)
-        place = bins._place(grid.slots, face, np.array([rest // grid.cells]),
-                            np.array([rest % grid.cells]), grid.cells // bins.BLOCK,
-                            len(grid.starts) - 2)[0]
+        place = bins_build.stored_place(grid.slots, face, np.array([rest // grid.cells]),
+                                        np.array([rest % grid.cells]),
+                                        grid.cells // bins_build.BLOCK,
+                                        len(grid.starts) - 2)[0]
         near = grid.near[grid.starts[place]:grid.starts[place + 1]]
         assert (np.diff(near) >= 0).all()
         where = {p: k for k, p in enumerate(listed)}
