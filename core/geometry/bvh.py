@@ -70,10 +70,10 @@ class BVH(WideTree):
     @functools.cached_property
     def sorts_nearest(self) -> bool:
         """Whether nearest-hit traversal visits (ray, node) pairs front to back
-        (``_rounds``), or descends every pair level by level with no sort, visiting leaves as
-        it reaches them (``_descend_all``): trees of fewer than ``policy.sorted_from``
-        leaves, where rays meet few leaves and the sorts and nested rounds cost more than
-        the box tests they save."""
+        (``bvh_traverse._rounds``), or descends every pair level by level with no sort,
+        visiting leaves as it reaches them (``bvh_traverse._descend_all``): trees of fewer
+        than ``policy.sorted_from`` leaves, where rays meet few leaves and the sorts and
+        nested rounds cost more than the box tests they save."""
         return len(self.leaves) >= self.policy.sorted_from
 
     def sort_levels(self, deepest: int = None) -> list:
@@ -172,9 +172,9 @@ class BVH(WideTree):
 
     @property
     def tests_slots(self) -> bool:
-        """Whether leaf visits test each slot's own box first (``_slots_reached``): the tree
-        has ``leaf_boxes``, laid out as a node's slots (MAX_LEAF == WIDTH, the slab terms'
-        spread)."""
+        """Whether leaf visits test each slot's own box first
+        (``bvh_traverse._slots_reached``): the tree has ``leaf_boxes``, laid out as a node's
+        slots (MAX_LEAF == WIDTH, the slab terms' spread)."""
         return self.leaf_boxes is not None and MAX_LEAF == WIDTH
 
     @functools.cached_property

@@ -193,7 +193,7 @@ def _traverse_rays(tree, origins, inverse, t_min, t_max, visit, accept, any_hit,
 def _traverse(tree, first, stop, levels, rows, t_min, t_max, visit, accept, found,
               any_hit, stats, slot_visit=None):
     """Rays first .. stop - 1 from the root: front to back, sorting at ``levels``
-    (``sort_levels``), or (levels None) level by level unsorted (``sorts_nearest``)."""
+    (``BVH.sort_levels``), or (levels None) level by level unsorted (``BVH.sorts_nearest``)."""
     rays = np.arange(first, stop)
     if levels is None:
         # (No test of the root's own box: its children's tests answer for it, which
@@ -225,7 +225,7 @@ def _trail(tree, rays, starts, rows, climb_rows, t_min, t_max, visit, found, sta
     """Any-hit traversal of rays (m,) (increasing) that leave primitives of the tree, from
     their leaves up.  Each ray's *home* (``starts`` (m,)) is the node whose slot holds its
     primitive's leaf.  The ray climbs from the home's parent: each step meets the children
-    of the next node up but the child already done (``sibling_tables``: the slab terms
+    of the next node up but the child already done (``BVH.sibling_tables``: the slab terms
     ``climb_rows`` are spread for those), up to the root, until the ray is blocked; the
     home's own children (the ray's leaf, with its primitive's neighbours, and the leaf's
     siblings) are met after ``policy.home_after`` steps (they block few rays for their
@@ -495,7 +495,7 @@ def _expand(tree, rays, nodes, origins, inverse, t_min, t_max, stats, entries=Tr
     """The children of pairs (ray, node) (m,) that the rays' segments reach: (rays,
     child references, entry distances (None unless ``entries``)), still grouped by ray.
     table: (planes, children, counts) of k slots a node to meet instead of the node's
-    children (``sibling_tables``; origins and inverse spread for k)."""
+    children (``BVH.sibling_tables``; origins and inverse spread for k)."""
     blocks, children, counts = (tree.blocks, tree.children, tree.child_counts) \
         if table is None else table
     near, hit = _slabs(blocks.take(nodes, axis=1), rays, origins, inverse,
