@@ -263,15 +263,15 @@ def test_an_aggregate_travels_to_a_worker_with_the_bins_it_holds():
         return g.intersect(batch, RayStats())[:2]
 
     t, primitive = nearest(geometry)
-    assert len(geometry.bins.held) == 1
+    assert len(geometry.bins.store.held) == 1
     copy = pickle.loads(pickle.dumps(geometry))
-    assert copy.bins.held.keys() == geometry.bins.held.keys()
-    assert copy.bins.bytes == geometry.bins.bytes > 0
-    held = list(copy.bins.held.values())
+    assert copy.bins.store.held.keys() == geometry.bins.store.held.keys()
+    assert copy.bins.store.bytes == geometry.bins.store.bytes > 0
+    held = list(copy.bins.store.held.values())
     t2, primitive2 = nearest(copy)
-    assert list(copy.bins.held.values()) == held
+    assert list(copy.bins.store.held.values()) == held
     assert np.array_equal(t, t2) and np.array_equal(primitive, primitive2)
-    assert fresh.bins.held == {}
+    assert fresh.bins.store.held == {}
     t2, primitive2 = nearest(fresh)
-    assert len(fresh.bins.held) == 1
+    assert len(fresh.bins.store.held) == 1
     assert np.array_equal(t, t2) and np.array_equal(primitive, primitive2)

@@ -122,7 +122,7 @@ def test_workers_get_the_frames_tables_and_build_none(small_renders_in_processes
     assert result.parallelism == "processes"
     (ctx, camera), layout = loaded[0]
     geometry, tree = ctx.geometry, ctx.geometry.tree.bvh
-    eye = [b for b in geometry.bins.held.values() if b is not None]
+    eye = [b for b in geometry.bins.store.held.values() if b is not None]
     assert [b.by_depth for b in eye] == [True]
     assert {"trail_tables", "sibling_tables", "leaf_fill", "nearest_levels"} \
         <= set(vars(tree))
@@ -172,7 +172,7 @@ def test_a_frame_builds_only_the_tables_its_rays_use(case):
                                 trails=traces_from_points(ctx), threads=2)
     tree = vars(geometry.tree.bvh)
     assert ("trail_tables" in tree) == ("sibling_tables" in tree) == (case == "sun")
-    assert bool(geometry.bins.held) == (case != "few pixels")
+    assert bool(geometry.bins.store.held) == (case != "few pixels")
     assert geometry.tree.holds_leaf_spheres == (case not in ("mirrors off", "matte"))
 
 
@@ -189,8 +189,9 @@ def test_depth_bins_built_on_threads_are_one_threads(count):
     job, ``bins_chunk`` made small) are one thread's, array for array."""
     scene = _cloud_scene(POINT, count=count)
     geometry = make_context(scene, core.RenderSettings(), np.float64).geometry
-    ids, low, high = geometry.bins.boxes()
-    options = dict(by_depth=True, bounds=geometry.bins.bounding_spheres(ids), rounding=2e-16,
+    ids, low, high = geometry.bins.store.boxes()
+    options = dict(by_depth=True, bounds=geometry.bins.store.bounding_spheres(ids),
+                   rounding=2e-16,
                    policy=dataclasses.replace(DEFAULT_POLICY, bins_chunk=1000))
     made = []
     for threads in (1, 2):
