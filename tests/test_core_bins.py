@@ -12,7 +12,7 @@ import dataclasses
 
 import core
 from core.context import RayStats, make_context
-from core.geometry import DEFAULT_POLICY, bins
+from core.geometry import DEFAULT_POLICY, bins_build
 from core.geometry.bins import OriginBins
 from core.geometry.cells import direction_cells
 from core.rays import RayBatch
@@ -221,9 +221,9 @@ def test_bins_are_refused_where_they_do_not_pay_or_would_be_too_large():
     cloud = make_context(_cloud_scene(), core.RenderSettings(), np.float64).geometry
     eye = (0.0, 0.0, 12.0)
     sparse = OriginBins.build(eye, *cloud.tree.boxes)
-    assert sparse is not None and sparse.cells == bins.CELLS
+    assert sparse is not None and sparse.cells == bins_build.CELLS
     coarser = OriginBins.build(eye, *cloud.tree.boxes, max_entries=sparse.entries - 1)
-    assert coarser.cells == bins.CELLS // 2 and coarser.entries < sparse.entries
+    assert coarser.cells == bins_build.CELLS // 2 and coarser.entries < sparse.entries
     assert OriginBins.build(eye, *cloud.tree.boxes, max_entries=1000) is None
 
 
@@ -263,15 +263,15 @@ def test_an_aggregate_travels_to_a_worker_with_the_bins_it_holds():
         return g.intersect(batch, RayStats())[:2]
 
     t, primitive = nearest(geometry)
-    assert len(geometry.bins.held) == 1
+    assert len(geometry.bins.store.held) == 1
     copy = pickle.loads(pickle.dumps(geometry))
-    assert copy.bins.held.keys() == geometry.bins.held.keys()
-    assert copy.bins.bytes == geometry.bins.bytes > 0
-    held = list(copy.bins.held.values())
+    assert copy.bins.store.held.keys() == geometry.bins.store.held.keys()
+    assert copy.bins.store.bytes == geometry.bins.store.bytes > 0
+    held = list(copy.bins.store.held.values())
     t2, primitive2 = nearest(copy)
-    assert list(copy.bins.held.values()) == held
+    assert list(copy.bins.store.held.values()) == held
     assert np.array_equal(t, t2) and np.array_equal(primitive, primitive2)
-    assert fresh.bins.held == {}
+    assert fresh.bins.store.held == {}
     t2, primitive2 = nearest(fresh)
-    assert len(fresh.bins.held) == 1
+    assert len(fresh.bins.store.held) == 1
     assert np.array_equal(t, t2) and np.array_equal(primitive, primitive2)

@@ -10,7 +10,7 @@ import dataclasses
 
 import core
 from core.context import RayStats, make_context
-from core.geometry import DEFAULT_POLICY, bvh, bvh_build, cells
+from core.geometry import DEFAULT_POLICY, bvh, bvh_build, bvh_traverse, cells
 from core.geometry.kernels import OcclusionPairs
 from core.geometry.tree import TreeAccelerator
 from core.rays import RayBatch
@@ -60,7 +60,7 @@ def test_tree_finds_exactly_the_flat_paths_hits(dtype, sorts):
     primitive) and occlusion agree with the flat paths ray for ray, for rays with their own
     origins, rays sharing one (with its terms) and rays that exclude what they leave; with
     nearest hits found front to back (sorting down to the treelets or to the widest depth,
-    ``BVH._nearest_levels``) and level by level unsorted (``BVH.sorts_nearest``)."""
+    ``BVH.nearest_levels``) and level by level unsorted (``BVH.sorts_nearest``)."""
     rng = np.random.default_rng(1)
     corners = rng.uniform(-5, 5, (200, 1, 3)) + rng.normal(scale=0.3, size=(200, 3, 3))
     soup = core.TriangleMesh(corners.reshape(-1, 3), np.arange(600).reshape(200, 3), None,
@@ -72,7 +72,7 @@ def test_tree_finds_exactly_the_flat_paths_hits(dtype, sorts):
                                  deep_sort_crossings=0.0 if sorts == "widest" else np.inf,
                                  coherent_sort_crossings=0.0, incoherent_sort_crossings=0.0)
     tree, flat = _contexts(scene, dtype, policy)
-    levels = tree.geometry.tree.bvh._nearest_levels
+    levels = tree.geometry.tree.bvh.nearest_levels
     widest = int(np.argmax(np.bincount(tree.geometry.tree.bvh.depths)))
     assert (levels is None) == (sorts == "unsorted")
     assert sorts == "unsorted" or (levels[-1] == widest) == (sorts == "widest")
@@ -102,11 +102,10 @@ def test_rays_descend_unsorted_where_lines_meet_few_leaves(monkeypatch, dtype):
     (``GeometryPolicy.coherent_sort_crossings``, ``incoherent_sort_crossings``); a dense
     field of spheres sorts both kinds front to back, and a field of fewer only the rays
     that share their origin.  The hits are the sorted traversal's either way."""
-    from core.geometry.bvh import BVH
     sorted_calls = []
-    rounds = BVH._rounds
-    monkeypatch.setattr(BVH, "_rounds", lambda self, *args: sorted_calls.append(1)
-                        or rounds(self, *args))
+    rounds = bvh_traverse._rounds
+    monkeypatch.setattr(bvh_traverse, "_rounds", lambda *args: sorted_calls.append(1)
+                        or rounds(*args))
     scene, _ = _backdrop_and_ball()
     cloud = core.Scene(camera=scene.camera, sphere_sets=(_cloud(20_000),),
                        lights=scene.lights)
@@ -293,7 +292,7 @@ def test_leaf_crossings_count_the_leaf_boxes_random_lines_cross():
     """``BVH.leaf_crossings`` (the leaves' areas over the root's) is the mean number of leaf
     boxes crossed by isotropic random lines through the root box (Cauchy-Crofton), counted
     here by brute force over 6,000 such lines; and it tells a sparse field from a dense one
-    (``_nearest_levels`` sorts deeper in the dense)."""
+    (``nearest_levels`` sorts deeper in the dense)."""
     rng = np.random.default_rng(11)
     low, high = _mixed_boxes(rng, 600, 40)
     tree = bvh.BVH.build(np.arange(len(low)), low, high)
@@ -328,8 +327,8 @@ def test_leaf_crossings_count_the_leaf_boxes_random_lines_cross():
     dense_centre = rng.uniform(-1, 1, (60000, 3))
     dense = bvh.BVH.build(np.arange(60000), dense_centre - 0.03, dense_centre + 0.03)
     assert tree.leaf_crossings < DEFAULT_POLICY.deep_sort_crossings <= dense.leaf_crossings
-    assert tree._nearest_levels in (None, tree._levels())
-    assert dense._nearest_levels[-1] == int(np.argmax(np.bincount(dense.depths)))
+    assert tree.nearest_levels in (None, tree.sort_levels())
+    assert dense.nearest_levels[-1] == int(np.argmax(np.bincount(dense.depths)))
 
 
 @pytest.mark.parametrize("cluster_from", [10 ** 9, 500])
@@ -476,8 +475,9 @@ def test_box_tests_give_each_slot_the_textbook_slab_answer(dtype, shared):
     plane) in the slabs' precision, an empty slot never hit; with rays parallel to an axis,
     some of them lying in the planes of the boxes they meet (0 * inf), and t_max given in
     float64 (inf for some)."""
-    from core.geometry.bvh import BVH, _ray_terms
+    from core.geometry.bvh import BVH
     from core.geometry.bvh_build import EMPTY, WIDTH
+    from core.geometry.bvh_traverse import _ray_terms, _slabs
     rng = np.random.default_rng(5)
     centre = rng.uniform(-4, 4, (300, 3))
     tree = BVH.build(np.arange(300), centre - 0.3, centre + 0.3)
@@ -498,7 +498,7 @@ def test_box_tests_give_each_slot_the_textbook_slab_answer(dtype, shared):
     nodes = np.concatenate([np.zeros(75, np.intp), rng.integers(0, tree.node_count, m - 75)])
     rows = _ray_terms(origins, inverse, dtype)
     with np.errstate(invalid="ignore"):         # (as ``traverse`` runs the slab tests)
-        near, hit = tree._slabs(tree.blocks.take(nodes, axis=1), rays, *rows, 1e-3, t_max)
+        near, hit = _slabs(tree.blocks.take(nodes, axis=1), rays, *rows, 1e-3, t_max)
 
     planes = tree.blocks[:, nodes, :].astype(dtype)                        # (6, m, W)
     o = np.concatenate([origins, origins]).astype(dtype)[:, rays if not shared else [0] * m]
@@ -520,7 +520,7 @@ def test_box_tests_give_each_slot_the_textbook_slab_answer(dtype, shared):
     # The root box against every ray: the same test, for one box.
     root = tree.root_box[:, None, None].copy()
     with np.errstate(invalid="ignore"):
-        root_near, root_hit = tree._slabs(root, np.arange(n), *rows, 1e-3, t_max)
+        root_near, root_hit = _slabs(root, np.arange(n), *rows, 1e-3, t_max)
     all_o = np.concatenate([origins, origins]).astype(dtype)
     all_inv = np.concatenate([inverse, inverse]).astype(dtype)
     with np.errstate(invalid="ignore"):
@@ -548,7 +548,7 @@ def _leaving_rays(ctx, rng, n):
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_occlusion_trails_block_exactly_the_rays_the_flat_paths_do(monkeypatch, dtype):
     """Rays leaving the hit surfaces of 3,000 spheres, a floor kept out of the tree and 200
-    triangles start at their primitive's leaf and climb (``BVH._trail``): the same blocked
+    triangles start at their primitive's leaf and climb (``bvh_traverse._trail``): the same blocked
     rays as the flat paths (every primitive tested) and as the root-down traversal, with
     sources in the tree, out of it (the floor) and none (-1), short segments and infinite."""
     rng = np.random.default_rng(3)
@@ -681,7 +681,7 @@ def test_trail_tables_hold_each_primitives_leaf_and_each_nodes_parent():
     low = rng.uniform(-5, 5, (5000, 3))
     ids = rng.permutation(6000)[:5000]
     tree = BVH.build(ids, low, low + rng.uniform(0.01, 0.2, (5000, 3)))
-    home, parent = tree._trail_tables
+    home, parent = tree.trail_tables
     assert home.dtype == parent.dtype == np.int32
     assert np.array_equal(np.flatnonzero(home >= 0), np.sort(ids))
     slots = tree.children[home[ids]]                               # (5000, WIDTH)
@@ -702,8 +702,8 @@ def test_sibling_tables_hold_each_nodes_parents_other_slots():
     rng = np.random.default_rng(5)
     low = rng.uniform(-5, 5, (4000, 3))
     tree = BVH.build(np.arange(4000), low, low + rng.uniform(0.01, 0.2, (4000, 3)))
-    parent = tree._trail_tables[1]
-    planes, children, counts = tree._sibling_tables
+    parent = tree.trail_tables[1]
+    planes, children, counts = tree.sibling_tables
     assert planes.shape == (6, tree.node_count, WIDTH - 1) and children.shape[1] == WIDTH - 1
     assert (children[0] == EMPTY).all() and np.isnan(planes[:, 0]).all() and counts[0] == 0
     for node in range(1, tree.node_count):
@@ -828,17 +828,17 @@ def test_morton_codes_interleave_each_coordinates_21_bits_and_cells_cut_at_prefi
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 def test_front_to_back_orders_pairs_by_ray_then_entry(dtype):
-    """``bvh.front_to_back``: pairs by ray (up to the last of a chunk), then by entry
+    """``bvh_traverse.front_to_back``: pairs by ray (up to the last of a chunk), then by entry
     distance, negative, signed zero and huge entries included; in float32 (one sort of
     packed keys) equal entries keep their order, as a stable sort by (ray, entry) has them."""
     rng = np.random.default_rng(3)
     count = 30_000
-    local = rng.integers(0, bvh.RAY_CHUNK, count)
-    local[:3] = bvh.RAY_CHUNK - 1
+    local = rng.integers(0, bvh_traverse.RAY_CHUNK, count)
+    local[:3] = bvh_traverse.RAY_CHUNK - 1
     near = rng.choice(np.array([-3.5, -1e-30, -0.0, 0.0, 1e-30, 0.25, 2.0, 7.5, 3e38],
                                dtype), count)
     near[::7] = rng.uniform(-10, 10, len(near[::7]))
-    order = bvh.front_to_back(local, near)
+    order = bvh_traverse.front_to_back(local, near)
     assert np.array_equal(np.sort(order), np.arange(count))     # a permutation
     expected = np.lexsort((near, local))                         # stable: ties by position
     if dtype == np.float32:

@@ -15,7 +15,7 @@ import dataclasses
 
 import core
 from core.context import RayStats, make_context
-from core.geometry import DEFAULT_POLICY, bins
+from core.geometry import DEFAULT_POLICY, bins_build
 from core.geometry.bins import OriginBins
 from core.geometry.cells import direction_cells
 from core.rays import RayBatch
@@ -81,9 +81,10 @@ def test_every_hit_lies_beyond_its_entrys_near_in_its_cell():
         met = np.flatnonzero(np.isfinite(t[row]))
         face, rest = divmod(int(cell), grid.cells ** 2)
         listed = grid.cell_entries(cell)
-        place = bins._place(grid.slots, face, np.array([rest // grid.cells]),
-                            np.array([rest % grid.cells]), grid.cells // bins.BLOCK,
-                            len(grid.starts) - 2)[0]
+        place = bins_build.stored_place(grid.slots, face, np.array([rest // grid.cells]),
+                                        np.array([rest % grid.cells]),
+                                        grid.cells // bins_build.BLOCK,
+                                        len(grid.starts) - 2)[0]
         near = grid.near[grid.starts[place]:grid.starts[place + 1]]
         assert (np.diff(near) >= 0).all()
         where = {p: k for k, p in enumerate(listed)}
@@ -202,7 +203,7 @@ def test_depth_bins_answer_as_the_tree_does(dtype, semantics, rounds):
             RayBatch(origin[:, None], directions, 0.0, np.inf, shared), stats)
         behind = geometry.intersect(
             RayBatch(origin[:, None], directions, 0.0, np.inf, shared, primitive), stats)
-        used = [b for b in geometry.bins.held.values() if b is not None]
+        used = [b for b in geometry.bins.store.held.values() if b is not None]
         answers.append((t, primitive, bary, behind, stats.node_tests, used))
     (t1, p1, b1, e1, nodes1, used1), (t2, p2, b2, e2, nodes2, used2) = answers
     assert [b.by_depth for b in used1] == [True] and used2 == []
@@ -239,14 +240,14 @@ def test_depth_bins_only_where_a_frame_has_rays_enough():
     more primitives than that gets no depth-ordered bins, and rays then go to the tree."""
     scene = _slab_scene()
     geometry = make_context(scene, core.RenderSettings(), np.float64).geometry
-    assert geometry.bins.rays_per_origin == 64 * 40 < len(geometry.bins.boxes()[0])
+    assert geometry.bins.rays_per_origin == 64 * 40 < len(geometry.bins.store.boxes()[0])
     origin = np.array([0.0, 0.0, 2.0])
     directions = _unit(np.random.default_rng(4).normal(size=(3, 3000)))
     stats = RayStats()
     geometry.intersect(RayBatch(origin[:, None], directions, 0.0, np.inf,
                                 geometry.shared_origin(origin)), stats)
     assert stats.node_tests > 0
-    assert not any(b is not None and b.by_depth for b in geometry.bins.held.values())
+    assert not any(b is not None and b.by_depth for b in geometry.bins.store.held.values())
 
 
 def test_depth_bins_only_in_dense_fields():
@@ -267,4 +268,5 @@ def test_depth_bins_only_in_dense_fields():
                                     policy, depth_bins_crossings=floor)).geometry
         geometry.intersect(RayBatch(origin[:, None], directions, 0.0, np.inf,
                                     geometry.shared_origin(origin)), RayStats())
-        assert any(b is not None and b.by_depth for b in geometry.bins.held.values()) == expected
+        held = geometry.bins.store.held.values()
+        assert any(b is not None and b.by_depth for b in held) == expected

@@ -65,7 +65,7 @@ def _counting(monkeypatch):
         return build(cls, *args, by_depth=by_depth, **kwargs)
 
     monkeypatch.setattr(bins.OriginBins, "build", classmethod(built))
-    for name in ("_trail_tables", "_sibling_tables", "_leaf_fill", "_nearest_levels"):
+    for name in ("trail_tables", "sibling_tables", "leaf_fill", "nearest_levels"):
         table = counted(name, getattr(bvh.BVH, name).func)
         cached = functools.cached_property(table)
         cached.__set_name__(bvh.BVH, name)
@@ -122,14 +122,14 @@ def test_workers_get_the_frames_tables_and_build_none(small_renders_in_processes
     assert result.parallelism == "processes"
     (ctx, camera), layout = loaded[0]
     geometry, tree = ctx.geometry, ctx.geometry.tree.bvh
-    eye = [b for b in geometry.bins.held.values() if b is not None]
+    eye = [b for b in geometry.bins.store.held.values() if b is not None]
     assert [b.by_depth for b in eye] == [True]
-    assert {"_trail_tables", "_sibling_tables", "_leaf_fill", "_nearest_levels"} \
+    assert {"trail_tables", "sibling_tables", "leaf_fill", "nearest_levels"} \
         <= set(vars(tree))
     assert geometry.tree.holds_leaf_spheres
     # The tables' large arrays travelled out of band, in the shared file.
     shipped = {size for _, size, _ in layout}
-    assert eye[0].primitives.nbytes in shipped and tree._sibling_tables[0].nbytes in shipped
+    assert eye[0].primitives.nbytes in shipped and tree.sibling_tables[0].nbytes in shipped
     assert geometry.tree.leaf_spheres()[0].nbytes in shipped
 
     counts = _counting(monkeypatch)
@@ -148,8 +148,8 @@ def test_a_render_on_threads_builds_each_table_once(monkeypatch):
     counts = _counting(monkeypatch)
     core.render(_cloud_scene(SUN), core.RenderSettings(threads=2, parallelism="threads",
                                                        tile_size=32))
-    assert counts == {"bins (or refused)": 1, "depth bins": 1, "_trail_tables": 1,
-                      "_sibling_tables": 1, "_leaf_fill": 1, "_nearest_levels": 1,
+    assert counts == {"bins (or refused)": 1, "depth bins": 1, "trail_tables": 1,
+                      "sibling_tables": 1, "leaf_fill": 1, "nearest_levels": 1,
                       "leaf spheres": 1}
 
 
@@ -171,8 +171,8 @@ def test_a_frame_builds_only_the_tables_its_rays_use(case):
     geometry.build_frame_tables(ctx.camera_origin.position, bounces=traces_bounces(ctx),
                                 trails=traces_from_points(ctx), threads=2)
     tree = vars(geometry.tree.bvh)
-    assert ("_trail_tables" in tree) == ("_sibling_tables" in tree) == (case == "sun")
-    assert bool(geometry.bins.held) == (case != "few pixels")
+    assert ("trail_tables" in tree) == ("sibling_tables" in tree) == (case == "sun")
+    assert bool(geometry.bins.store.held) == (case != "few pixels")
     assert geometry.tree.holds_leaf_spheres == (case not in ("mirrors off", "matte"))
 
 
@@ -189,8 +189,9 @@ def test_depth_bins_built_on_threads_are_one_threads(count):
     job, ``bins_chunk`` made small) are one thread's, array for array."""
     scene = _cloud_scene(POINT, count=count)
     geometry = make_context(scene, core.RenderSettings(), np.float64).geometry
-    ids, low, high = geometry.bins.boxes()
-    options = dict(by_depth=True, bounds=geometry.bins.bounding_spheres(ids), rounding=2e-16,
+    ids, low, high = geometry.bins.store.boxes()
+    options = dict(by_depth=True, bounds=geometry.bins.store.bounding_spheres(ids),
+                   rounding=2e-16,
                    policy=dataclasses.replace(DEFAULT_POLICY, bins_chunk=1000))
     made = []
     for threads in (1, 2):

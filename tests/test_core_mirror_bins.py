@@ -101,7 +101,7 @@ def test_mirror_bins_are_built_once_per_image():
     geometry = make_context(_scene("plane"), core.RenderSettings(), np.float64).geometry
     rays = _floor_reflections(geometry, np.float64, EYE)
     geometry.intersect(rays, RayStats())
-    mirror_bins = [key for key in geometry.bins.held if key[1]]
+    mirror_bins = [key for key in geometry.bins.store.held if key[1]]
     assert len(mirror_bins) == 1
     assert len({int(s) for s in rays.source}) == 2
 

@@ -151,7 +151,7 @@ def test_parallel_bins_serve_only_unbounded_rays_of_one_direction():
         assert stats.node_tests > 0
     # A frame of fewer rays than the tree has spheres builds none.
     geometry.bins.rays_per_origin = 100
-    geometry.bins.parallel.clear()
+    geometry.bins.store.parallel.clear()
     assert geometry.bins.parallel_spheres(rays) is None
 
 

@@ -4,10 +4,10 @@ integrators call (``nearest``, ``occluded``, ``spawn``, ``exclusions``, ``shared
 
 Modules: ``aggregate`` (the facade), ``policy`` (every threshold that picks a strategy),
 ``rules`` (the hit rules), shapes (``spheres``, ``triangles``), accelerators (``tree`` over
-``bvh`` and ``bvh_build``; ``cull``, flat culling; ``binning`` over ``bins``, direction
-bins), the pair kernels they hand their pairs to (``kernels``, ``pairs``), hit
-construction (``hits``), and what they share (``cells``: cube-map cells and Morton codes;
-``threads``).
+``bvh``, the tree, ``bvh_build`` and ``bvh_traverse``; ``cull``, flat culling; ``binning``
+over ``bins_held``, ``bins``, ``bins_build`` and ``mirrors``, direction bins), the pair
+kernels they hand their pairs to (``kernels``, ``pairs``), hit construction (``hits``), and
+what they share (``cells``: cube-map cells and Morton codes; ``threads``).
 """
 
 from .aggregate import ROOT_FORMULAS, Aggregate

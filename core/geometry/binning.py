@@ -1,6 +1,6 @@
-"""Direction bins as an accelerator: which batches bins answer instead of the tree, the bins
-an aggregate holds (built on first use, once per origin, within a bound on their bytes),
-and their glue to the pair kernels (``kernels``).
+"""Direction bins as an accelerator: which batches bins answer instead of the tree, and their
+glue to the pair kernels (``kernels``); the bins an aggregate holds (built on first use,
+once per origin, within a bound on their bytes) are ``bins_held``'s.
 
 Three kinds (``bins``): id-ordered bins around a shared origin (the eye, a light sample),
 where a batch's candidate pairs are few; depth-ordered ones, walked front to back, for
@@ -10,43 +10,34 @@ the eye's mirror image (``_mirror_groups``)."""
 
 from __future__ import annotations
 
-import threading
-
 import numpy as np
 
 from ..rays import RayBatch
 from ..vectors import dot, take
-from .bins import OriginBins, ParallelBins
-from .bvh_build import SLAB_PADDING_32
+from .bins_held import HeldBins
 from .kernels import NearestPairs, OcclusionPairs
-from .threads import PicklesWithoutLock
+from .mirrors import mirror_images
 
 
-class DirectionBins(PicklesWithoutLock):
+class DirectionBins:
     """The direction bins of an aggregate's tree (``tree.TreeAccelerator``): spheres,
     triangles the scene's shapes; tree_spheres (k,) the spheres the tree holds (ascending);
     rays_per_origin: how many rays a frame traces from one shared origin (the eye, a light
     sample), as far as the caller knows (0: unknown), which decides whether depth-ordered
-    or parallel bins pay; policy: the ``GeometryPolicy``.  Pickled for worker processes with
-    the bins built so far (the frame's, built once for every worker; bins a worker builds on
-    first use are its own)."""
+    or parallel bins pay; policy: the ``GeometryPolicy``.  Which batches bins answer, and how;
+    the bins themselves are its ``store``'s (``bins_held.HeldBins``)."""
 
     def __init__(self, tree, spheres, triangles, tree_spheres, rays_per_origin: int, policy):
         self.tree, self.spheres, self.triangles = tree, spheres, triangles
-        self.tree_spheres = tree_spheres
         self.rays_per_origin = int(rays_per_origin)
         self.policy = policy
-        self.held = {}       # (origin bytes, mirror, depth) -> OriginBins, or None: the tree's
-        self.parallel = {}   # a sun's direction (bytes) -> (ParallelBins, ids), or None
-        self.bytes = 0
-        self._lock = threading.Lock()   # (tiles run in threads)
-        # How far from a common point mirror images' lines may pass (``_mirror_groups``): a
-        # fraction of the boxes' typical half side, so grown boxes list few more rays.
-        self.mirror_slack = 0.0
-        if tree.boxes is not None:
-            _, low, high = tree.boxes
-            half_side = float(np.median((high - low).max(axis=1))) / 2
-            self.mirror_slack = policy.mirror_slack * half_side
+        self.store = HeldBins(tree, spheres, triangles, tree_spheres, policy)
+
+    @property
+    def mirror_slack(self) -> float:
+        """How far from a common point mirror images' lines may pass (``_mirror_groups``;
+        ``HeldBins.mirror_slack``)."""
+        return self.store.mirror_slack
 
     # ---- which batches --------------------------------------------------------------------
 
@@ -117,9 +108,9 @@ class DirectionBins(PicklesWithoutLock):
     def frame_bins(self, eye, pool=None) -> None:
         """The eye's depth-ordered bins, where a camera batch of the frame gets them."""
         if self.depth_pays():
-            self.bins_at(eye, depth=True, pool=pool)
+            self.store.bins_at(eye, depth=True, pool=pool)
 
-    # ---- the bins held ------------------------------------------------------------------------
+    # ---- the bins asked for ---------------------------------------------------------------
 
     def _origin_plan(self, rays: RayBatch, depth: bool = True):
         """(bins, plan): the direction bins of the batch's shared origin and the batch's
@@ -132,55 +123,11 @@ class DirectionBins(PicklesWithoutLock):
         few = self.too_few(len(rays))
         if few and not depth:
             return None, None
-        bins = self.bins_at(rays.shared.position, depth=depth)
+        bins = self.store.bins_at(rays.shared.position, depth=depth)
         if bins is None or (few and not bins.by_depth):
             return None, None
         plan = bins.plan(rays.directions, self.policy.max_pairs_per_ray)
         return (bins, plan) if plan is not None else (None, None)
-
-    def bins_at(self, position, mirror: bool = False, depth: bool = False, pool=None):
-        """The direction bins around ``position`` (3,) of the tree's boxes (mirror: grown by
-        ``mirror_slack``, ``_mirror_groups``), or None where they do not pay or the bins
-        held are at their bound; with ``depth``, depth-ordered bins (``OriginBins.walk``)
-        where id-ordered ones do not pay.  Built on first use, once per origin, under a
-        lock (tiles run in threads); pool: a thread pool to build them on (``OriginBins
-        .build``), or None."""
-        position = np.asarray(position, np.float64)
-        policy = self.policy
-
-        def make():
-            bins = None
-            if self.bytes < policy.bins_max_bytes and self.tree.boxes is not None:
-                ids, low, high = self.tree.boxes
-                if mirror:
-                    low, high = low - self.mirror_slack, high + self.mirror_slack
-                bins = OriginBins.build(position, ids, low, high, pool=pool, policy=policy)
-            if bins is None and depth and self.bytes < self._max_bytes():
-                ids, low, high = self.boxes()
-                bins = OriginBins.build(position, ids, low, high, by_depth=True,
-                                        bounds=self.bounding_spheres(ids),
-                                        rounding=float(np.finfo(self.spheres.dtype).eps),
-                                        pool=pool, policy=policy)
-            return None if bins is None else (bins, bins.nbytes)
-
-        return self._held(self.held, (position.tobytes(), mirror, depth), make)
-
-    def _held(self, store, key, make):
-        """The bins held in ``store`` under ``key``, made on first use by ``make()``
-        ((bins, bytes), or None where there are none), once, under a lock (tiles run in
-        threads)."""
-        held = store.get(key, False)
-        if held is False:
-            with self._lock:
-                held = store.get(key, False)
-                if held is False:
-                    made = make()
-                    held = store[key] = None if made is None else made[0]
-                    self.bytes += 0 if made is None else made[1]
-        return held
-
-    def _max_bytes(self) -> int:
-        return self.policy.bins_max_bytes + self.policy.bins_bytes_per_primitive * len(self.tree)
 
     def parallel_spheres(self, segments: RayBatch):
         """(bins, listed): the parallel bins (``bins.ParallelBins``) of segments that all
@@ -194,58 +141,7 @@ class DirectionBins(PicklesWithoutLock):
                 or np.min(segments.t_min) < 0 or not (d == d[:, :1]).all()):
             return None
 
-        def make():
-            if self.bytes >= self._max_bytes():
-                return None
-            ids = self.tree.bvh.primitives()
-            # The tree's own padding of its boxes, which covers the kernels' rounding (twice,
-            # and the projections' own).
-            pad = 2 * SLAB_PADDING_32 * self.tree.bvh.origin_reach
-            arrays = self.spheres.arrays
-            bins = ParallelBins.build(d[:, 0], arrays.centers[ids].T, arrays.radii[ids], pad,
-                                      self.policy)
-            if bins is None:
-                return None
-            # (Each entry's sphere id: its centre is read from the scene's arrays, as fast
-            # as from copies in entry order.)
-            listed = ids.take(bins.entries)
-            return (bins, listed), bins.nbytes + listed.nbytes
-
-        return self._held(self.parallel, d[:, 0].astype(np.float64).tobytes(), make)
-
-    def boxes(self):
-        """(ids (P,), low, high (P, 3) float64) of the tree's primitives, for bins: the ones
-        the tree kept (``TreeAccelerator.boxes``), or made again from the scene's arrays
-        (trees of more than ``policy.bins_max_primitives`` keep none)."""
-        if self.tree.boxes is not None:
-            return self.tree.boxes
-        lows, highs, ids = [], [], []
-        if self.tree.sphere_count:
-            spheres = self.tree_spheres
-            c, r = self.spheres.arrays.centers[spheres], self.spheres.arrays.radii[spheres, None]
-            lows.append(c - r)
-            highs.append(c + r)
-            ids.append(spheres)
-        if self.tree.triangle_count:
-            low, high = self.triangles.boxes()
-            lows.append(low.T)
-            highs.append(high.T)
-            ids.append(np.arange(self.triangles.count) + self.spheres.count)
-        return np.concatenate(ids), np.concatenate(lows), np.concatenate(highs)
-
-    def bounding_spheres(self, ids):
-        """(centres (k, 3), radii (k,)) float64 bounding spheres of primitives ``ids`` (k,)
-        ascending, spheres before triangles (``boxes``' order): the spheres themselves, the
-        triangles' (``Triangles.centers``, ``radii``)."""
-        arrays = self.spheres.arrays
-        spheres = ids[:np.searchsorted(ids, self.spheres.count)]
-        triangles = ids[len(spheres):] - self.spheres.count
-        centres = np.concatenate([arrays.centers[spheres],
-                                  self.triangles.centers.T[triangles] if len(triangles)
-                                  else np.zeros((0, 3))])
-        radii = np.concatenate([arrays.radii[spheres],
-                                self.triangles.radii[triangles] if len(triangles) else []])
-        return centres, radii
+        return self.store.parallel_at(d[:, 0])
 
     # ---- mirror images ------------------------------------------------------------------------
 
@@ -274,7 +170,8 @@ class DirectionBins(PicklesWithoutLock):
         if len(rays) < need:
             return []
         grid = self.mirror_slack / 4
-        images = self._mirror_images(np.asarray(eye, np.float64), rays.source, grid, need)
+        images = mirror_images(np.asarray(eye, np.float64), rays.source, grid, need,
+                               self.spheres, self.triangles)
         if images is None:
             return []
         cell, points = images
@@ -291,47 +188,9 @@ class DirectionBins(PicklesWithoutLock):
             if len(near) < need:
                 continue
             members = members.take(near)
-            bins = self.bins_at(point, mirror=True)
+            bins = self.store.bins_at(point, mirror=True)
             plan = None if bins is None else bins.plan(take(rays.directions, members),
                                                        self.policy.max_pairs_per_ray)
             if plan is not None:
                 groups.append((members, bins, plan, -tau.take(near)))
         return groups
-
-    def _mirror_images(self, eye, source, grid, need):
-        """(image (n,) index into points or -1, points (G, 3)): the mirror image of ``eye``
-        (3,) in the tangent plane of each ray's source primitive (``source`` (n,), -1:
-        none) nearest to it (a sphere's) or in its plane (a triangle's), rounded to
-        multiples of ``grid``; None when no ray has a source.  Only for the spheres that
-        ``need`` rays or more leave (no two spheres share an image) and every triangle
-        (the triangles of a plane do); -1 for the rest."""
-        sphere_count = self.spheres.count
-        counts = np.bincount(source + 1)[1:]
-        ids = np.arange(len(counts))
-        prims = np.flatnonzero((counts >= need) | ((ids >= sphere_count) & (counts > 0)))
-        if len(prims) == 0:
-            return None
-        normal = np.empty((len(prims), 3))
-        plane = np.empty(len(prims))        # the image is eye - 2 plane * normal
-        spheres = prims < sphere_count
-        # (An eye at a sphere's centre has no image: NaN, dropped below.)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            if spheres.any():
-                k = prims[spheres]
-                away = eye - self.spheres.arrays.centers[k]
-                size = np.sqrt((away * away).sum(axis=1))
-                normal[spheres] = away / size[:, None]
-                plane[spheres] = size - self.spheres.arrays.radii[k]
-            if not spheres.all():
-                k = prims[~spheres] - sphere_count
-                triangles = self.triangles.arrays
-                n = triangles.normals[:, k].T
-                normal[~spheres] = n
-                plane[~spheres] = ((eye - triangles.v0[:, k].T) * n).sum(axis=1)
-            images = np.round((eye - 2 * plane[:, None] * normal) / grid)
-        points, which = np.unique(images, axis=0, return_inverse=True)
-        which = which.ravel()   # (numpy 2.x keeps the axis's shape)
-        # Per primitive id (and -1 for none, the last entry): its image or -1.
-        image = np.full(len(counts) + 1, -1, np.intp)
-        image[prims] = np.where(np.isfinite(points).all(axis=1)[which], which, -1)
-        return image.take(source), points * grid

@@ -135,9 +135,9 @@ class TreeAccelerator(PicklesWithoutLock):
 
     def occluded(self, kernel: OcclusionPairs, stats=None) -> np.ndarray:
         """(n,) whether each segment of the kernel's batch is blocked.  Rays leaving a
-        primitive start at its leaf (``BVH._trail``): most blockers are near; a tree of
-        spheres alone is visited by leaf slot there (``OcclusionPairs.slot_blocks``) when its
-        spheres take the stable roots."""
+        primitive start at its leaf (``bvh_traverse._trail``): most blockers are near; a tree
+        of spheres alone is visited by leaf slot there (``OcclusionPairs.slot_blocks``) when
+        its spheres take the stable roots."""
         segments = kernel.rays
         leaf_blocks = None
         if not self.spheres.textbook and self.by_slot(segments):
