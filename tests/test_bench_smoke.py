@@ -123,3 +123,51 @@ def test_node_tree_bench_times_a_constant_and_a_twenty_node_material_on_a_tiny_f
     # The constant material is no program; the tree folds its RGB node and keeps the other
     # 19 as instructions (the Bump's height is a program of its own, inside the Bump's).
     assert constant[1] == "0" and tree[1] == "19"
+
+
+# Opens each file bench.textured_scenes wrote (the add-on registered, so that the engine reads
+# back) and prints what the speed-vs-error comparison relies on.
+_TEXTURED_SUMMARY = """
+import json, sys
+import bpy
+import render
+render.register_glint(render.import_glint())
+for path in sys.argv[1:]:
+    bpy.ops.wm.open_mainfile(filepath=path, load_ui=False)
+    scene = bpy.context.scene
+    trees = [m.node_tree for m in bpy.data.materials if m.node_tree] + [scene.world.node_tree]
+    print(json.dumps({"engine": scene.render.engine, "camera": scene.camera is not None,
+                      "size": [scene.render.resolution_x, scene.render.resolution_y],
+                      "images": {i.name: i.packed_file is not None for i in bpy.data.images},
+                      "nodes": sorted({n.bl_idname for t in trees for n in t.nodes
+                                       if any(s.is_linked for s in n.outputs)})}))
+"""
+
+
+def test_the_textured_scenes_are_self_contained_blend_files(tmp_path):
+    """bench.textured_scenes writes three .blend files that render with Glint from a camera,
+    every image packed (a file that named the bpy wheel's HDRI on disk would not open
+    elsewhere), each holding the nodes its scene is about."""
+    import json
+    import subprocess
+    import sys
+
+    written = subprocess.run([sys.executable, "-m", "bench.textured_scenes", "--out",
+                              str(tmp_path)], cwd=REPOSITORY, capture_output=True, text=True,
+                             timeout=300, check=True).stdout.split()
+    names = ["textured_product", "textured_procedural", "textured_normal_map"]
+    assert written == [str(tmp_path / f"{name}.blend") for name in names]
+    summary = subprocess.run([sys.executable, "-c", _TEXTURED_SUMMARY, *written], cwd=REPOSITORY,
+                             capture_output=True, text=True, timeout=300, check=True).stdout
+    scenes = dict(zip(names, (json.loads(line) for line in summary.splitlines()
+                              if line.startswith("{"))))
+    for scene in scenes.values():
+        assert scene["engine"] == "GLINT" and scene["camera"] and scene["size"] == [480, 270]
+        assert all(scene["images"].values())
+    assert set(scenes["textured_product"]["images"]) == {"label", "studio.exr"}
+    assert {"ShaderNodeTexImage", "ShaderNodeTexEnvironment", "ShaderNodeMapping"} <= set(
+        scenes["textured_product"]["nodes"])
+    assert {"ShaderNodeTexNoise", "ShaderNodeValToRGB", "ShaderNodeTexVoronoi", "ShaderNodeBump",
+            "ShaderNodeMath"} <= set(scenes["textured_procedural"]["nodes"])
+    assert {"ShaderNodeTexImage", "ShaderNodeNormalMap"} <= set(
+        scenes["textured_normal_map"]["nodes"])
