@@ -49,7 +49,9 @@ DELTA_ALPHA = MIN_ALPHA
 @dataclass
 class Closures:
     """Per-hit lobes (module docstring): colours (3, k), scalars (k,); ``normal`` the
-    shading normal the lobes use (3, k) (a program's bump), or None for the hit's own."""
+    shading normal the lobes use (3, k) (a program's bump), or None for the hit's own;
+    ``specular_normal`` the one the glossy and transmission lobes use instead, or None
+    for the same (``with_specular_normal``)."""
 
     diffuse: np.ndarray
     layer: np.ndarray
@@ -69,6 +71,7 @@ class Closures:
     holdout_object: np.ndarray
     normal: np.ndarray | None = None
     smooth: np.ndarray | None = None   # (3, k) the normal before bump: ``bump_shadowing``
+    specular_normal: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.alpha.shape[0]
@@ -115,6 +118,16 @@ class Closures:
                 mine[:, index] = theirs
             else:
                 mine[index] = theirs
+
+
+def with_specular_normal(closures: Closures, true_normal, to_view, normal) -> None:
+    """Give the glossy and transmission lobes of hits whose shading ``normal`` (3, k)
+    would mirror the view below the surface (a bump, a normal map, a smooth mesh near its
+    terminator) a normal raised until it does not, as Cycles' Principled, Glossy and Glass
+    closures take ``maybe_ensure_valid_specular_reflection`` of theirs; the diffuse and
+    translucent lobes keep ``normal``, as Cycles' do.  None where no hit needs it."""
+    specular = valid_reflection(true_normal, to_view, normal)
+    closures.specular_normal = None if specular is normal else specular
 
 
 def _article_lobes(closures: Closures, surfaces: SurfaceArrays, material) -> None:
@@ -313,15 +326,17 @@ def lobe_albedos(closures: Closures, normal, to_view, entering) -> LobeChoice:
     """Each lobe's albedo seen from ``to_view`` (3, k) and the probability of sampling it
     (in proportion to the albedo's mean over the channels); normals face the view."""
     cos_o = np.clip(dot(normal, to_view), 1e-6, 1)
+    cos_s = cos_o if closures.specular_normal is None else np.clip(
+        dot(closures.specular_normal, to_view), 1e-6, 1)
     albedo = np.zeros((5,) + closures.diffuse.shape, closures.diffuse.dtype)
-    albedo[DIFFUSE] = diffuse_seen(closures, cos_o)
+    albedo[DIFFUSE] = diffuse_seen(closures, cos_s)   # (the layer above attenuates it)
     glossy = closures.alpha > DELTA_ALPHA
     albedo[GLOSSY] = np.where(
-        glossy, glossy_albedo(closures.f0, closures.f90, cos_o, closures.alpha,
+        glossy, glossy_albedo(closures.f0, closures.f90, cos_s, closures.alpha,
                               closures.dielectric, closures.specular_ior),
-        fresnel(closures, cos_o))
+        fresnel(closures, cos_s))
     if closures.transmission.any():
-        refracted, reflected, _, _, _ = _transmission_share(closures, cos_o, entering)
+        refracted, reflected, _, _, _ = _transmission_share(closures, cos_s, entering)
         albedo[TRANSMISSION] = refracted + reflected
     albedo[TRANSLUCENT] = closures.translucency
     albedo[TRANSPARENT] = closures.transparency
@@ -329,7 +344,7 @@ def lobe_albedos(closures: Closures, normal, to_view, entering) -> LobeChoice:
     total = weight.sum(axis=0)
     probability = weight / np.where(total > 0, total, 1)
     compensation = _compensation(closures.f0, directional_albedo(
-        cos_o, np.maximum(closures.alpha, DELTA_ALPHA)))
+        cos_s, np.maximum(closures.alpha, DELTA_ALPHA)))
     return LobeChoice(probability, albedo, compensation)
 
 
@@ -351,8 +366,18 @@ def evaluate(closures: Closures, choice: LobeChoice, normal, to_view, towards):
     if p[DIFFUSE].any():
         f += choice.albedo[DIFFUSE] * (lit / np.pi * softened)
         pdf += p[DIFFUSE] * (lit / np.pi)
+    if p[TRANSLUCENT].any():
+        behind = np.maximum(-cos_i, 0)
+        f += closures.translucency * (behind / np.pi * softened)
+        pdf += p[TRANSLUCENT] * (behind / np.pi)
     rough = closures.alpha > DELTA_ALPHA
     if (p[GLOSSY] * rough).any():
+        if closures.specular_normal is not None:
+            normal = closures.specular_normal
+            cos_o = np.clip(dot(normal, to_view), 1e-6, 1)
+            cos_i = dot(normal, towards)
+            above = cos_i > 0
+            lit = np.maximum(cos_i, 0)
         alpha = np.maximum(closures.alpha, DELTA_ALPHA)
         half = towards + to_view      # (0 for light straight through: no reflection there)
         size = np.sqrt(dot(half, half))
@@ -365,10 +390,6 @@ def evaluate(closures: Closures, choice: LobeChoice, normal, to_view, towards):
         f += np.where(rough & above, reflectance * compensation * lobe, 0)
         density = _smith_g1(cos_o, alpha) * d / (4 * cos_o)
         pdf += np.where(rough & above, p[GLOSSY] * density, 0)
-    if p[TRANSLUCENT].any():
-        behind = np.maximum(-cos_i, 0)
-        f += closures.translucency * (behind / np.pi * softened)
-        pdf += p[TRANSLUCENT] * (behind / np.pi)
     return f, pdf
 
 
@@ -403,7 +424,8 @@ def sample(closures: Closures, choice: LobeChoice, normal, to_view, entering, u_
     directions = np.zeros((3, k), dtype)   # (paths whose surface has no lobe keep 0)
     weight = np.zeros((3, k), dtype)
     through = np.zeros(k, bool)
-    reflected = to_view * -1 + normal * (2 * dot(normal, to_view))
+    specular = normal if closures.specular_normal is None else closures.specular_normal
+    reflected = to_view * -1 + specular * (2 * dot(specular, to_view))
 
     diffuse = lobe == DIFFUSE
     directions[:, diffuse] = cosine_hemisphere(normal[:, diffuse], u1[diffuse], u2[diffuse])
@@ -417,7 +439,7 @@ def sample(closures: Closures, choice: LobeChoice, normal, to_view, entering, u_
     if rough.any():
         index = np.flatnonzero(rough)
         view = take(to_view, index)
-        half = ggx_visible_normal(take(normal, index), view, closures.alpha[index],
+        half = ggx_visible_normal(take(specular, index), view, closures.alpha[index],
                                   u1[index], u2[index])
         directions[:, index] = 2 * dot(view, half) * half - view
     directions[:, mirror] = reflected[:, mirror]
@@ -435,7 +457,7 @@ def sample(closures: Closures, choice: LobeChoice, normal, to_view, entering, u_
         index = np.flatnonzero(refracting)
         part = closures.take(index)
         view = take(to_view, index)
-        n = take(normal, index)
+        n = take(specular, index)
         # Rough glass refracts through a microfacet drawn from GGX's visible normals (its
         # shadowing weighs the ray by G1 of where it goes); smooth glass through the normal.
         rough_glass = part.alpha > DELTA_ALPHA

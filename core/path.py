@@ -476,6 +476,7 @@ def trace_paths(ctx, rays: CameraRays, seeds, sample_index, stats: RayStats,
                                if setup.programs else None)
         if closures.normal is not None:
             normal = closures.normal
+        lobes.with_specular_normal(closures, geometric, to_view, normal)
         if depth == 0:
             first_normal[:, path] = normal
         # Holdouts on the camera's view.

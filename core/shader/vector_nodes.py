@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..closures import valid_reflection
 from ..vectors import dot
 from .point_data import ObjectFrame
 from .program import run
@@ -73,9 +72,9 @@ def _bumped(points, normal, height_at, strength, distance, filter_width):
     strength = np.maximum(strength, 0)
     mixed = strength * out + (1 - strength) * normal
     mixed /= np.sqrt(dot(mixed, mixed))
-    # As Cycles' bump ends: a normal whose mirror reflection of the view would go below the
-    # surface is raised until it does not (ensure_valid_reflection).
-    return valid_reflection(points.true_normal, points.incoming, mixed)
+    # (The glossy lobes raise a normal that would mirror the view below the surface:
+    # ``core.closures.with_specular_normal``, as Cycles' closures do, not the node.)
+    return mixed
 
 
 @node("ShaderNodeDisplacement", inputs=(("Height", FLOAT), ("Midlevel", FLOAT),
