@@ -19,9 +19,10 @@ from .article import ARTICLE_SHADING
 from .bsdf import SurfaceArrays, surface_arrays, translucent_view
 from .camera import BlenderCamera, eye_position
 from .rays import ARTICLE_OFFSET, RAY_EPSILON, RayStats, SharedOrigin, ray_offsets
-from .lights import PreparedLight, fibonacci_sphere, prepare_light
+from .lights import PreparedLight, prepare_light
 from .light_sources import PointLight
 from .materials import SurfaceMaterial
+from .sampler import fibonacci_sphere
 from .scene import Scene
 from .settings import RenderSettings
 from .shading import WHITTED_SHADING, WhittedShading

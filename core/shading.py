@@ -50,8 +50,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bsdf import diffuse_seen, environment, light_response
-from .lights import (SampleShares, area_sample_irradiance, centre_irradiance,
-                     cosine_directions, share_weights, shifted_cosine_direction)
+from .lights import area_sample_irradiance, centre_irradiance
+from .sampler import (SampleShares, cosine_directions, share_weights,
+                      shifted_cosine_direction)
 from .rays import RayBatch, RayStats, ray_offsets, timed
 from .terminator import TerminatorLift
 from .vectors import dot, normalize, normalize_in_place, take

@@ -26,12 +26,12 @@ from .colour import linear_to_srgb
 from .context import RayStats, TraceContext
 from .failures import RenderCancelled
 from .geometry.cull import PACKET_SIZE
-from .lights import SampleShares, pixel_shares, pixel_shifts
 from .memory import GUIDE_CHANNELS
 from .passes import PASS_CHANNELS, first_hit_channels
 from .path import filter_offsets, trace_paths
 from .progressive import GUIDE_SUM_CHANNELS, SUM_CHANNELS
-from .sampler import PIXEL_GROUP, pixel_seeds, sample_group
+from .sampler import (PIXEL_GROUP, SampleShares, pixel_seeds, pixel_shares, pixel_shifts,
+                      sample_group)
 from .shading import shares_matter, traces_world_occlusion
 from .trace import trace_bundle
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import core
-from core.lights import _grid, fibonacci_sphere, pixel_shares, share_weights
+from core.sampler import diagonal_grid, fibonacci_sphere, pixel_shares, share_weights
 
 GREY = core.SurfaceMaterial(diffuse=(0.5, 0.5, 0.5))
 WHITTED = dict(integrator="whitted")
@@ -210,7 +210,7 @@ def test_the_first_samples_of_a_pixel_see_a_sphere_light_evenly(first):
 def test_the_first_samples_of_a_pixel_see_every_row_and_column_of_a_grid(axis):
     # A square light (or the world's directions) half hidden by an edge along either axis of
     # its 4 x 4 grid: the first 4 AA samples of every pixel see exactly half of it.
-    visible = (_grid(16)[:, axis] < 0).astype(float)
+    visible = (diagonal_grid(16)[:, axis] < 0).astype(float)
     assert visible.mean() == 0.5
     assert np.allclose(_prefix_estimates(visible, 16, 4), 0.5)
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import core
-from core.lights import cosine_directions, pixel_shifts, shifted_cosine_direction
+from core.sampler import cosine_directions, pixel_shifts, shifted_cosine_direction
 
 WHITE_WORLD = dict(background=(1, 1, 1), ambient=(1, 1, 1))
 #: World Samples and adaptive AA are the Whitted integrator's.
