@@ -143,7 +143,7 @@ def test_flat_facets_of_one_colour_are_not_edges_but_shadows_and_silhouettes_are
 @pytest.mark.slow
 def test_soft_lights_with_adaptive_aa_do_not_depend_on_tiles_or_threads():
     ball = core.Sphere((0.3, 0.2, 0.6), 0.5, core.SurfaceMaterial(diffuse=(0.8, 0.2, 0.2)))
-    scene = core.Scene(camera=top_camera(40, height=6.0, lens=35.0), spheres=(ball,),
+    scene = core.Scene(camera=top_camera(24, height=6.0, lens=35.0), spheres=(ball,),
                        meshes=(grid_floor(4),),
                        lights=(square_light(), core.SphereLight((2, 1, 4), power=500.0, radius=0.5),
                                core.SunLight((-0.3, 0.2, -1), strength=2.0, angle=0.2)),
