@@ -25,23 +25,13 @@ import tempfile
 import time
 
 from . import scale
+from .blender_scenes import principled_material
 
 OUTPUT = os.path.join(scale.REPOSITORY, "docs", "images", "glint-and-cycles.png")
 #: Each image's size: two of them side by side make a picture about 640 pixels wide.
 SIZE = (320, 240)
 #: Cycles' samples: enough that its noise is small beside the two engines' differences.
 CYCLES_SAMPLES = 256
-
-
-def _principled(name: str, colour, roughness: float, metallic: float = 0.0):
-    import bpy
-
-    material = bpy.data.materials.new(name)
-    principled = material.node_tree.nodes["Principled BSDF"]
-    principled.inputs["Base Color"].default_value = (*colour, 1.0)
-    principled.inputs["Roughness"].default_value = roughness
-    principled.inputs["Metallic"].default_value = metallic
-    return material
 
 
 def _ball(name: str, location, radius: float, material):
@@ -67,13 +57,13 @@ def build(width: int, height: int, cycles_samples: int) -> None:
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     bpy.ops.mesh.primitive_plane_add(size=30.0, location=(0.0, 0.0, 0.0))
-    bpy.context.object.data.materials.append(_principled("floor", (0.55, 0.55, 0.55), 0.5))
+    bpy.context.object.data.materials.append(principled_material("floor", (0.55, 0.55, 0.55), 0.5))
     bpy.ops.mesh.primitive_cube_add(size=1.2, location=(0.15, -1.4, 0.6),
                                     rotation=(0.0, 0.0, math.radians(30.0)))
-    bpy.context.object.data.materials.append(_principled("cube", (0.08, 0.2, 0.65), 0.4))
-    _ball("red", (-1.55, 0.7, 1.0), 1.0, _principled("red", (0.8, 0.08, 0.04), 0.35))
-    _ball("gold", (1.2, 1.4, 0.8), 0.8, _principled("gold", (1.0, 0.72, 0.3), 0.25, 1.0))
-    _ball("white", (1.9, -0.7, 0.5), 0.5, _principled("white", (0.8, 0.8, 0.8), 0.2))
+    bpy.context.object.data.materials.append(principled_material("cube", (0.08, 0.2, 0.65), 0.4))
+    _ball("red", (-1.55, 0.7, 1.0), 1.0, principled_material("red", (0.8, 0.08, 0.04), 0.35))
+    _ball("gold", (1.2, 1.4, 0.8), 0.8, principled_material("gold", (1.0, 0.72, 0.3), 0.25, 1.0))
+    _ball("white", (1.9, -0.7, 0.5), 0.5, principled_material("white", (0.8, 0.8, 0.8), 0.2))
 
     camera = scale._link(bpy.data.objects.new("camera", bpy.data.cameras.new("camera")))
     camera.location = (0.0, -7.6, 3.0)

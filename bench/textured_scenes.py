@@ -33,6 +33,7 @@ import sys
 import numpy as np
 
 from . import scale
+from .blender_scenes import principled_material
 
 SIZE = (480, 270)
 #: Blender's studio light used by the product shot (a soft studio with a bright softbox).
@@ -67,17 +68,6 @@ def _camera(location, target, lens: float = 50.0):
     _look_at(camera, target)
     bpy.context.scene.camera = camera
     return camera
-
-
-def _principled(name: str, colour, roughness: float, metallic: float = 0.0):
-    import bpy
-
-    material = bpy.data.materials.new(name)
-    principled = material.node_tree.nodes["Principled BSDF"]
-    principled.inputs["Base Color"].default_value = (*colour, 1.0)
-    principled.inputs["Roughness"].default_value = roughness
-    principled.inputs["Metallic"].default_value = metallic
-    return material
 
 
 def _floor(material, size: float = 20.0):
@@ -180,7 +170,7 @@ def product_shot():
     bpy.ops.object.shade_smooth()
     cube.data.materials.append(material)
     _uv_sphere("Ball", (0.85, 0.2, 0.5), 0.5, material)
-    _floor(_principled("Floor", (0.6, 0.6, 0.6), 0.5))
+    _floor(principled_material("Floor", (0.6, 0.6, 0.6), 0.5))
 
     world = bpy.data.worlds.new("Studio")
     scene.world = world
@@ -235,7 +225,7 @@ def procedural_ball():
         (voronoi.outputs["Distance"], bump.inputs["Height"]),
         (bump.outputs["Normal"], principled.inputs["Normal"])])
     _uv_sphere("Ball", (0.0, 0.0, 1.0), 1.0, material)
-    _floor(_principled("Floor", (0.5, 0.5, 0.5), 0.6))
+    _floor(principled_material("Floor", (0.5, 0.5, 0.5), 0.6))
 
     sun = bpy.data.lights.new("Sun", 'SUN')
     sun.energy = 3.0
@@ -281,7 +271,7 @@ def normal_mapped_floor():
         (texture.outputs["Color"], normal_map.inputs["Color"]),
         (normal_map.outputs["Normal"], principled.inputs["Normal"])])
     _floor(material, size=8.0)
-    _uv_sphere("Ball", (0.0, 0.4, 0.8), 0.8, _principled("Chrome", (0.9, 0.9, 0.9), 0.15, 1.0))
+    _uv_sphere("Ball", (0.0, 0.4, 0.8), 0.8, principled_material("Chrome", (0.9, 0.9, 0.9), 0.15, 1.0))
 
     point = bpy.data.lights.new("Point", 'POINT')
     point.energy = 600.0

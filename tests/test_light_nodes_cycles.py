@@ -32,14 +32,19 @@ def _floor(material, z: float = -1.0, size: float = 8.0):
     return link(bpy.data.objects.new("floor", mesh))
 
 
+def _emptied(tree):
+    """``tree`` with only its output node left (a material's or a light's), which it gives."""
+    for node in list(tree.nodes):
+        if not node.bl_idname.startswith("ShaderNodeOutput"):
+            tree.nodes.remove(node)
+    return tree.nodes[0]   # (found anew: removing nodes may move the others)
+
+
 def _two_colours(tree, coordinate: str, threshold: float, strength: float):
     """In ``tree``, an Emission of ``strength`` into its output's Surface, red where the
     Texture Coordinate ``coordinate``'s x is under ``threshold``, blue above (through
     Greater Than into a Mix's factor)."""
-    for node in list(tree.nodes):
-        if not node.bl_idname.startswith("ShaderNodeOutput"):
-            tree.nodes.remove(node)
-    output = tree.nodes[0]
+    output = _emptied(tree)
     emission = tree.nodes.new("ShaderNodeEmission")
     emission.inputs["Strength"].default_value = strength
     coordinates = tree.nodes.new("ShaderNodeTexCoord")
@@ -151,10 +156,7 @@ def test_a_light_tree_of_constants_scales_the_light_as_in_cycles(linked):
 def _falloff_emission(tree, output: str, strength: float, smooth: float):
     """In ``tree``, an Emission whose Strength is Light Falloff's ``output`` into the output
     node's Surface."""
-    for node in list(tree.nodes):
-        if not node.bl_idname.startswith("ShaderNodeOutput"):
-            tree.nodes.remove(node)
-    surface = tree.nodes[0].inputs["Surface"]
+    surface = _emptied(tree).inputs["Surface"]
     emission = tree.nodes.new("ShaderNodeEmission")
     falloff = tree.nodes.new("ShaderNodeLightFalloff")
     falloff.inputs["Strength"].default_value = strength
