@@ -81,7 +81,17 @@ def _halves(glint, cycles, rows):
     return result
 
 
-def test_a_floor_lit_by_a_checker_textured_emitting_panel_matches_cycles():
+def _assert_red_left_blue_right(glint, cycles, rows):
+    """Cycles' rows ``rows`` red on the left half and blue on the right (the texture reaches
+    them), and Glint's mean of each half within MEAN_TOLERANCE of Cycles'."""
+    (left_glint, left_cycles), (right_glint, right_cycles) = _halves(glint, cycles, rows)
+    assert left_cycles[0] > 2 * left_cycles[2] and right_cycles[2] > 2 * right_cycles[0]
+    for got, want in ((left_glint, left_cycles), (right_glint, right_cycles)):
+        np.testing.assert_allclose(got, want, rtol=MEAN_TOLERANCE,
+                                   atol=MEAN_TOLERANCE * want.max())
+
+
+def test_a_floor_lit_by_a_two_coloured_emitting_panel_matches_cycles():
     scene = cs.cycles_scene(bounces=0, samples=512)
     scene.glint.samples = 256
     _floor(cs.diffuse("floor", (0.8, 0.8, 0.8)))
@@ -91,12 +101,7 @@ def test_a_floor_lit_by_a_checker_textured_emitting_panel_matches_cycles():
     glint, cycles = cs.render_both()
     # The floor just before the panel (its base is 5.7 degrees under the horizon: row 25).
     floor_rows = slice(25, 31)
-    (left_glint, left_cycles), (right_glint, right_cycles) = _halves(glint, cycles, floor_rows)
-    # The texture reaches the floor: red light on the left, blue on the right.
-    assert left_cycles[0] > 2 * left_cycles[2] and right_cycles[2] > 2 * right_cycles[0]
-    for got, want in ((left_glint, left_cycles), (right_glint, right_cycles)):
-        np.testing.assert_allclose(got, want, rtol=MEAN_TOLERANCE,
-                                   atol=MEAN_TOLERANCE * want.max())
+    _assert_red_left_blue_right(glint, cycles, floor_rows)
 
 
 def _two_colour_light(kind: str, coordinate: str, location, **settings):
@@ -121,12 +126,7 @@ def test_a_light_textured_by_its_node_tree_matches_cycles(kind, coordinate, sett
     _floor(cs.diffuse("floor", (0.8, 0.8, 0.8)))
     _two_colour_light(kind, coordinate, (0.0, 1.0, 0.5), **settings)
     glint, cycles = cs.render_both()
-    floor_rows = slice(20, 36)
-    (left_glint, left_cycles), (right_glint, right_cycles) = _halves(glint, cycles, floor_rows)
-    assert left_cycles[0] > 2 * left_cycles[2] and right_cycles[2] > 2 * right_cycles[0]
-    for got, want in ((left_glint, left_cycles), (right_glint, right_cycles)):
-        np.testing.assert_allclose(got, want, rtol=MEAN_TOLERANCE,
-                                   atol=MEAN_TOLERANCE * want.max())
+    _assert_red_left_blue_right(glint, cycles, slice(20, 36))
 
 
 @pytest.mark.parametrize("linked", [True, False])
