@@ -29,11 +29,10 @@ from ...core.shader.input_nodes import (ATTRIBUTE_ALPHA_PREFIX, ATTRIBUTE_PREFIX
 from ...core.shader.registry import CLOSURE, COLOR, FLOAT, NODES, VECTOR
 from ...core.validation import MAX_COLOUR, value_text
 from ..compat import absent_input_value
-from .errors import ExportError
+from .errors import ShaderCompileError
+from .node_links import followed, linked_source
 from .values import as_stored, counted
 
-#: Nodes whose value passes straight through (their first input of the socket's kind).
-_PASS_THROUGH = {"NodeReroute"}
 #: How Blender's socket types map to the registry's.
 _SOCKET_KINDS = {"VALUE": FLOAT, "INT": FLOAT, "BOOLEAN": FLOAT, "RGBA": COLOR,
                  "VECTOR": VECTOR, "SHADER": CLOSURE}
@@ -64,10 +63,6 @@ NODE_COORDINATES = {
 SUBPROGRAM_INPUTS = {"ShaderNodeBump": (("Height", "height"),)}
 #: Rec.709 luminance, Cycles' colour-to-float conversion in Blender's default config.
 LUMINANCE = (0.2126, 0.7152, 0.0722)
-
-
-class ShaderCompileError(ExportError):
-    """A node tree the compiler cannot turn into a program (too deep)."""
 
 
 def _point_at_rest(dtype=np.float64) -> ShadingPoints:
@@ -130,13 +125,6 @@ def node_options(node, spec, context=None) -> dict:
     return values
 
 
-def _followed(socket) -> bool:
-    """Whether a link into ``socket`` counts: Blender keeps links into sockets a node hides
-    (a physical Sky Texture's Vector) or that are muted, and Cycles drops them, so that the
-    socket reads its coordinate as if unlinked."""
-    return socket.is_linked and socket.links[0].is_valid and not socket.links[0].is_muted
-
-
 class ShaderCompiler:
     """Compiles one node tree (``compile``); owner names it in notes ("material 'Wood'")."""
 
@@ -156,42 +144,6 @@ class ShaderCompiler:
         if text and text not in self.notes:
             self.notes.append(text)
 
-    # --- following links ----------------------------------------------------------------
-
-    def source(self, socket, groups):
-        """What feeds an input socket, through reroutes, muted nodes and node groups:
-        (output socket, group stack) of the node that computes it, or (None, the unlinked
-        input socket whose own value it takes; inside a group that is the group node's)."""
-        for _ in range(256):
-            if not socket.is_linked:
-                return None, socket
-            link = socket.links[0]
-            if not link.is_valid or link.is_muted:
-                return None, socket
-            node, output = link.from_node, link.from_socket
-            if node.bl_idname in _PASS_THROUGH or (node.mute and node.inputs):
-                inputs = [i for i in node.inputs if i.type == output.type] or list(node.inputs)
-                socket = inputs[0]
-                continue
-            if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None:
-                outputs = [n for n in node.node_tree.nodes if n.bl_idname == "NodeGroupOutput"]
-                active = [n for n in outputs if n.is_active_output] or outputs
-                inner = active[0].inputs.get(output.name) if active else None
-                if inner is None:
-                    return None, socket
-                groups = groups + (node,)
-                socket = inner
-                continue
-            if node.bl_idname == "NodeGroupInput" and groups:
-                outer = groups[-1].inputs.get(output.name)
-                if outer is None:
-                    return None, socket
-                groups = groups[:-1]
-                socket = outer
-                continue
-            return output, groups
-        raise ShaderCompileError(f"{self.owner}: its node groups nest too deep")
-
     # --- values ---------------------------------------------------------------------------
 
     def argument(self, socket, groups, kind: str, implicit: str | None = None,
@@ -199,12 +151,12 @@ class ShaderCompiler:
         """The value an input socket of ``kind`` receives: a Register, a Coordinate (an
         unlinked socket Cycles reads a coordinate for), or a constant.  closures_only: the
         socket is a shader node's, whose unlinked Normal is None (the hit's own normal)."""
-        output, where = self.source(socket, groups)
+        output, where = linked_source(socket, groups, self.owner)
         if output is None:
             if implicit == "normal" and closures_only:
                 # A shader's own normal: the hit's (and foldable), or the displaced one.
                 return self.shading_normal
-            if implicit is not None and not _followed(where):
+            if implicit is not None and not followed(where):
                 self.coordinates.add(implicit)
                 return Coordinate(implicit)
             return self._default(where, kind)
