@@ -223,7 +223,7 @@ def _path_setup(scene: Scene, settings: RenderSettings, arrays, surfaces, frame,
     programs = {row: material.program for row, material in enumerate(arrays.materials.entries)
                 if getattr(material, "program", None) is not None}
     tables = SurfaceTables.of(scene, frame) if programs else None
-    textured = {row: _emission_estimate(program, tables, geometry, arrays.triangles)
+    textured = {row: _emission_estimate(program, tables, geometry)
                 for row, program in programs.items() if may_emit(program)}
     mesh = mesh_lights(arrays.triangles, len(arrays.spheres),
                        surfaces.emission.astype(np.float64), textured)
@@ -266,22 +266,14 @@ def may_emit(program) -> bool:
     return False
 
 
-def _emission_estimate(program, tables, geometry, triangles):
-    """A function of (primitive (k,), b1 (k,), b2 (k,)) giving the emission (3, k) of the
-    material ``program`` on those triangles of ``triangles`` at barycentrics (b1, b2), seen
-    head-on (``core.emitters.mesh_lights`` weighs its choice of emitters by it)."""
+def _emission_estimate(program, tables, geometry):
+    """The emission of the material ``program`` at points of its triangles
+    (``core.emitters.mesh_lights``' ``textured_estimate``: their normals facing the view)."""
     from .surface_points import program_emission
-    first = tables.sphere_count
 
-    def estimate(primitive, b1, b2):
-        local = primitive - first
-        v0, v1, v2 = (v[:, local] for v in (triangles.v0, triangles.v1, triangles.v2))
-        points = v0 + b1 * (v1 - v0) + b2 * (v2 - v0)
-        cross = np.cross((v1 - v0).T, (v2 - v0).T).T
-        length = np.sqrt((cross ** 2).sum(axis=0))
-        normal = cross / np.where(length > 0, length, 1)
+    def estimate(primitive, barycentrics, points, normal):
         return program_emission(program, tables, geometry, points, normal, normal, primitive,
-                                (1 - b1 - b2, b1, b2))
+                                barycentrics)
     return estimate
 
 

@@ -408,13 +408,26 @@ ESTIMATE_POINTS = ((1 / 3, 1 / 3), (1 / 6, 1 / 6), (2 / 3, 1 / 6), (1 / 6, 2 / 3
 TEXTURED_FLOOR = 0.1
 
 
+def _on_triangles(v0, v1, v2, b1, b2):
+    """(3, k) the points of triangles (corners (3, k) each) at barycentrics (b1, b2) (k,)."""
+    return v0 + b1 * (v1 - v0) + b2 * (v2 - v0)
+
+
+def _unit_normals(v0, v1, v2):
+    """((3, k) unit normals, (k,) twice the areas) of triangles (corners (3, k) each)."""
+    cross = np.cross((v1 - v0).T, (v2 - v0).T).T
+    double_area = np.sqrt((cross ** 2).sum(axis=0))
+    return cross / np.where(double_area > 0, double_area, 1), double_area
+
+
 def mesh_lights(triangles, sphere_count: int, emission_table: np.ndarray,
                 textured_estimate=None):
     """The emitting triangles of ``triangles`` (``core.arrays.TriangleArrays``, global ids
     after ``sphere_count`` spheres) whose material's emission (``emission_table`` (3, M))
     is not black, or None.  textured_estimate: {material row: a function of (primitive
-    (k,), b1 (k,), b2 (k,)) giving the emission (3, k) there} for the materials whose
-    emission a program textures: every triangle of theirs may emit."""
+    (k,), barycentrics (b0, b1, b2) (k,) each, points (3, k), unit normals (3, k)) giving the
+    emission (3, k) there, seen head-on} for the materials whose emission a program
+    textures: every triangle of theirs may emit."""
     if triangles is None or len(triangles) == 0:
         return None
     textured_estimate = textured_estimate or {}
@@ -424,10 +437,13 @@ def mesh_lights(triangles, sphere_count: int, emission_table: np.ndarray,
         rows = np.flatnonzero(triangles.material == material)
         if len(rows) == 0:
             continue
+        corners = tuple(v[:, rows] for v in (triangles.v0, triangles.v1, triangles.v2))
+        normals, _ = _unit_normals(*corners)
         total = np.zeros((3, len(rows)))
         for b1, b2 in ESTIMATE_POINTS:
-            total += np.maximum(estimate(rows + sphere_count, np.full(len(rows), b1),
-                                         np.full(len(rows), b2)), 0)
+            b1, b2 = np.full(len(rows), b1), np.full(len(rows), b2)
+            total += np.maximum(estimate(rows + sphere_count, (1 - b1 - b2, b1, b2),
+                                         _on_triangles(*corners, b1, b2), normals), 0)
         total /= len(ESTIMATE_POINTS)
         mean = total.mean(axis=0)
         floor = TEXTURED_FLOOR * mean.mean() if mean.any() else 1.0
@@ -436,8 +452,7 @@ def mesh_lights(triangles, sphere_count: int, emission_table: np.ndarray,
     if len(emitting) == 0:
         return None
     v0, v1, v2 = (v[:, emitting] for v in (triangles.v0, triangles.v1, triangles.v2))
-    cross = np.cross((v1 - v0).T, (v2 - v0).T).T
-    double_area = np.sqrt((cross ** 2).sum(axis=0))
+    normals, double_area = _unit_normals(v0, v1, v2)
     areas = 0.5 * double_area
     weight = areas * emission[:, emitting].mean(axis=0)
     if not weight.sum() > 0:
@@ -446,30 +461,41 @@ def mesh_lights(triangles, sphere_count: int, emission_table: np.ndarray,
     by_primitive = np.zeros(sphere_count + len(triangles))
     primitives = emitting + sphere_count
     by_primitive[primitives] = probability
-    normals = cross / np.where(double_area > 0, double_area, 1)
     return MeshLights(primitives, v0, v1, v2, normals, areas, emission[:, emitting],
                       triangles.material[emitting], textured[emitting],
                       probability, np.cumsum(probability), by_primitive,
                       float(np.pi * weight.sum()))
 
 
-def sample_mesh_light(lights: MeshLights, points, u_pick, u1, u2) -> tuple:
-    """A point on an emitting triangle for each of k points: (LightSample, index (k,) of
-    the triangle among ``lights``, barycentrics (b1, b2) (k,) each of the point on it)."""
+def sample_mesh_light(lights: MeshLights, points, u_pick, u1, u2,
+                      textured=None) -> LightSample:
+    """A point on an emitting triangle for each of k points.  textured: for ``lights``
+    whose emission a program textures, a function of (primitive (m,), barycentrics (b0, b1,
+    b2) (m,) each, points on the lights (3, m), their unit normals (3, m), unit incoming
+    directions (3, m) (from the light towards the points), distances (m,)) giving the
+    emission there (3, m), which the samples that land on textured triangles take."""
     dtype = points.dtype
     index = np.minimum(np.searchsorted(lights.cumulative, u_pick * lights.cumulative[-1],
                                        side="right"), len(lights.areas) - 1)
     root = np.sqrt(u1)
     b1, b2 = 1 - root, u2 * root
     v0, v1, v2 = (v[:, index].astype(dtype) for v in (lights.v0, lights.v1, lights.v2))
-    target = v0 + b1 * (v1 - v0) + b2 * (v2 - v0)
+    target = _on_triangles(v0, v1, v2, b1, b2)
     towards, distance = normalize(target - points)
-    cos_l = np.abs(dot(towards, lights.normals[:, index].astype(dtype)))
+    normals = lights.normals[:, index].astype(dtype)
+    cos_l = np.abs(dot(towards, normals))
     pdf = (lights.probability[index] / lights.areas[index]
            * distance * distance / np.maximum(cos_l, 1e-9)).astype(dtype)
     radiance = lights.emission[:, index].astype(dtype)
+    rows = (np.flatnonzero(lights.textured[index]) if textured is not None
+            else np.zeros(0, np.intp))
+    if len(rows):
+        radiance[:, rows] = textured(
+            lights.primitives[index[rows]], (1 - b1[rows] - b2[rows], b1[rows], b2[rows]),
+            target[:, rows], normals[:, rows], -towards[:, rows], lights.material[index[rows]],
+            distance[rows])
     over = np.where(cos_l > 1e-9, radiance / pdf, 0)
-    return LightSample(towards, distance, radiance, pdf, over), index, (b1, b2)
+    return LightSample(towards, distance, radiance, pdf, over)
 
 
 def mesh_light_pdf(lights: MeshLights, primitive, t, cos_l):

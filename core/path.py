@@ -23,6 +23,7 @@ went on from the camera only straight through Transparent BSDFs.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -262,10 +263,8 @@ def _next_event(ctx, setup, closures, choice, points, normal, geometric, to_view
         where = take(points, rows)
         source = sources[i]
         if isinstance(source, MeshLights):
-            sample, index, barycentrics = sample_mesh_light(
-                source, where, (u_pick[rows] + shift) % 1.0, u1, u2)
-            if source.textured.any():
-                _texture_emission(ctx, source, sample, index, barycentrics, where)
+            sample = sample_mesh_light(source, where, (u_pick[rows] + shift) % 1.0, u1, u2,
+                                       functools.partial(emission_at, ctx))
         elif isinstance(source, WorldLight):
             sample = _sample_world(ctx, source, u1, u2, dtype)
         else:
@@ -295,42 +294,22 @@ def _next_event(ctx, setup, closures, choice, points, normal, geometric, to_view
     return total
 
 
-def _texture_emission(ctx, lights: MeshLights, sample: LightSample, index, barycentrics,
-                      points) -> None:
-    """Put into ``sample`` (drawn by ``sample_mesh_light`` from ``points``) the radiance
-    that the programs of textured emitters give where its samples landed: the triangle
-    ``index`` (k,) among ``lights`` at barycentrics (b1, b2), seen from the points."""
-    rows = np.flatnonzero(lights.textured[index])
-    if len(rows) == 0:
-        return
-    b1, b2 = (b[rows] for b in barycentrics)
-    towards = take(sample.towards, rows)
-    landed = take(points, rows) + towards * sample.distance[rows]
-    radiance = emission_at(ctx, lights.primitives[index[rows]], (1 - b1 - b2, b1, b2),
-                           landed, lights.normals[:, index[rows]].astype(points.dtype),
-                           -towards, lights.material[index[rows]], sample.distance[rows])
-    sample.radiance[:, rows] = radiance
-    sample.over_pdf[:, rows] = np.where(sample.pdf[rows] > 0,
-                                        radiance / np.where(sample.pdf[rows] > 0,
-                                                            sample.pdf[rows], 1), 0)
-
-
 def light_at(ctx, light, origins, towards, distance) -> np.ndarray:
     """(3, k) what a light's node tree (``core.emitters.light_texture``) gives at the points
     on it that origins (3, k) (the render's frame) see along unit ``towards`` (3, k) at
     ``distance`` (k,): a point light's surface faces what it lights, an area light's is its
     emitting side."""
-    frame = ctx.paths.frame
     points = origins + towards * distance
-    scale = 1.0 if frame is None else frame.scale
-    world = points if frame is None else (points / scale
-                                          + np.asarray(frame.centre, points.dtype)[:, None])
+    frame = ctx.paths.frame
+    if frame is not None:        # (the program sees the scene in its own units)
+        points = points / frame.scale + np.asarray(frame.centre, points.dtype)[:, None]
+        distance = distance / frame.scale
     incoming = -towards
     if light.kind == "area":
         normal = np.repeat(light.direction.astype(points.dtype)[:, None], points.shape[1], 1)
     else:
         normal = incoming
-    return light_texture(light, world, normal, incoming, distance / scale)
+    return light_texture(light, points, normal, incoming, distance)
 
 
 def emission_at(ctx, primitive, barycentrics, points, normal, incoming, material, distance):
