@@ -38,7 +38,7 @@ from ...core.shader.points import ShadingPoints
 from ...core.shader.program import ShaderProgram, constant_array, run
 from ...core.validation import MAX_COLOUR, value_text
 from ..compat import light_exposure, light_node_tree, uses_light_temperature
-from .shader import ShaderCompiler
+from .shader import ShaderCompiler, surface_socket
 from .values import as_stored
 
 #: The most power (W) or sun strength (W/m^2) a light is exported with (past it, clamped): as
@@ -130,9 +130,10 @@ def export_article_light(light, matrix_world, name: str) -> PointLight | None:
 
 
 def _at_rest(program) -> np.ndarray:
-    """(3,) a light program's emission at a point at rest (its centre, seen head-on)."""
-    up = np.array([[0.0], [0.0], [-1.0]])
-    value = run(program, ShadingPoints(np.zeros((3, 1)), up, up, -up))
+    """(3,) a light program's emission at a point at rest (its centre, its normal the
+    light's -Z, where it shines)."""
+    shining = np.array([[0.0], [0.0], [-1.0]])
+    value = run(program, ShadingPoints(np.zeros((3, 1)), shining, shining, -shining))
     return np.broadcast_to(value.emission, (3, 1))[:, 0]
 
 
@@ -147,8 +148,7 @@ def light_nodes(light, name: str, context=None):
     tree = light_node_tree(light)
     if tree is None:
         return (1.0, 1.0, 1.0), None, None
-    output = tree.get_output_node('CYCLES') or tree.get_output_node('ALL')
-    surface = output.inputs.get("Surface") if output is not None else None
+    surface = surface_socket(tree)
     if surface is None or not surface.is_linked:
         return (0.0, 0.0, 0.0), None, (f"light {value_text(name)}: nothing reaches its Light "
                                        f"Output's Surface: it emits nothing, as in Cycles")

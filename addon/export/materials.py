@@ -48,7 +48,7 @@ from ...core.reflectance import blinn_exponent
 from ...core.validation import value_text
 from ..compat import node_tree_in_use
 from ..utils.colour import colour_from_blender
-from .shader import ShaderCompiler, surface_material
+from .shader import ShaderCompiler, surface_material, surface_socket
 from .values import as_stored, counted
 
 AMBIENT_FRACTION = 0.1
@@ -91,13 +91,7 @@ def material_from_surface(values: SurfaceValues) -> Material:
 
 def _surface_node(material):
     """The shader node plugged into the active material output's Surface, or None."""
-    tree = node_tree_in_use(material)
-    if tree is None:
-        return None
-    output = tree.get_output_node('CYCLES') or tree.get_output_node('ALL')
-    if output is None:
-        return None
-    surface = output.inputs.get("Surface")
+    surface = surface_socket(node_tree_in_use(material))
     if surface is None or not surface.is_linked:
         return None
     return surface.links[0].from_node
@@ -195,14 +189,6 @@ def usable_values(values: SurfaceValues, where: str) -> tuple[SurfaceValues, Opt
 
 # --------------------------------------------------------------------------------------------
 # Default semantics: the shader nodes as a program (``shader``).
-
-def surface_socket(tree):
-    """The Surface input of the active Material Output (Cycles' or All), or None."""
-    if tree is None:
-        return None
-    output = tree.get_output_node('CYCLES') or tree.get_output_node('ALL')
-    return None if output is None else output.inputs.get("Surface")
-
 
 def _viewport_display(material, where: str) -> tuple[SurfaceMaterial, Optional[str]]:
     values, note = usable_values(SurfaceValues(

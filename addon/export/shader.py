@@ -65,6 +65,15 @@ SUBPROGRAM_INPUTS = {"ShaderNodeBump": (("Height", "height"),)}
 LUMINANCE = (0.2126, 0.7152, 0.0722)
 
 
+def surface_socket(tree):
+    """The Surface input of a node tree's active output (Cycles' or All: a material's, a
+    world's or a light's), or None."""
+    if tree is None:
+        return None
+    output = tree.get_output_node('CYCLES') or tree.get_output_node('ALL')
+    return None if output is None else output.inputs.get("Surface")
+
+
 def _point_at_rest(dtype=np.float64) -> ShadingPoints:
     """One shading point at the origin facing +Z, seen from above: where constant nodes
     are folded, and where a program's fallback constants are read."""

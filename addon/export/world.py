@@ -20,7 +20,7 @@ from ...core.shader.world import world_points
 from ...core.validation import MAX_COLOUR, value_text
 from ..compat import node_tree_in_use
 from .values import as_stored, counted
-from .shader import ShaderCompiler
+from .shader import ShaderCompiler, surface_socket
 
 
 def export_world(world, context=None):
@@ -35,8 +35,7 @@ def export_world(world, context=None):
         return tuple(float(c) for c in fixed), None, (
             f"world '{world.name}': its colour {value_text(as_stored(colour))} counts as "
             f"{value_text(as_stored(fixed))}")
-    output = tree.get_output_node('CYCLES') or tree.get_output_node('ALL')
-    surface = output.inputs.get("Surface") if output is not None else None
+    surface = surface_socket(tree)
     if surface is None or not surface.is_linked:
         return (0.0, 0.0, 0.0), None, None  # Blender renders an unconnected world black too
     compiler = ShaderCompiler(f"world '{world.name}'", context)
