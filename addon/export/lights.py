@@ -130,10 +130,10 @@ def export_article_light(light, matrix_world, name: str) -> PointLight | None:
 
 
 def _at_rest(program) -> np.ndarray:
-    """(3,) a light program's emission at a point at rest (its centre, its normal the
-    light's -Z, where it shines)."""
+    """(3,) a light program's emission at a point at rest: its centre, its normal and its
+    incoming the light's -Z, where it shines (as ``core.path.light_at`` gives them)."""
     shining = np.array([[0.0], [0.0], [-1.0]])
-    value = run(program, ShadingPoints(np.zeros((3, 1)), shining, shining, -shining))
+    value = run(program, ShadingPoints(np.zeros((3, 1)), shining, shining, shining))
     return np.broadcast_to(value.emission, (3, 1))[:, 0]
 
 
