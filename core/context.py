@@ -25,6 +25,7 @@ from .materials import SurfaceMaterial
 from .sampler import fibonacci_sphere
 from .scene import Scene
 from .settings import RenderSettings
+from .shader.program import Register
 from .shading import WHITTED_SHADING, WhittedShading
 from .vectors import dot
 
@@ -252,12 +253,12 @@ def may_emit(program) -> bool:
     """Whether a material's program may emit light: an Emission (or Background) shader in
     it, or a Principled BSDF whose Emission Color and Strength are not both constant with
     one of them black."""
-    from .shader.program import Register
     for instruction in program.instructions:
         if instruction.node in ("ShaderNodeEmission", "ShaderNodeBackground"):
             return True
         if instruction.node == "ShaderNodeBsdfPrincipled":
-            colour, strength = instruction.arguments[9], instruction.arguments[10]
+            colour = instruction.argument("Emission Color")
+            strength = instruction.argument("Emission Strength")
             if isinstance(colour, Register) or isinstance(strength, Register):
                 return True
             if not isinstance(colour, tuple) or (float(strength) != 0
@@ -281,12 +282,11 @@ def may_be_transparent(program) -> bool:
     """Whether a material's program may give a hit some transparency: a Transparent BSDF in
     it, or a Principled BSDF whose Alpha is not a constant 1 (so shadow rays must look
     through its surfaces)."""
-    from .shader.program import Register
     for instruction in program.instructions:
         if instruction.node == "ShaderNodeBsdfTransparent":
             return True
         if instruction.node == "ShaderNodeBsdfPrincipled":
-            alpha = instruction.arguments[4]
+            alpha = instruction.argument("Alpha")
             if isinstance(alpha, Register) or float(alpha) < 1:
                 return True
     return False

@@ -48,6 +48,11 @@ class Instruction:
     options: tuple
     outputs: tuple
 
+    def argument(self, name: str):
+        """The argument of input ``name`` (its identifier in the node's ``NODES`` entry)."""
+        names = [identifier for identifier, _ in NODES[self.node].inputs]
+        return self.arguments[names.index(name)]
+
 
 @dataclass(frozen=True)
 class ShaderProgram:
