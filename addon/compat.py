@@ -73,24 +73,19 @@ def set_file_format(settings, file_format: str) -> None:
 NODES_ALWAYS = VERSION >= (5, 0, 0)
 
 
-def node_tree_in_use(datablock):
-    """The node tree a material or world renders with, or None (it renders its colour)."""
-    tree = datablock.node_tree
-    if tree is None or NODES_ALWAYS or datablock.use_nodes:
-        return tree
-    return None
-
-
 #: Lights render their node tree only with Use Nodes on, until a Blender (5.3 here) where
 #: every light has a tree and ``use_nodes`` is deprecated (always True): asked of its RNA.
 LIGHT_NODES_ALWAYS = bool(getattr(bpy.types.Light.bl_rna.properties["use_nodes"],
                                   "is_deprecated", False))
 
 
-def light_node_tree(light):
-    """The node tree a light renders with, or None (it renders its colour and power)."""
-    tree = light.node_tree
-    if tree is None or LIGHT_NODES_ALWAYS or light.use_nodes:
+def node_tree_in_use(datablock, always: bool = NODES_ALWAYS):
+    """The node tree a material, world or light renders with, or None (it renders its
+    colour); always: whether this Blender renders such a datablock's tree whatever its
+    Use Nodes (``NODES_ALWAYS`` for materials and worlds, ``LIGHT_NODES_ALWAYS`` for
+    lights)."""
+    tree = datablock.node_tree
+    if tree is None or always or datablock.use_nodes:
         return tree
     return None
 

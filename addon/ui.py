@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import bpy
 
-from .compat import LIGHT_NODES_ALWAYS, light_node_tree
+from .compat import LIGHT_NODES_ALWAYS, node_tree_in_use
 from .engine.base import GlintRenderEngine
 from .operators import GLINT_OT_render
 
@@ -161,7 +161,7 @@ class GLINT_PT_light_nodes(bpy.types.Panel):
         light = context.light
         if not LIGHT_NODES_ALWAYS:
             layout.prop(light, "use_nodes", icon='NODETREE')
-        tree = light_node_tree(light)
+        tree = node_tree_in_use(light, LIGHT_NODES_ALWAYS)
         output = tree.get_output_node('CYCLES') if tree is not None else None
         if output is not None:
             layout.template_node_view(tree, output, output.inputs["Surface"])

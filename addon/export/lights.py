@@ -37,7 +37,8 @@ from ...core import AreaLight, PointLight, SphereLight, SpotLight, SunLight
 from ...core.shader.points import ShadingPoints
 from ...core.shader.program import ShaderProgram, constant_array, run
 from ...core.validation import MAX_COLOUR, value_text
-from ..compat import light_exposure, light_node_tree, uses_light_temperature
+from ..compat import (LIGHT_NODES_ALWAYS, light_exposure, node_tree_in_use,
+                      uses_light_temperature)
 from .shader import ShaderCompiler, surface_socket
 from .values import as_stored
 
@@ -145,7 +146,7 @@ def light_nodes(light, name: str, context=None):
     of constant colour x strength folds to that factor; one whose colour or strength comes
     from nodes becomes a program (a sun, which has no point to evaluate it at, takes its
     value at rest, with a note)."""
-    tree = light_node_tree(light)
+    tree = node_tree_in_use(light, LIGHT_NODES_ALWAYS)
     if tree is None:
         return (1.0, 1.0, 1.0), None, None
     surface = surface_socket(tree)
